@@ -1,0 +1,80 @@
+"""Argument checking shared by every module.
+
+Messages name the argument, what was expected and what came, e.g.
+``expected quat of shape (..., 4), got (5, 3)``.
+"""
+
+import numpy as np
+
+__all__ = ["float_array", "real_array", "finite", "CHUNK"]
+
+#: Number of quaternions processed per block by the chunked kernels: a few
+#: arrays of this many quaternions stay inside the L2 cache.
+CHUNK = 8192
+
+
+def float_array(x, name, last=None, dtype=None):
+    """Return `x` as a float32 or float64 ndarray (never copied if already one).
+
+    float32 and float64 are kept; bool and integer input become float64;
+    complex, object, string and other input raise `TypeError`.  With `last`,
+    the length of the last axis is checked (`ValueError` otherwise).
+
+    Examples
+    --------
+    >>> float_array([[1, 0, 0, 0]], "quat", last=4).dtype
+    dtype('float64')
+    >>> float_array([1, 2, 3], "quat", last=4)
+    Traceback (most recent call last):
+    ...
+    ValueError: expected quat of shape (..., 4), got (3,)
+    """
+    if dtype is not None:
+        dtype = np.dtype(dtype)
+        if dtype not in (np.float32, np.float64):
+            raise TypeError(f"expected dtype float32 or float64 for {name}, got {dtype}")
+    if isinstance(x, np.ndarray):
+        a = x.view(np.ndarray) if type(x) is not np.ndarray else x
+    else:
+        try:
+            a = np.asarray(x)
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"expected {name} to be array_like of real numbers, got {type(x).__name__} ({exc})") from None
+    kind = a.dtype.kind
+    if kind == "f":
+        if a.dtype.itemsize not in (4, 8):
+            a = a.astype(np.float64)
+    elif kind in "biu":
+        a = a.astype(np.float64)
+    else:
+        raise TypeError(f"expected {name} of real numbers (float, int or bool), got dtype {a.dtype}")
+    if dtype is not None and a.dtype != dtype:
+        a = a.astype(dtype)
+    if last is not None and (a.ndim == 0 or a.shape[-1] != last):
+        raise ValueError(f"expected {name} of shape (..., {last}), got {a.shape}")
+    return a
+
+
+def real_array(x, name):
+    """Return `x` as a real ndarray (any float width kept, ints/bools as float64).
+
+    Used for interpolation parameters and exponents, which must not promote
+    float32 quaternions: a Python float or a float32 array keeps float32 maths.
+
+    >>> real_array(0.5, "t").dtype
+    dtype('float64')
+    """
+    return float_array(x, name)
+
+
+def finite(a, name):
+    """Raise `ValueError` unless every element of `a` is finite.
+
+    >>> finite(np.array([1.0, np.nan]), "times")
+    Traceback (most recent call last):
+    ...
+    ValueError: expected finite values in times, got nan or inf
+    """
+    if not np.isfinite(a).all():
+        raise ValueError(f"expected finite values in {name}, got nan or inf")
+    return a
