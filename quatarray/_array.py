@@ -175,9 +175,8 @@ class QuatArray(RotationMixin, np.ndarray):
     def __iter__(self):
         if self.ndim < 2:
             raise TypeError("iteration over a single quaternion (shape (4,)) is undefined; it has no batch axis")
-        raw = _raw(self)
-        for i in range(self.shape[0]):
-            yield raw[i].view(type(self))
+        cls = type(self)
+        return (row.view(cls) for row in _raw(self))
 
     def __getitem__(self, key):
         res = _raw(self)[key]
@@ -348,6 +347,16 @@ class QuatArray(RotationMixin, np.ndarray):
     def __rtruediv__(self, other):
         return _binary(np.divide, other, self)
 
+    def __pow__(self, t):
+        # ndarray.__pow__ would shortcut t = 2 / 0.5 / -1 to square / sqrt / reciprocal
+        return _binary(np.power, self, t)
+
+    def __rpow__(self, base):
+        return _binary(np.power, base, self)
+
+    def __ipow__(self, t):
+        return _binary(np.power, self, t, out=self)
+
     def __invert__(self):
         return self.conj()
 
@@ -383,7 +392,7 @@ class QuatArray(RotationMixin, np.ndarray):
                 res = _UNARY[ufunc](_quat(inputs[0], "argument"))
                 return _finish_plain(res, out) if ufunc in _PLAIN_UNARY else _finish(res, out)
         elif method in ("reduce", "accumulate") and ufunc in (np.multiply, np.add):
-            return _reduce(ufunc, method, *inputs, out=out)
+            return _reduce(ufunc, method, *inputs, out=out, **kwargs)
         raise TypeError(
             f"ufunc {ufunc.__name__!r} ({method}) has no quaternion meaning for QuatArray; "
             f"use q.ndarray for componentwise maths on the components")

@@ -328,10 +328,13 @@ def power(q, t):
         ang = t * theta
         # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
         s = np.where(vn > 0, np.sin(ang) / np.where(vn > 0, vn, 1), t * scale)
+        factor = mag * s
+        if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
+            factor = np.where(zero, 0.0, factor)
     batch = np.broadcast_shapes(q.shape[:-1], np.shape(ang))
     res = np.empty(batch + (4,), dtype)
     res[..., 0] = mag * np.cos(ang)
-    np.multiply(q[..., 1:], (mag * s)[..., None], out=res[..., 1:])
+    np.multiply(q[..., 1:], factor[..., None], out=res[..., 1:])
     neg_real = (vn == 0) & (q[..., 0] < 0)
     if neg_real.any():
         res[..., 1] = np.where(neg_real, mag * np.sin(ang), res[..., 1])

@@ -1,0 +1,240 @@
+"""Raw-array quaternion algebra: values against independent formulas and scipy,
+algebraic identities (hypothesis), dtypes, layouts and broadcasting."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from quatarray import _kernels as K
+
+from .conftest import random_quats, tol
+
+
+def hamilton_reference(p, q):
+    """The per-component product formula (independent of the complex-pair kernel)."""
+    w1, x1, y1, z1 = np.moveaxis(p, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(q, -1, 0)
+    return np.stack([
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    ], axis=-1)
+
+
+def cross_rotate_reference(q, v):
+    """q v q^-1 computed by two Hamilton products (the definition)."""
+    vq = np.concatenate([np.zeros(v.shape[:-1] + (1,)), v], axis=-1)
+    qn = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    conj = qn * np.array([1, -1, -1, -1])
+    return hamilton_reference(hamilton_reference(qn, vq), conj)[..., 1:]
+
+
+# components in [-10, 10]; magnitudes below 1e-100 flushed to 0 so that norms do not underflow
+finite_quat = arrays(np.float64, 4, elements=st.floats(-10, 10).map(lambda c: c if abs(c) > 1e-100 else 0.0))
+unit_quat = finite_quat.filter(lambda q: np.linalg.norm(q) > 1e-3).map(lambda q: q / np.linalg.norm(q))
+nonzero_quat = finite_quat.filter(lambda q: np.linalg.norm(q) > 1e-2)
+
+
+# --- the product -----------------------------------------------------------------
+
+@pytest.mark.parametrize("shapes", [((), ()), ((5,), (5,)), ((3, 1), (4,)), ((), (2, 3)),
+                                    ((2, 1, 3), (4, 1)), ((20000,), (1,)), ((3, 20000), (20000,)),
+                                    ((30001,), (30001,))])
+def test_product_matches_component_formula(rng, dtype, shapes):
+    sp, sq = shapes
+    p = random_quats(rng, sp, dtype, unit=False)
+    q = random_quats(rng, sq, dtype, unit=False)
+    got = K.multiply(p, q)
+    want = hamilton_reference(p.astype(np.float64), q.astype(np.float64))
+    assert got.dtype == dtype
+    assert got.shape == np.broadcast_shapes(sp, sq) + (4,)
+    scale = np.linalg.norm(p, axis=-1)[..., None] * np.linalg.norm(q, axis=-1)[..., None]
+    assert np.all(np.abs(got - want) <= 4 * np.finfo(dtype).eps * scale)
+
+
+def test_product_matches_scipy_composition(rng):
+    from scipy.spatial.transform import Rotation as R
+    p = random_quats(rng, (10_000,))
+    q = random_quats(rng, (10_000,))
+    want = (R.from_quat(p, scalar_first=True) * R.from_quat(q, scalar_first=True)).as_quat(scalar_first=True)
+    got = K.multiply(p, q)
+    # equal up to the double cover: compare the sign-fixed versions
+    got *= np.sign(np.sum(got * want, axis=-1))[:, None]
+    np.testing.assert_allclose(got, want, atol=tol(np.float64))
+
+
+def test_product_unit_table():
+    one, i, j, k = np.eye(4)
+    m = K.multiply
+    for u in (i, j, k):
+        np.testing.assert_array_equal(m(u, u), -one)
+    np.testing.assert_array_equal(m(m(i, j), k), -one)
+    np.testing.assert_array_equal(m(i, j), k)
+    np.testing.assert_array_equal(m(j, k), i)
+    np.testing.assert_array_equal(m(k, i), j)
+    np.testing.assert_array_equal(m(j, i), -k)
+    np.testing.assert_array_equal(m(k, j), -i)
+    np.testing.assert_array_equal(m(i, k), -j)
+
+
+@pytest.mark.parametrize("layout", ["fortran", "strided", "readonly", "float32+64"])
+def test_product_layouts(rng, layout):
+    p = random_quats(rng, (7, 5), unit=False)
+    q = random_quats(rng, (7, 5), unit=False)
+    want = hamilton_reference(p, q)
+    if layout == "fortran":
+        p, q = np.asfortranarray(p), np.asfortranarray(q)
+    elif layout == "strided":
+        p = np.repeat(p, 2, axis=0)[::2]
+        q = np.concatenate([q, q], axis=-1)[..., :4]
+    elif layout == "readonly":
+        p.flags.writeable = q.flags.writeable = False
+    else:
+        p = p.astype(np.float32)
+        want = hamilton_reference(p.astype(np.float64), q)
+    before = p.copy(), q.copy()
+    got = K.multiply(p, q)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-5 if layout == "float32+64" else 1e-14)
+    np.testing.assert_array_equal(p, before[0])
+    np.testing.assert_array_equal(q, before[1])
+
+
+def test_product_out_aliasing_input(rng):
+    p = random_quats(rng, (40_000,), unit=False)
+    q = random_quats(rng, (40_000,), unit=False)
+    want = hamilton_reference(p, q)
+    K.multiply(p, q, out=p)
+    np.testing.assert_allclose(p, want, atol=1e-13)
+
+
+def test_product_out_errors():
+    p = np.zeros((3, 4))
+    with pytest.raises(ValueError, match=r"expected out of shape \(3, 4\), got \(2, 4\)"):
+        K.multiply(p, p, out=np.zeros((2, 4)))
+    with pytest.raises(TypeError, match="expected out of dtype float64, got float32"):
+        K.multiply(p, p, out=np.zeros((3, 4), np.float32))
+
+
+def test_empty_batches():
+    e = np.zeros((0, 4))
+    assert K.multiply(e, e).shape == (0, 4)
+    assert K.rotate(e, np.zeros((0, 3))).shape == (0, 3)
+    assert K.exp(e).shape == K.log(e).shape == K.power(e, 2.0).shape == (0, 4)
+    assert K.norm(e).shape == (0,)
+
+
+def test_blocks_cover_batch_exactly_once():
+    for shape in [(5,), (3, 4), (7, 3, 5), (2, 9), (0, 3)]:
+        seen = np.zeros(shape, int)
+        for idx in K.blocks(shape, chunk=4):
+            seen[idx] += 1
+        assert np.all(seen == 1)
+
+
+# --- hypothesis identities ----------------------------------------------------------
+
+@given(finite_quat, finite_quat, finite_quat)
+def test_associativity(p, q, r):
+    lhs = K.multiply(K.multiply(p, q), r)
+    rhs = K.multiply(p, K.multiply(q, r))
+    scale = np.linalg.norm(p) * np.linalg.norm(q) * np.linalg.norm(r)
+    assert np.all(np.abs(lhs - rhs) <= 16 * np.finfo(float).eps * max(scale, 1e-300))
+
+
+@given(finite_quat, finite_quat)
+def test_norm_is_multiplicative(p, q):
+    np.testing.assert_allclose(K.norm(K.multiply(p, q)), K.norm(p) * K.norm(q), rtol=1e-14, atol=1e-300)
+
+
+@given(finite_quat, finite_quat)
+def test_conjugate_reverses_products(p, q):
+    lhs = K.conjugate(K.multiply(p, q))
+    rhs = K.multiply(K.conjugate(q), K.conjugate(p))
+    np.testing.assert_allclose(lhs, rhs, rtol=0, atol=8 * np.finfo(float).eps * (K.norm(p) * K.norm(q) + 1e-300))
+
+
+@given(nonzero_quat)
+def test_inverse(q):
+    np.testing.assert_allclose(K.multiply(q, K.inverse(q)), [1, 0, 0, 0], atol=1e-14)
+    np.testing.assert_allclose(K.multiply(K.inverse(q), q), [1, 0, 0, 0], atol=1e-14)
+
+
+@given(arrays(np.float64, 4, elements=st.floats(-3, 3)))
+def test_exp_log_roundtrip(q):
+    # log(exp q) = q only on the principal branch (|v| < π); exp(log q) = q always
+    e = K.exp(q)
+    np.testing.assert_allclose(K.exp(K.log(e)), e, rtol=1e-12, atol=1e-12 * K.norm(e))
+
+
+@given(unit_quat, st.floats(-3, 3), st.floats(-3, 3))
+def test_power_adds_exponents(q, a, b):
+    lhs = K.multiply(K.power(q, a), K.power(q, b))
+    np.testing.assert_allclose(lhs, K.power(q, a + b), atol=1e-12)
+
+
+@given(finite_quat, st.floats(-3, 3))
+def test_power_is_exp_of_scaled_log(q, t):
+    q = q + np.array([0.1, 0, 0, 0])  # keep away from the zero quaternion
+    np.testing.assert_allclose(K.power(q, t), K.exp(t * K.log(q)), rtol=1e-11, atol=1e-11)
+
+
+@given(unit_quat, arrays(np.float64, 3, elements=st.floats(-10, 10)))
+def test_rotate_matches_two_products(q, v):
+    np.testing.assert_allclose(K.rotate(q, v), cross_rotate_reference(q, v), rtol=0,
+                               atol=1e-14 * (np.linalg.norm(v) + 1))
+
+
+# --- special values -------------------------------------------------------------------
+
+def test_log_special_values():
+    np.testing.assert_allclose(K.log(np.array([-2.0, 0, 0, 0])), [np.log(2), np.pi, 0, 0])
+    with np.errstate(divide="ignore"):
+        assert K.log(np.zeros(4))[0] == -np.inf
+    # tiny vector part: accurate angle, no cancellation
+    q = np.array([1.0, 1e-200, 0, 0])
+    np.testing.assert_allclose(K.log(q), [0, 1e-200, 0, 0], rtol=1e-15)
+
+
+def test_power_of_zero_and_negative_real():
+    z = np.zeros(4)
+    np.testing.assert_array_equal(K.power(z, 2.0), z)
+    np.testing.assert_array_equal(K.power(z, 0.0), [1, 0, 0, 0])
+    assert K.power(z, -1.0)[0] == np.inf
+    # (-1)^(1/2) is the principal root i
+    np.testing.assert_allclose(K.power(np.array([-1.0, 0, 0, 0]), 0.5), [0, 1, 0, 0], atol=1e-16)
+
+
+def test_inverse_and_normalize_of_zero_raise():
+    with pytest.raises(ZeroDivisionError, match="expected non-zero quaternions"):
+        K.inverse(np.zeros((2, 4)))
+    with pytest.raises(ValueError, match="expected non-zero quaternions to normalize"):
+        K.normalize(np.zeros(4))
+
+
+@pytest.mark.parametrize("func", [K.exp, K.log, K.conjugate, K.normalize, K.inverse])
+def test_unary_keeps_dtype_and_shape(rng, dtype, batch_shape, func):
+    q = random_quats(rng, batch_shape, dtype)
+    res = func(q)
+    assert res.dtype == dtype and res.shape == q.shape
+
+
+def test_power_batch_shaped_exponent(rng, dtype):
+    q = random_quats(rng, (3, 2), dtype)
+    t = np.array([0.5, 2.0])
+    got = K.power(q, t)
+    assert got.dtype == dtype
+    for i in range(3):
+        for j in range(2):
+            np.testing.assert_allclose(got[i, j], K.power(q[i, j], t[j]), atol=tol(dtype))
+
+
+def test_rotate_broadcasts_and_keeps_dtype(rng, dtype):
+    q = random_quats(rng, (4, 1), dtype, unit=False)
+    v = rng.standard_normal((3, 3)).astype(dtype)
+    got = K.rotate(q, v)
+    assert got.shape == (4, 3, 3) and got.dtype == dtype
+    want = cross_rotate_reference(q.astype(float), v.astype(float))
+    np.testing.assert_allclose(got, want, atol=tol(dtype) * 10)
