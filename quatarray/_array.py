@@ -315,9 +315,11 @@ class QuatArray(RotationMixin, np.ndarray):
         array([0., 1., 0.])
         """
         q = _raw(self)
-        if not np.all(K.sqnorm(q) > 0):
+        v = float_array(v, "v", last=3)
+        res = K.rotate(q, v)
+        if not np.isfinite(res).all() and np.isfinite(q).all() and np.isfinite(v).all():
             raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
-        return K.rotate(q, float_array(v, "v", last=3))
+        return res
 
     @classmethod
     def identity(cls, num=None, *, shape=None, dtype=np.float64):

@@ -110,7 +110,10 @@ def _mul_block(p, q, o, t=None):
 def _mul_flat(p, q, o):
     """Chunked product of C-contiguous (N, 4) arrays of one shape."""
     n = len(o)
-    t = np.empty(min(n, CHUNK), _COMPLEX[o.dtype])
+    if n <= CHUNK:
+        _mul_block(p, q, o)
+        return
+    t = np.empty(CHUNK, _COMPLEX[o.dtype])
     for s in range(0, n, CHUNK):
         e = min(s + CHUNK, n)
         _mul_block(p[s:e], q[s:e], o[s:e], t[: e - s])
@@ -154,11 +157,15 @@ def multiply(p, q, out=None):
     >>> multiply(i, j)
     array([0., 0., 0., 1.])
     """
+    if (out is None and p.shape == q.shape and p.dtype == q.dtype and p.dtype in _COMPLEX
+            and p.flags.c_contiguous and q.flags.c_contiguous):
+        # fast path for the common case: same shape, same float dtype, C order
+        if p.shape == (4,):
+            return _mul_scalar(p, q, p.dtype)
+        res = np.empty(p.shape, p.dtype)
+        _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
+        return res
     dtype = result_dtype(p, q)
-    if out is None and p.ndim == 1 and q.ndim == 1:
-        if p.shape != (4,) or q.shape != (4,):
-            raise ValueError(f"expected quaternions of shape (..., 4), got {p.shape} and {q.shape}")
-        return _mul_scalar(p, q, dtype)
     batch = np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
     shape = batch + (4,)
     res = _out(out, shape, dtype)
@@ -352,14 +359,26 @@ def rotate(q, v):
     True
     """
     dtype = result_dtype(q, v)
+    if q.shape == (4,) and v.shape == (3,):
+        return _rotate_scalar(q, v, dtype)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
     res = np.empty(batch + (3,), dtype)
     nb = len(batch)
-    for idx in blocks(batch):
-        qb = _sub(q, idx, nb)
-        vb = _sub(v, idx, nb)
-        _rotate_block(qb, vb, res[idx])
+    with np.errstate(divide="ignore", invalid="ignore"):  # zero quaternions give nan
+        for idx in blocks(batch):
+            _rotate_block(_sub(q, idx, nb), _sub(v, idx, nb), res[idx])
     return res
+
+
+def _rotate_scalar(q, u, dtype):
+    """`rotate` for one quaternion and one vector, with Python floats."""
+    w, x, y, z = q.tolist()
+    ux, uy, uz = u.tolist()
+    n2 = w * w + x * x + y * y + z * z
+    s = 2.0 / n2 if n2 else float("nan")  # zero quaternions give nan, as the array path
+    tx, ty, tz = (y * uz - z * uy) * s, (z * ux - x * uz) * s, (x * uy - y * ux) * s
+    return np.array([ux + w * tx + (y * tz - z * ty), uy + w * ty + (z * tx - x * tz),
+                     uz + w * tz + (x * ty - y * tx)], dtype)
 
 
 def _rotate_block(q, u, o):
