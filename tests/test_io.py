@@ -1,0 +1,330 @@
+"""CSV and NPZ keyframe files, query times, atomic writes (quatarray._io)."""
+
+import os
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from .conftest import random_quats, tol
+from quatarray import _io
+from quatarray._io import (FormatError, Keyframes, fps_times, read_csv, read_npz, read_times,
+                           resample_keyframes, write_csv, write_npz)
+
+METHODS = ("slerp", "squad", "bezier", "linear")
+
+
+def smooth_keys(rng, n, batch=(), dtype=np.float64):
+    """Unit keys, each within ~35 degrees of the previous one (same hemisphere)."""
+    q = np.empty((n,) + tuple(batch) + (4,))
+    q[0] = random_quats(rng, batch)
+    for k in range(1, n):
+        step = random_quats(rng, batch)
+        step[..., 0] = np.abs(step[..., 0]) + 3.0
+        q[k] = q[k - 1] + 0.3 * step / np.linalg.norm(step, axis=-1, keepdims=True)
+        q[k] /= np.linalg.norm(q[k], axis=-1, keepdims=True)
+    return q.astype(dtype)
+
+
+def uneven_times(rng, n):
+    return np.cumsum(rng.uniform(0.05, 1.0, n)) - 0.3
+
+
+def write_text(path, text):
+    with open(path, "w", newline="") as f:
+        f.write(text)
+    return path
+
+
+# --------------------------------------------------------------------------- CSV
+
+@pytest.mark.parametrize("scalar_last", [False, True], ids=["wxyz", "xyzw"])
+def test_csv_write_read_is_exact(tmp_path, rng, scalar_last):
+    kf = Keyframes(uneven_times(rng, 9), smooth_keys(rng, 9, (3,)), ("hip", "left.knee", "b c"))
+    path = tmp_path / "k.csv"
+    write_csv(path, kf, scalar_last=scalar_last)
+    back = read_csv(path, scalar_last=scalar_last)
+    assert back.names == kf.names
+    np.testing.assert_array_equal(back.times, kf.times)
+    np.testing.assert_array_equal(back.keys, kf.keys)
+
+
+@pytest.mark.parametrize("scalar_last", [False, True], ids=["wxyz", "xyzw"])
+def test_csv_layout(tmp_path, scalar_last):
+    kf = Keyframes(np.array([0.0, 0.5]), np.array([[[1.0, 2.0, 3.0, 4.0]], [[5.0, 6.0, 7.0, 8.0]]]), ("a",))
+    path = tmp_path / "k.csv"
+    write_csv(path, kf, scalar_last=scalar_last)
+    header, first, _ = path.read_text().split("\n", 2)
+    order = "xyzw" if scalar_last else "wxyz"
+    assert header.split(",") == ["time"] + [f"a.{c}" for c in order]
+    cells = [float(c) for c in first.split(",")]
+    assert cells[1:] == [dict(zip("wxyz", kf.keys[0, 0]))[c] for c in order]
+
+
+def test_csv_names_default_from_batch(tmp_path, rng):
+    keys = smooth_keys(rng, 3, (2, 2))
+    path = tmp_path / "k.csv"
+    write_csv(path, Keyframes(np.arange(3.0), keys))
+    back = read_csv(path)
+    assert back.names == ("q0", "q1", "q2", "q3")
+    np.testing.assert_array_equal(back.keys, keys.reshape(3, 4, 4))
+
+
+def test_csv_reads_shipped_example():
+    kf = read_csv(_io.example_path("arm.csv"))
+    assert kf.keys.shape == (len(kf.times), len(kf.names), 4)
+    assert (np.diff(kf.times) > 0).all() and np.ptp(np.diff(kf.times)) > 0  # unequally spaced
+    np.testing.assert_allclose(np.linalg.norm(kf.keys, axis=-1), 1, atol=1e-8)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("scalar_last", [False, True], ids=["wxyz", "xyzw"])
+def test_csv_resample_at_key_times_reproduces_input(tmp_path, rng, method, scalar_last):
+    src, dst = tmp_path / "in.csv", tmp_path / "out.csv"
+    write_csv(src, Keyframes(uneven_times(rng, 8), smooth_keys(rng, 8, (3,)), ("a", "b", "c")),
+              scalar_last=scalar_last)
+    kf = read_csv(src, scalar_last=scalar_last)
+    write_csv(dst, resample_keyframes(kf, kf.times, method=method), scalar_last=scalar_last)
+    back = read_csv(dst, scalar_last=scalar_last)
+    assert back.names == kf.names
+    np.testing.assert_array_equal(back.times, kf.times)
+    np.testing.assert_allclose(back.keys, kf.keys, rtol=0, atol=1e-12)
+
+
+def test_csv_tolerates_blank_lines_crlf_and_spaces(tmp_path):
+    path = write_text(tmp_path / "k.csv", "time, a.w ,a.x,a.y,a.z\r\n0, 1,0,0,0\r\n\r\n1 ,0,1,0,0\r\n")
+    kf = read_csv(path)
+    np.testing.assert_array_equal(kf.times, [0, 1])
+    np.testing.assert_array_equal(kf.keys[:, 0], [[1, 0, 0, 0], [0, 1, 0, 0]])
+
+
+HEADER = "time,a.w,a.x,a.y,a.z\n"
+CSV_ERRORS = {  # text, line of the problem, message pattern
+    "first column": ("t,a.w,a.x,a.y,a.z\n0,1,0,0,0\n", 1, r"column 1 must be 'time', got 't'"),
+    "component order": ("time,a.w,a.x,a.z,a.y\n0,1,0,0,0\n", 1, r"column 4 is 'a.z', expected 'a.y'"),
+    "scalar last": ("time,a.x,a.y,a.z,a.w\n0,0,0,0,1\n", 1, r"looks scalar-last: use --scalar-last"),
+    "track prefix": ("time,a.w,a.x,b.y,b.z\n0,1,0,0,0\n", 1, r"column 4 is 'b.y', expected 'a.y'"),
+    "partial track": ("time,a.w,a.x,a.y\n0,1,0,0\n", 1, r"track 'a' has 3 of its 4 columns"),
+    "no dot": ("time,angle\n0,1\n", 1, r"column 2 is 'angle', expected '<track>.w'"),
+    "twice": ("time,a.w,a.x,a.y,a.z,a.w,a.x,a.y,a.z\n0,1,0,0,0,1,0,0,0\n", 1, r"track 'a' appears twice"),
+    "no tracks": ("time\n0\n", 1, r"no quaternion columns"),
+    "empty file": ("", 1, r"column 1 must be 'time'"),
+    "non-numeric": (HEADER + "0,1,0,0,0\n1,1,0,abc,0\n", 3, r"non-numeric value 'abc' in column 'a.y'"),
+    "empty cell": (HEADER + "0,1,0,0,0\n1,1,0,,0\n", 3, r"non-numeric value '' in column 'a.y'"),
+    "short row": (HEADER + "0,1,0,0,0\n\n1,1,0,0,0\n2,1,0,0\n", 5, r"expected 5 values, got 4"),
+    "long row": (HEADER + "0,1,0,0,0,7\n", 2, r"expected 5 values, got 6"),
+    "short only row": (HEADER + "0,1,0,0\n", 2, r"expected 5 values, got 4"),
+    "nan time": (HEADER + "0,1,0,0,0\nnan,1,0,0,0\n", 3, r"non-finite time"),
+    "inf key": (HEADER + "0,1,0,0,0\n\n1,1,inf,0,0\n", 4, r"track 'a': non-finite"),
+    "repeated time": (HEADER + "0,1,0,0,0\n1,1,0,0,0\n1,0,1,0,0\n", 4, r"time 1.0 does not come after 1.0"),
+    "decreasing time": (HEADER + "0,1,0,0,0\n-1,1,0,0,0\n", 3, r"strictly increasing"),
+    "zero quaternion": (HEADER + "0,1,0,0,0\n1,0,0,0,0\n", 3, r"track 'a': zero quaternion"),
+    "no rows": (HEADER, None, r"no keyframes"),
+}
+
+
+@pytest.mark.parametrize("case", CSV_ERRORS)
+def test_csv_errors_name_file_and_line(tmp_path, case):
+    text, line, pattern = CSV_ERRORS[case]
+    path = write_text(tmp_path / "bad.csv", text)
+    with pytest.raises(FormatError, match=pattern) as info:
+        read_csv(path)
+    assert info.value.path == str(path)
+    assert info.value.line == line
+    assert str(info.value).startswith(f"{path}:{line}: " if line else f"{path}: ")
+
+
+def test_csv_scalar_first_file_read_as_scalar_last(tmp_path):
+    path = write_text(tmp_path / "k.csv", HEADER + "0,1,0,0,0\n")
+    with pytest.raises(FormatError, match=r"looks scalar-first: leave out --scalar-last"):
+        read_csv(path, scalar_last=True)
+
+
+# --------------------------------------------------------------------------- NPZ
+
+def test_npz_write_read_is_exact(tmp_path, rng, batch_shape, dtype):
+    kf = Keyframes(uneven_times(rng, 5), smooth_keys(rng, 5, batch_shape, dtype))
+    path = tmp_path / "k.npz"
+    write_npz(path, kf)
+    back = read_npz(path)
+    assert back.keys.dtype == dtype and back.keys.shape == kf.keys.shape
+    np.testing.assert_array_equal(back.times, kf.times)
+    np.testing.assert_array_equal(back.keys, kf.keys)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_npz_resample_at_key_times_reproduces_input(tmp_path, rng, batch_shape, dtype, method):
+    src, dst = tmp_path / "in.npz", tmp_path / "out.npz"
+    write_npz(src, Keyframes(uneven_times(rng, 6), smooth_keys(rng, 6, batch_shape, dtype)))
+    kf = read_npz(src)
+    write_npz(dst, resample_keyframes(kf, kf.times, method=method))
+    back = read_npz(dst)
+    np.testing.assert_array_equal(back.times, kf.times)
+    assert back.keys.shape == kf.keys.shape
+    atol = 1e-12 if dtype == np.float64 else tol(dtype, 8)
+    np.testing.assert_allclose(back.keys, kf.keys, rtol=0, atol=atol)
+
+
+def test_resample_between_keys_moves_between_them(rng):
+    kf = Keyframes(np.array([0.0, 2.0]), smooth_keys(rng, 2, (4,)))
+    mid = resample_keyframes(kf, np.array([1.0])).keys[0]
+    # slerp midpoint of unit keys: the normalised sum
+    expected = kf.keys.sum(axis=0) / np.linalg.norm(kf.keys.sum(axis=0), axis=-1, keepdims=True)
+    np.testing.assert_allclose(mid, expected, atol=1e-12)
+
+
+def test_resample_outside_keys(rng):
+    kf = Keyframes(np.array([0.0, 1.0, 2.0]), smooth_keys(rng, 3))
+    with pytest.raises(ValueError, match=r"query time 2.5 is outside the key times \[0.0, 2.0\]"):
+        resample_keyframes(kf, np.array([0.0, 2.5]))
+    clamped = resample_keyframes(kf, np.array([-1.0, 3.0]), extrapolate="clamp").keys
+    np.testing.assert_allclose(clamped, kf.keys[[0, 2]], atol=1e-12)
+
+
+def test_resample_needs_two_keys(rng):
+    with pytest.raises(ValueError, match=r"at least 2 keyframes to interpolate, got 1"):
+        resample_keyframes(Keyframes(np.array([0.0]), smooth_keys(rng, 1)), np.array([0.0]))
+
+
+def npz_bytes(tmp_path, **arrays):
+    path = tmp_path / "bad.npz"
+    np.savez(path, **arrays)
+    return path
+
+
+GOOD = dict(times=np.arange(3.0), keys=np.tile([1.0, 0, 0, 0], (3, 2, 1)))
+NPZ_ERRORS = {  # arrays, message pattern
+    "missing keys": (dict(times=GOOD["times"]), r"missing array 'keys' \(found times\)"),
+    "missing times": (dict(keys=GOOD["keys"], t=GOOD["times"]), r"missing array 'times'"),
+    "2-d times": (dict(times=GOOD["times"][:, None], keys=GOOD["keys"]), r"times of shape \(K,\), got \(3, 1\)"),
+    "3 components": (dict(times=GOOD["times"], keys=GOOD["keys"][..., :3]), r"keys of shape \(..., 4\), got"),
+    "1-d keys": (dict(times=GOOD["times"][:1], keys=GOOD["keys"][0, 0]), r"keys of shape \(1, ..., 4\)"),
+    "length": (dict(times=GOOD["times"][:2], keys=GOOD["keys"]), r"keys of shape \(2, ..., 4\) to match"),
+    "strings": (dict(times=GOOD["times"], keys=np.full((3, 4), "a")), r"keys of real numbers"),
+    "empty": (dict(times=np.zeros(0), keys=np.zeros((0, 4))), r"no keyframes"),
+    "nan time": (dict(times=[0.0, np.nan, 2.0], keys=GOOD["keys"]), r"times\[1\]: non-finite time"),
+    "inf key": (dict(times=GOOD["times"], keys=np.where(np.arange(4) == 2, np.inf, GOOD["keys"])),
+                r"keys\[0, 0\]: non-finite"),
+    "not increasing": (dict(times=[0.0, 2.0, 2.0], keys=GOOD["keys"]), r"times\[2\]: time 2.0 does not come after"),
+    "zero quaternion": (dict(times=GOOD["times"], keys=GOOD["keys"] * [[[1], [1]], [[1], [0]], [[1], [1]]]),
+                        r"keys\[1, 1\]: zero quaternion"),
+}
+
+
+@pytest.mark.parametrize("case", NPZ_ERRORS)
+def test_npz_errors_name_file(tmp_path, case):
+    arrays, pattern = NPZ_ERRORS[case]
+    path = npz_bytes(tmp_path, **arrays)
+    with pytest.raises(FormatError, match=pattern) as info:
+        read_npz(path)
+    assert info.value.path == str(path) and info.value.line is None
+
+
+def test_npz_not_an_archive(tmp_path):
+    text = write_text(tmp_path / "bad.npz", "time,a.w\n")
+    with pytest.raises(FormatError, match=r"not an NPZ archive"):
+        read_npz(text)
+    single = tmp_path / "one.npz"
+    with open(single, "wb") as f:
+        np.save(f, np.zeros(3))
+    with pytest.raises(FormatError, match=r"not an NPZ archive \(a single .npy array\)"):
+        read_npz(single)
+
+
+def test_npz_integer_times_and_keys_become_float(tmp_path):
+    path = npz_bytes(tmp_path, times=np.arange(2), keys=np.array([[1, 0, 0, 0], [0, 1, 0, 0]]))
+    kf = read_npz(path)
+    assert kf.times.dtype == np.float64 and kf.keys.dtype == np.float64
+
+
+# --------------------------------------------------------------------------- query times
+
+def test_read_times(tmp_path):
+    path = write_text(tmp_path / "t.txt", "0\n 0.25\n\n1e-0\n")
+    np.testing.assert_array_equal(read_times(path), [0.0, 0.25, 1.0])
+
+
+@pytest.mark.parametrize("text, line, pattern", [
+    ("0\n0.5\nsoon\n", 3, r"non-numeric value 'soon'"),
+    ("0\n0.5 0.7\n", 2, r"expected 1 time on the line, got 2"),
+    ("0\n0.5\n0.5\n", 3, r"does not come after"),
+    ("0\n \t\n0.5\n\n0.5\n", 5, r"does not come after"),  # blank lines still counted
+    ("0\ninf\n", 2, r"non-finite time"),
+    ("\n", None, r"no times"),
+])
+def test_read_times_errors(tmp_path, text, line, pattern):
+    path = write_text(tmp_path / "t.txt", text)
+    with pytest.raises(FormatError, match=pattern) as info:
+        read_times(path)
+    assert info.value.line == line and info.value.path == str(path)
+
+
+@pytest.mark.parametrize("t0, t1, fps, n", [
+    (0.0, 0.1 * 3, 10, 4),            # 0.30000000000000004: last key kept
+    (0.0, 1 - 1e-13, 10, 11),         # short of 1.0 by rounding only: kept, moved onto t1
+    (0.0, 0.95, 10, 10),              # really short: 0.9 is the last sample
+    (-2.0, 2.0, 0.5, 3),
+    (5.0, 5.0 + 1 / 3, 3, 2),
+])
+def test_fps_times_cases(t0, t1, fps, n):
+    t = fps_times(t0, t1, fps)
+    assert len(t) == n and t[0] == t0 and t[-1] <= t1
+    np.testing.assert_allclose(t, t0 + np.arange(n) / fps, rtol=0, atol=1e-12 * max(1, abs(t1)))
+
+
+@given(t0=st.floats(-1e3, 1e3), span=st.floats(1e-3, 1e3), fps=st.floats(0.5, 1e3))
+def test_fps_times_cover_the_keys(t0, span, fps):
+    t1 = t0 + span
+    t = fps_times(t0, t1, fps)
+    assert t[0] == t0 and t[-1] <= t1
+    assert (np.diff(t) > 0).all()
+    assert t1 - t[-1] < 1 / fps * (1 + 1e-9)  # no further sample fits
+    np.testing.assert_allclose(np.diff(t)[:-1], 1 / fps, rtol=1e-6)
+
+
+def test_fps_times_rejects_bad_rate():
+    with pytest.raises(ValueError, match=r"expected fps > 0, got 0"):
+        fps_times(0.0, 1.0, 0)
+
+
+# --------------------------------------------------------------------------- atomic writes, errors
+
+def test_failed_write_leaves_target_untouched(tmp_path, rng, monkeypatch):
+    path = tmp_path / "k.csv"
+    path.write_text("precious\n")
+    calls = []
+
+    def broken(f, rows, sep):
+        f.write("half a row")
+        calls.append(1)
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(_io, "_write_rows", broken)
+    with pytest.raises(RuntimeError, match="disk full"):
+        write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    assert calls and path.read_text() == "precious\n"
+    assert os.listdir(tmp_path) == ["k.csv"]  # no temporary left behind
+
+
+def test_new_file_has_usual_permissions(tmp_path, rng):
+    path = tmp_path / "k.npz"
+    write_npz(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    mask = os.umask(0)
+    os.umask(mask)
+    assert os.stat(path).st_mode & 0o777 == 0o666 & ~mask
+    assert os.listdir(tmp_path) == ["k.npz"]
+
+
+def test_write_into_missing_folder_names_the_target(tmp_path, rng):
+    path = tmp_path / "nowhere" / "k.csv"
+    with pytest.raises(FileNotFoundError) as info:
+        write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    assert info.value.filename == str(path)
+
+
+def test_format_error_text():
+    assert str(FormatError("bad", "a.csv", 3)) == "a.csv:3: bad"
+    assert str(FormatError("bad", "a.csv")) == "a.csv: bad"
+    assert str(FormatError("two\nlines")) == "two lines"
+    assert isinstance(FormatError("x"), ValueError)
