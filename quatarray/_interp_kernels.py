@@ -1,0 +1,697 @@
+"""Interpolation kernels on raw ndarrays (no `QuatArray` here).
+
+Layout.  Inside a block the maths runs on *structure-of-arrays* views: a
+block of quaternions of batch shape ``s`` is held as an array of shape
+``(4, *s)`` (components first), so every NumPy call streams over long
+contiguous rows.  Blocks are copied in from the caller's ``(..., 4)`` arrays
+and written straight into ``np.moveaxis(out, -1, 0)`` of a preallocated
+output.  Scratch rows live in a `_Work` object reused across blocks, so a
+call allocates O(CHUNK) extra memory whatever the size of its input.
+
+SLERP weights.  For quaternions A, B (unit), with a = |B - A|, b = |B + A|,
+the angle between them is Omega = 2 atan2(a, b) and rho = a / b =
+tan(Omega / 2).  With tau = tan(h Omega / 2) the weights of
+``w0 A + w1 B`` are, exactly,
+
+    w1 = sin(h Omega) / sin(Omega) = (tau / rho) (1 + rho^2) / (1 + tau^2)
+    w0 = cos(h Omega) - cos(Omega) w1
+       = ((1 - tau^2) - (1 - rho^2) tau / rho) / (1 + tau^2)
+
+so one call to arctan and one to tan replace the two calls to sin that the
+textbook formula needs (on this hardware float64 sin costs ~8-12 ns per
+element, tan and arctan ~1.4 ns), and no 1 - cos cancellation appears:
+for tiny angles tau / rho -> h with full relative accuracy.
+"""
+
+from math import prod
+
+import numpy as np
+
+from ._kernels import _sub, blocks
+from ._validate import CHUNK
+
+__all__ = [
+    "BLOCK", "Work", "soa", "slerp_core", "frame_core", "frames",
+    "slerp", "lerp", "nlerp", "squad", "bezier", "unflip",
+    "squad_controls", "bezier_controls", "SegmentIndex",
+    "slerp_deriv", "frame_deriv", "omega_from",
+]
+
+#: Quaternions per block for the interpolation kernels (two of the shared
+#: CHUNK: the per-call overhead of ~30 NumPy calls per block is then below
+#: 2 ns per quaternion while the scratch stays within L2 / fast L3).
+BLOCK = 2 * CHUNK
+
+
+def _tiny(dtype):
+    """Smallest rho = tan(Omega/2) kept as is: its square is still a normal number."""
+    return np.sqrt(np.finfo(dtype).tiny)
+
+
+class Work:
+    """Scratch rows of one dtype, allocated once per call and reused per block.
+
+    ``rows(key, n, shape)`` returns an ``(n, *shape)`` view of a buffer that
+    is kept under `key`; two different keys never share memory.
+    """
+
+    def __init__(self, dtype):
+        self.dtype = np.dtype(dtype)
+        self._bufs = {}
+
+    def rows(self, key, n, shape):
+        shape = tuple(shape)
+        count = prod(shape)
+        buf = self._bufs.get(key)
+        if buf is None or buf.shape[0] < n or buf.shape[1] < count:
+            buf = self._bufs[key] = np.empty((n, max(count, 1)), self.dtype)
+        return buf[:n, :count].reshape((n,) + shape)
+
+
+def soa(out):
+    """Components-first view ``(4, ...)`` of an ``(..., 4)`` array (no copy)."""
+    n = out.ndim - 1
+    return out.transpose((n,) + tuple(range(n)))
+
+
+def _sqsum(T, out):
+    """out = T[0]² + ... + T[3]² for a (4, ...) array (T is overwritten)."""
+    np.multiply(T, T, out=T)
+    np.add(T[0], T[1], out=out)
+    out += T[2]
+    out += T[3]
+    return out
+
+
+# --------------------------------------------------------------------------
+# SLERP between two blocks (angle computed at run time)
+# --------------------------------------------------------------------------
+
+def slerp_core(A, B, h, O, shortest, work):
+    """``O = slerp(A, B, h)`` on components-first arrays.
+
+    A, B : (4, *s) arrays (not modified); h : broadcastable to s;
+    O : (4, *s) output, may be a strided view, must not overlap A or B.
+    With `shortest`, B is replaced by -B when |B + A| < |B - A| (ties keep B).
+    """
+    s = O.shape[1:]
+    dtype = work.dtype
+    T = work.rows("sl_T", 8, s)
+    R = work.rows("sl_R", 7, s)
+    a2, b2, r2, rho, tau, t2, w0 = R
+    np.subtract(B, A, out=T[:4])
+    np.add(B, A, out=T[4:])
+    np.multiply(T, T, out=T)
+    Tv = T.reshape((2, 4) + s)
+    ab = R[:2]
+    np.add(Tv[:, 0], Tv[:, 1], out=ab)
+    ab += Tv[:, 2]
+    ab += Tv[:, 3]
+    antipodal = None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if shortest:
+            sgn = T[0]  # scratch row: T is free again
+            np.subtract(b2, a2, out=sgn)  # sign of the dot product (b² - a² = 4 A·B)
+            np.minimum(a2, b2, out=r2)
+            np.maximum(a2, b2, out=b2)
+            np.divide(r2, b2, out=r2)
+        else:
+            sgn = None
+            np.divide(a2, b2, out=r2)
+            zero_b = b2 == 0
+            if zero_b.any():
+                antipodal = zero_b & (a2 > 0)
+        np.sqrt(r2, out=rho)
+        np.maximum(rho, _tiny(dtype), out=rho)
+        np.arctan(rho, out=tau)
+        np.multiply(tau, h, out=tau, casting="unsafe")
+        np.tan(tau, out=tau)
+        np.multiply(tau, tau, out=t2)
+        v = tau
+        np.divide(tau, rho, out=v)           # tau / rho  (-> h for tiny angles)
+        g = rho
+        np.add(t2, 1, out=g)
+        np.divide(1, g, out=g)               # 1 / (1 + tau²)
+        np.subtract(1, r2, out=w0)
+        w0 *= v
+        np.add(t2, w0, out=w0)               # tau² + (1 - rho²) v
+        np.subtract(1, w0, out=w0)
+        w0 *= g
+        w1 = a2
+        np.add(r2, 1, out=w1)
+        w1 *= v
+        w1 *= g
+        if sgn is not None:
+            np.copysign(1, sgn, out=sgn)     # +1, or -1 to follow -B (x - x is +0: ties keep B)
+            w1 *= sgn
+    if antipodal is not None and antipodal.any():
+        # B = -A followed "as given": no unique arc; keep the rotation constant
+        # (A before the midpoint, B from it on), a deterministic choice.
+        hb = np.broadcast_to(h, s)
+        w0[antipodal] = hb[antipodal] < 0.5
+        w1[antipodal] = hb[antipodal] >= 0.5
+    np.multiply(A, w0, out=T[:4])
+    np.multiply(B, w1, out=T[4:])
+    np.add(T[:4], T[4:], out=O)
+    return O
+
+
+# --------------------------------------------------------------------------
+# SLERP along a precomputed frame (fixed endpoints, used by Track)
+# --------------------------------------------------------------------------
+
+def frames(k0, k1):
+    """Great-circle frames for fixed pairs, components first.
+
+    For unit k0, k1 (shape (4, *s)) returns ``(F, phi)``: F (8, *s) stacks k0
+    and the unit tangent p ⊥ k0 in the plane of k0, k1, and phi = Omega/2 is
+    half the angle between them, so that ``slerp(k0, k1, u) = cos(2 u phi) k0
+    + sin(2 u phi) p``.  No sign flip is applied.  p is computed without
+    cancellation as ``(2 D + a² k0) / (a b)`` with D = k1 - k0 (a = |D|,
+    b = |k1 + k0|); coincident pairs get p = 0 and antipodal pairs p = 0,
+    phi = pi/2 (a constant rotation: the arc is not unique).
+    """
+    D = k1 - k0
+    S = k1 + k0
+    a2 = np.einsum("i...,i...->...", D, D)
+    b2 = np.einsum("i...,i...->...", S, S)
+    a = np.sqrt(a2)
+    b = np.sqrt(b2)
+    phi = np.arctan2(a, b)
+    n2 = a2 + b2  # 4 for unit quaternions
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where((a > 0) & (b > 0), 1 / (a * b), 0)
+    p = (D * (n2 / 2) + a2 * k0) * scale
+    F = np.concatenate([k0, p]).astype(k0.dtype, copy=False)
+    return F, phi.astype(k0.dtype, copy=False)
+
+
+def frame_core(F, phi, u, O, work, key="fr"):
+    """``O = cos(2 u phi) k + sin(2 u phi) p`` with F = [k; p] of shape (8, *s).
+
+    `F` is used as scratch (overwritten).  u broadcastable to s.
+    With tau = tan(u phi): cos = 2/(1 + tau²) - 1, sin = tau · 2/(1 + tau²);
+    u = 0 gives exactly k.
+    """
+    s = O.shape[1:]
+    CS = work.rows(key, 2, s)
+    c, sn = CS
+    np.multiply(phi, u, out=sn, casting="unsafe")
+    np.tan(sn, out=sn)                       # tau
+    np.multiply(sn, sn, out=c)
+    c += 1
+    np.divide(2, c, out=c)                   # 2 / (1 + tau²)
+    sn *= c                                  # sin
+    c -= 1                                   # cos
+    Fv = F.reshape((2, 4) + s)
+    np.multiply(Fv, CS[:, None], out=Fv)
+    np.add(Fv[0], Fv[1], out=O)
+    return O
+
+
+# --------------------------------------------------------------------------
+# Pairwise drivers: broadcasting, blocks, preallocated output
+# --------------------------------------------------------------------------
+
+def _batch(*shapes):
+    return np.broadcast_shapes(*shapes)
+
+
+def _dtype_of(*qs):
+    return np.result_type(*qs, np.float32)
+
+
+def _drive(fn, quats, t, dtype, extra=()):
+    """Run `fn(blocks_of_quats_soa, t_block, O, work, *extra)` over cache-sized blocks.
+
+    quats: raw (..., 4) arrays broadcasting against each other and t.
+    Returns the (batch, 4) output.
+    """
+    batch = _batch(*(q.shape[:-1] for q in quats), t.shape)
+    if not batch:  # kernels index scratch rows: give them at least one batch axis
+        return _drive(fn, [q[None] for q in quats], t[None], dtype, extra)[0]
+    out = np.empty(batch + (4,), dtype)
+    nb = len(batch)
+    work = Work(dtype)
+    for idx in blocks(batch, BLOCK):
+        ob = out[idx]
+        s = ob.shape[:-1]
+        ins = []
+        for j, q in enumerate(quats):
+            buf = work.rows(("in", j), 4, s)
+            qb = _sub(q, idx, nb)
+            qb = qb.reshape((1,) * (len(s) + 1 - qb.ndim) + qb.shape)
+            np.copyto(buf, soa(qb), casting="unsafe")
+            ins.append(buf)
+        fn(*ins, _sub(t, idx, nb, lead=0), soa(ob), work, *extra)
+    return out
+
+
+def slerp(q0, q1, t, shortest=True):
+    """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`)."""
+    dtype = _dtype_of(q0, q1)
+    if q0.shape == q1.shape == (4,) and t.ndim == 0:
+        return _slerp_one(q0, q1, float(t), shortest, dtype)
+
+    def fn(A, B, h, O, work):
+        slerp_core(A, B, h, O, shortest, work)
+
+    return _drive(fn, (q0, q1), t, dtype)
+
+
+def _slerp_one(q0, q1, h, shortest, dtype):
+    """One pair with Python floats (a few µs instead of ~30 NumPy calls)."""
+    import math
+    a = [float(x) for x in q0]
+    b = [float(x) for x in q1]
+    a2 = sum((y - x) ** 2 for x, y in zip(a, b))
+    b2 = sum((y + x) ** 2 for x, y in zip(a, b))
+    sign = 1.0
+    if shortest and a2 > b2:
+        a2, b2, sign = b2, a2, -1.0
+    if b2 == 0:
+        if a2 == 0 or math.isnan(h):
+            w0 = w1 = math.nan
+        else:  # antipodal, shortest=False
+            w0, w1 = float(h < 0.5), float(h >= 0.5)
+    elif math.isnan(a2 + b2 + h) or math.isinf(h):
+        w0 = w1 = math.nan
+    else:
+        r2 = a2 / b2
+        rho = max(math.sqrt(r2), float(_tiny(dtype)))
+        tau = math.tan(h * math.atan(rho))
+        t2 = tau * tau
+        v = tau / rho
+        g = 1 / (1 + t2)
+        w0 = ((1 - t2) - (1 - r2) * v) * g
+        w1 = sign * v * (1 + r2) * g
+    return np.array([w0 * x + w1 * y for x, y in zip(a, b)], dtype)
+
+
+def lerp(q0, q1, t):
+    """(1 - t) q0 + t q1, broadcasting (raw arrays)."""
+    dtype = _dtype_of(q0, q1)
+
+    def fn(A, B, h, O, work):
+        s = O.shape[1:]
+        w = work.rows("lerp_w", 1, s)[0]
+        np.subtract(1, h, out=w, casting="unsafe")
+        T = work.rows("lerp_T", 4, s)
+        np.multiply(A, w, out=T)
+        np.multiply(B, h, out=O, casting="unsafe")
+        O += T
+
+    return _drive(fn, (q0, q1), t, dtype)
+
+
+def nlerp(q0, q1, t, shortest=True):
+    """Normalised lerp with an optional shortest-path flip (raw arrays).
+
+    Raises ValueError where the blend is the zero quaternion (only possible
+    for q1 = -q0 followed as given, or zero input)."""
+    dtype = _dtype_of(q0, q1)
+
+    def fn(A, B, h, O, work):
+        s = O.shape[1:]
+        R = work.rows("nl_R", 3, s)
+        w0, w1, n = R
+        np.subtract(1, h, out=w0, casting="unsafe")
+        np.copyto(w1, h, casting="unsafe")
+        if shortest:
+            T = work.rows("nl_T", 4, s)
+            np.subtract(B, A, out=T)
+            a2 = _sqsum(T, n)
+            np.add(B, A, out=T)
+            b2 = _sqsum(T, O[0])  # O[0] as scratch (it is overwritten below)
+            np.subtract(b2, a2, out=n)
+            np.copysign(1, n, out=n)
+            w1 *= n
+        T = work.rows("nl_T", 4, s)
+        np.multiply(A, w0, out=T)
+        np.multiply(B, w1, out=O)
+        O += T
+        np.copyto(T, O)
+        _sqsum(T, n)
+        if not (n > 0).all():
+            raise ValueError("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
+                             "got a zero quaternion (q1 = -q0 with shortest=False, or zero input)")
+        np.sqrt(n, out=n)
+        O /= n
+
+    return _drive(fn, (q0, q1), t, dtype)
+
+
+def unflip(q, axis):
+    """Signs flipped so that consecutive quaternions along batch `axis` have
+    a non-negative dot product (the first one keeps its sign).
+
+    Same result as the loop ``if q[i]·q[i-1] < 0: q[i] = -q[i]`` (with the
+    already unflipped q[i-1]): the sign of q[i] is the product of the signs
+    of the dot products d_j = q[j]·q[j-1] of the input since the last exact
+    zero (a zero dot product needs no flip and restarts the product).
+    Vectorised with a cumulative product; no loop over the axis.
+    """
+    qa = np.moveaxis(q, axis, 0)
+    dtype = _dtype_of(q)
+    n = qa.shape[0]
+    if n < 2:
+        return q.astype(dtype, copy=True)
+    d = np.einsum("...i,...i->...", qa[1:], qa[:-1])
+    step = np.ones(qa.shape[:-1], np.int8)
+    step[1:][d < 0] = -1
+    c = np.cumprod(step, axis=0, dtype=np.int8)           # sign with no restarts
+    zero = np.zeros(qa.shape[:-1], bool)
+    zero[1:] = d == 0
+    if zero.any():
+        idx = np.arange(n).reshape((n,) + (1,) * (qa.ndim - 2))
+        last = np.maximum.accumulate(np.where(zero, idx, 0), axis=0)
+        c = c * np.take_along_axis(c, last, axis=0)         # restart at the last zero
+    out = qa * c[..., None].astype(dtype)
+    return np.moveaxis(out, 0, axis)
+
+
+# --------------------------------------------------------------------------
+# squad and spherical Bézier: pairwise evaluation
+# --------------------------------------------------------------------------
+
+def _squad_block(Q0, A, B, Q1, h, O, work):
+    s = O.shape[1:]
+    P = work.rows("sq_P", 4, s)
+    S = work.rows("sq_S", 4, s)
+    slerp_core(Q0, Q1, h, P, False, work)
+    slerp_core(A, B, h, S, False, work)
+    hh = work.rows("sq_h", 1, s)[0]
+    np.subtract(1, h, out=hh, casting="unsafe")
+    np.multiply(hh, h, out=hh, casting="unsafe")
+    hh *= 2
+    slerp_core(P, S, hh, O, False, work)
+
+
+def squad(q0, a, b, q1, t):
+    """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
+    return _drive(_squad_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
+
+
+def _bezier_levels(L, h, O, work):
+    """de Casteljau by SLERP: L (4, 4, *s) holds the control points along axis 1."""
+    s = O.shape[1:]
+    M = work.rows("bz_M", 12, s).reshape((4, 3) + s)
+    slerp_core(L[:, :3], L[:, 1:], h, M, False, work)
+    N = work.rows("bz_N", 8, s).reshape((4, 2) + s)
+    slerp_core(M[:, :2], M[:, 1:], h, N, False, work)
+    slerp_core(N[:, 0], N[:, 1], h, O, False, work)
+
+
+def _bezier_block(Q0, A, B, Q1, h, O, work):
+    s = O.shape[1:]
+    L = work.rows("bz_L", 16, s).reshape((4, 4) + s)
+    for j, X in enumerate((Q0, A, B, Q1)):
+        L[:, j] = X
+    _bezier_levels(L, h, O, work)
+
+
+def bezier(q0, a, b, q1, t):
+    """Pairwise spherical cubic Bézier (raw arrays), de Casteljau with SLERP."""
+    return _drive(_bezier_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
+
+
+# --------------------------------------------------------------------------
+# Control points (computed once per track; keys unit and unflipped, axis 0)
+# --------------------------------------------------------------------------
+
+def _qmul(p, q):
+    """Hamilton product of (..., 4) arrays (small helper for construction)."""
+    pw, px, py, pz = np.moveaxis(p, -1, 0)
+    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
+    return np.stack([
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    ], axis=-1)
+
+
+def _conj(q):
+    return q * np.array([1, -1, -1, -1], q.dtype)
+
+
+def _log_vec(q):
+    """Vector part of the principal log of unit quaternions: theta · v/|v|."""
+    v = q[..., 1:]
+    vn = np.sqrt(np.einsum("...i,...i->...", v, v))
+    theta = np.arctan2(vn, q[..., 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(vn > 0, theta / vn, 1.0)
+    return v * scale[..., None]
+
+
+def _exp_vec(x):
+    """exp of the pure quaternion (0, x): (cos|x|, sin|x| x/|x|)."""
+    n = np.sqrt(np.einsum("...i,...i->...", x, x))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sinc = np.where(n > 0, np.sin(n) / n, 1.0)
+    return np.concatenate([np.cos(n)[..., None], x * sinc[..., None]], axis=-1)
+
+
+def _extended(keys, times):
+    """Keys and times extended by one geodesic reflection at each end:
+    q[-1] = q0 q1⁻¹ q0 = 2 (q0·q1) q0 - q1 at t0 - (t1 - t0), likewise at the end."""
+    first = _double(keys[1], keys[0])
+    last = _double(keys[-2], keys[-1])
+    ext = np.concatenate([first[None], keys, last[None]])
+    dt = np.diff(times)
+    tx = np.concatenate([[times[0] - dt[0]], times, [times[-1] + dt[-1]]])
+    return ext, tx
+
+
+def _dot(p, q):
+    return np.einsum("...i,...i->...", p, q)
+
+
+def _double(p, q):
+    """Shoemake's Double(p, q) = 2 (p·q) q - p: p reflected through q."""
+    return 2 * _dot(p, q)[..., None] * q - p
+
+
+def _bisect(p, q):
+    """Shoemake's Bisect(p, q) = (p + q) / |p + q|; p = -q gives p (no midpoint)."""
+    s = p + q
+    n = np.sqrt(_dot(s, s))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        res = s / n[..., None]
+    return np.where((n > 0)[..., None], res, p)
+
+
+def _interval_weights(times, K, batch_ndim):
+    """w_in = dt_{n-1} / (dt_{n-1} + dt_n), w_out = dt_n / (...) for each key
+    (with the mirrored intervals at both ends), shaped to broadcast over the batch."""
+    if times is None:
+        w = np.full(K, 0.5)
+        return w.reshape((K,) + (1,) * (batch_ndim + 1)), w.reshape((K,) + (1,) * (batch_ndim + 1))
+    dt = np.diff(times)
+    din = np.concatenate([[dt[0]], dt])
+    dout = np.concatenate([dt, [dt[-1]]])
+    tot = din + dout
+    shape = (K,) + (1,) * (batch_ndim + 1)
+    return (din / tot).reshape(shape), (dout / tot).reshape(shape)
+
+
+def squad_controls(keys, times=None):
+    """Squad control points s_n (one per key) for unit, unflipped keys (K, ..., 4).
+
+    s_n = q_n exp(-(w_in L+ + w_out L-) / 2), L± = log(q_n⁻¹ q_{n±1}),
+    w_in = dt_{n-1} / (dt_{n-1} + dt_n), w_out = 1 - w_in: with equal spacing
+    Shoemake's q_n exp(-(L+ + L-)/4); in general the curve's angular velocity
+    at q_n is the central difference (L+ - L-)/(dt_{n-1} + dt_n) from both
+    sides.  Ends use the geodesic reflection (s_0 = q_0, s_{K-1} = q_{K-1}).
+    """
+    K = keys.shape[0]
+    ext, _ = _extended(keys, np.arange(K + 0.0) if times is None else times)
+    inv = _conj(keys)
+    Lp = _log_vec(_qmul(inv, ext[2:]))
+    Lm = _log_vec(_qmul(inv, ext[:-2]))
+    w_in, w_out = _interval_weights(times, K, keys.ndim - 2)
+    s = _qmul(keys, _exp_vec(-(w_in * Lp + w_out * Lm) / 2))
+    return s.astype(keys.dtype, copy=False)
+
+
+def _slerp_small(p, q, h):
+    """SLERP (no flip) of construction-time (..., 4) arrays; h broadcastable to the batch."""
+    A, B = soa(p), soa(q)
+    s = np.broadcast_shapes(A.shape[1:], B.shape[1:], np.shape(h))
+    O = np.empty((4,) + s, np.result_type(A, B))
+    slerp_core(np.broadcast_to(A, O.shape), np.broadcast_to(B, O.shape), h, O, False, Work(O.dtype))
+    return np.moveaxis(O, 0, -1)
+
+
+def bezier_controls(keys, times=None):
+    """Spherical Bézier control points (a_n, b_n) for unit, unflipped keys.
+
+    c_n = Bisect(Double(q_{n-1}, q_n), q_{n+1}) is the end of Shoemake's
+    tangent at q_n (three times the length a cubic needs).  The outgoing
+    control point is a_n = slerp(q_n, c_n, (2/3) w_out) and the incoming one
+    b_n = slerp(q_n, Double(c_n, q_n), (2/3) w_in), with w_out, w_in the
+    interval fractions of `_interval_weights`: with equal spacing (1/3 each)
+    b_n = Double(a_n, q_n) exactly as in the paper, and in general the
+    velocity in time is continuous across q_n.  Ends use the geodesic
+    reflection (a_0 = slerp(q_0, q_1, 1/3), b_{K-1} = slerp(q_{K-1}, q_{K-2}, 1/3)).
+    """
+    K = keys.shape[0]
+    ext, _ = _extended(keys, np.arange(K + 0.0) if times is None else times)
+    c = _bisect(_double(ext[:-2], keys), ext[2:])
+    w_in, w_out = _interval_weights(times, K, keys.ndim - 2)
+    a = _slerp_small(keys, c, (2 / 3) * w_out[..., 0])
+    b = _slerp_small(keys, _double(c, keys), (2 / 3) * w_in[..., 0])
+    return a.astype(keys.dtype, copy=False), b.astype(keys.dtype, copy=False)
+
+
+# --------------------------------------------------------------------------
+# Derivatives (angular velocity): forward mode through the SLERPs
+# --------------------------------------------------------------------------
+
+_SERIES = tuple((-1) ** k / float(np.prod(np.arange(1.0, 2 * k + 2))) for k in range(8, 0, -1))
+
+
+def _sin_minus_x(x):
+    """sin(x) - x without cancellation: for |x| < 0.5 the series
+    x³ (-1/3! + x²/5! - ... + x^14/17!) (the next term is < 1e-18 relative)."""
+    x2 = x * x
+    p = np.zeros_like(x)
+    for c in _SERIES:
+        p = p * x2 + c
+    return np.where(np.abs(x) < 0.5, p * x2 * x, np.sin(x) - x)
+
+
+def _n_weight(h, om):
+    """N(h, Omega) = h cos(h Om) sin(Om) - sin(h Om) cos(Om), without cancellation:
+    ½[(h - 1) g((1 + h) Om) + (h + 1) g((1 - h) Om)] with g(x) = sin x - x."""
+    return 0.5 * ((h - 1) * _sin_minus_x((1 + h) * om) + (h + 1) * _sin_minus_x((1 - h) * om))
+
+
+def slerp_deriv(A, dA, B, dB, h, dh):
+    """(q, dq) for q = slerp(A, B, h) (no flip) and its derivative along
+    dA, dB, dh.  Components-first float64 arrays; h, dh broadcastable."""
+    D = B - A
+    S = B + A
+    dD = dB - dA
+    dS = dB + dA
+    a2 = np.einsum("i...,i...->...", D, D)
+    b2 = np.einsum("i...,i...->...", S, S)
+    a = np.sqrt(a2)
+    b = np.sqrt(b2)
+    om = 2 * np.arctan2(a, b)
+    n2 = a2 + b2
+    sin_om = 2 * a * b / n2
+    h = np.broadcast_to(h, om.shape)
+    dh = np.broadcast_to(dh, om.shape)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ok = sin_om > 0
+        inv = np.where(ok, 1 / sin_om, 0)
+        w1 = np.where(ok, np.sin(h * om) * inv, h)
+        w0 = np.where(ok, np.sin((1 - h) * om) * inv, 1 - h)
+        w1h = np.where(ok, om * np.cos(h * om) * inv, 1)
+        w0h = np.where(ok, -om * np.cos((1 - h) * om) * inv, -1)
+        w1o = np.where(ok, _n_weight(h, om) * inv * inv, 0)
+        w0o = np.where(ok, _n_weight(1 - h, om) * inv * inv, 0)
+        da = np.where(a > 0, np.einsum("i...,i...->...", D, dD) / a, 0)
+        db = np.where(b > 0, np.einsum("i...,i...->...", S, dS) / b, 0)
+        dom = np.where(n2 > 0, 2 * (b * da - a * db) / n2, 0)
+    q = w0 * A + w1 * B
+    dq = w0 * dA + w1 * dB + (w0h * dh + w0o * dom) * A + (w1h * dh + w1o * dom) * B
+    return q, dq
+
+
+def frame_deriv(F, phi, u):
+    """(q, dq/du) along a frame F = [k; p] (8, *s): q = cos(2uφ) k + sin(2uφ) p."""
+    ang = 2 * phi * u
+    c = np.cos(ang)
+    s = np.sin(ang)
+    k, p = F[:4], F[4:]
+    q = c * k + s * p
+    dq = (2 * phi) * (c * p - s * k)
+    return q, dq
+
+
+def omega_from(q, dq, frame):
+    """Angular velocity 2 vec(dq q*) / |q|² (world) or 2 vec(q* dq) / |q|² (body),
+    components first: (4, *s) in, (3, *s) out (per unit of the parameter)."""
+    qw, qv = q[0], q[1:]
+    pw, pv = dq[0], dq[1:]
+    cross = np.stack([
+        pv[1] * qv[2] - pv[2] * qv[1],
+        pv[2] * qv[0] - pv[0] * qv[2],
+        pv[0] * qv[1] - pv[1] * qv[0],
+    ])
+    lin = qw * pv - pw * qv
+    vec = lin - cross if frame == "world" else lin + cross
+    n2 = np.einsum("i...,i...->...", q, q)
+    return vec * (2 / n2)
+
+
+# --------------------------------------------------------------------------
+# Segment lookup: searchsorted(times, t, 'right') - 1 without a binary
+# search over all K keys per query
+# --------------------------------------------------------------------------
+
+class SegmentIndex:
+    """``find(t) == np.searchsorted(times, t, side='right') - 1`` for finite t.
+
+    A uniform grid of cells over [t0, t_end] stores, per cell, the segment of
+    its left edge; a query computes its cell with one multiply, then does at
+    most `steps` (usually 1-2) vectorised bisection steps inside the cell's
+    bracket.  The cell of a key and of a query are computed by the same
+    float expression, and the function is monotone, so the brackets are
+    exact (no tolerance).  Falls back to `np.searchsorted` when keys are so
+    clustered that a bracket would need more than 4 steps.
+    """
+
+    MAX_STEPS = 4
+
+    def __init__(self, times):
+        self.times = times
+        self.grid = None
+        K = len(times)
+        span = float(times[-1] - times[0])
+        for cells in (2 * K, 16 * K):
+            if cells > 1 << 24:
+                break
+            with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+                scale = cells / span
+                if not (np.isfinite(scale) and scale > 0):
+                    break
+                kc = np.floor((times - times[0]) * scale)
+            if not np.isfinite(kc).all():
+                break
+            cmax = kc[-1]
+            ids = np.arange(int(cmax) + 1)
+            lo = np.searchsorted(kc, ids, side="left") - 1
+            hi = np.searchsorted(kc, ids, side="right") - 1
+            steps = int((hi - lo).max()).bit_length()
+            if steps <= self.MAX_STEPS:
+                pad = np.full(K + (1 << steps) + 1, np.inf)
+                pad[:K] = times
+                self.grid = (float(times[0]), scale, float(cmax), lo.astype(np.intp), steps, pad)
+                break
+
+    def find(self, t, out=None):
+        if self.grid is None or t.size <= 64:
+            return np.subtract(np.searchsorted(self.times, t, side="right"), 1, out=out)
+        t0, scale, cmax, lo, steps, pad = self.grid
+        c = np.subtract(t, t0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            c *= scale
+        np.clip(c, 0, cmax, out=c)
+        i = np.take(lo, c.astype(np.intp), mode="clip", out=out)
+        if steps:
+            cand = np.empty_like(i)
+            tv = np.empty(t.shape, np.float64)
+            ok = np.empty(t.shape, bool)
+            for k in range(steps - 1, -1, -1):  # bisection steps, not keys
+                np.add(i, 1 << k, out=cand)
+                np.take(pad, cand, mode="clip", out=tv)
+                np.less_equal(tv, t, out=ok)
+                if k:
+                    i += ok * (1 << k)
+                else:
+                    i += ok
+        return i

@@ -1,0 +1,793 @@
+"""Interpolation of rotations: pairwise LERP / NLERP / SLERP, squad and
+spherical Bézier curves, and keyframe tracks (`Track`, scipy-style `Slerp`).
+
+Every function accepts `QuatArray` or array_like input of shape (..., 4)
+(scalar-first w, x, y, z), broadcasts batch shapes the NumPy way, keeps
+float32 as float32, never modifies its inputs and returns a `QuatArray`.
+The maths lives in `quatarray._interp_kernels`; this module validates and wraps.
+
+Conventions
+-----------
+* Quaternions to interpolate are expected to be unit quaternions (the
+  SLERP family is homogeneous: two quaternions of the same norm r give r
+  times the unit result).  `Track` and `Slerp` normalise their keys.
+* ``t`` outside [0, 1] extrapolates along the same curve (no clipping).
+* Keyframe curves: keys are unflipped first (`unflip`), so negating any key
+  changes nothing; the outputs follow the sign of the first key.
+* Angular velocities are in radians per unit time, in the **world**
+  (space) frame by default: ω = 2 vec(q̇ q*), so that q̇ = ½ ω q;
+  ``frame='body'`` gives ω_b = 2 vec(q* q̇) = q* ω q.
+"""
+
+from math import prod
+
+import numpy as np
+
+from . import _interp_kernels as IK
+from ._array import QuatArray
+from ._validate import finite, float_array, real_array
+
+__all__ = [
+    "lerp", "nlerp", "slerp", "unflip",
+    "squad", "squad_control_points", "bezier", "bezier_control_points",
+    "Track", "Slerp",
+]
+
+METHODS = ("linear", "slerp", "squad", "bezier")
+EXTRAPOLATE = ("raise", "clamp", "extend")
+FRAMES = ("world", "body")
+
+
+# ---------------------------------------------------------------------------
+# argument handling
+# ---------------------------------------------------------------------------
+
+def _quat(x, name):
+    return float_array(x, name, last=4)
+
+
+def _param(t):
+    return real_array(t, "t")
+
+
+def _broadcast(names, shapes):
+    try:
+        return np.broadcast_shapes(*shapes)
+    except ValueError:
+        got = ", ".join(f"{n}: {s}" for n, s in zip(names, shapes))
+        raise ValueError(f"expected broadcastable batch shapes for {', '.join(names)}, got {got}") from None
+
+
+def _pairwise(names, quats, t):
+    _broadcast(names + ("t",), [q.shape[:-1] for q in quats] + [t.shape])
+
+
+def _choice(value, name, options):
+    if not isinstance(value, str) or value not in options:
+        raise ValueError(f"expected {name} in {options}, got {value!r}")
+    return value
+
+
+# ---------------------------------------------------------------------------
+# pairwise functions
+# ---------------------------------------------------------------------------
+
+def lerp(q0, q1, t):
+    """Linear interpolation ``(1 - t) q0 + t q1`` (not normalised).
+
+    Parameters
+    ----------
+    q0, q1 : array_like, shape (..., 4)
+        Quaternions; batch shapes broadcast.
+    t : array_like
+        Interpolation parameter, broadcasting against the batch shape;
+        values outside [0, 1] extrapolate.
+
+    Returns
+    -------
+    QuatArray, shape (broadcast batch, 4)
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import lerp
+    >>> lerp([1, 0, 0, 0], [0, 0, 0, 1], [0, 0.5, 1])
+    QuatArray([[1. , 0. , 0. , 0. ],
+               [0.5, 0. , 0. , 0.5],
+               [0. , 0. , 0. , 1. ]])
+    """
+    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    _pairwise(("q0", "q1"), (q0, q1), t)
+    return QuatArray._wrap(IK.lerp(q0, q1, t))
+
+
+def nlerp(q0, q1, t, *, shortest=True):
+    """Normalised linear interpolation ``n / |n|`` with ``n = (1 - t) q0 + t q1``.
+
+    Cheap, and on the same great circle as SLERP, but not constant-speed.
+
+    Parameters
+    ----------
+    q0, q1 : array_like, shape (..., 4)
+        Unit quaternions; batch shapes broadcast.
+    t : array_like
+        Interpolation parameter, broadcasting against the batch shape.
+    shortest : bool, default True
+        Replace q1 by -q1 where that is closer to q0 (the same rotation by
+        the shorter path); with False the blend follows q1 as given.
+
+    Returns
+    -------
+    QuatArray, shape (broadcast batch, 4)
+
+    Raises
+    ------
+    ValueError
+        Where the blend is the zero quaternion (q1 = -q0 with
+        ``shortest=False`` at t = 1/2, or zero input).
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import nlerp
+    >>> q = nlerp([1, 0, 0, 0], [0, 0, 0, 1], 0.5)
+    >>> np.allclose(q, [np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
+    True
+    """
+    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    _pairwise(("q0", "q1"), (q0, q1), t)
+    return QuatArray._wrap(IK.nlerp(q0, q1, t, bool(shortest)))
+
+
+def slerp(q0, q1, t, *, shortest=True):
+    """Spherical linear interpolation: constant angular speed along the great circle.
+
+    ``slerp(q0, q1, t) = q0 (q0⁻¹ q1)^t``.  The angle is computed as
+    Ω = 2 atan2(|q1 - q0|, |q1 + q0|) (after the shortest-path sign
+    flip), which is accurate for tiny angles where ``arccos(q0·q1)`` is not:
+    interpolated rotation angles keep their relative accuracy (a few ulp)
+    down to 1e-12 rad and below.
+
+    Parameters
+    ----------
+    q0, q1 : array_like, shape (..., 4)
+        Unit quaternions; batch shapes broadcast.
+    t : array_like
+        Interpolation parameter, broadcasting against the batch shape;
+        values outside [0, 1] extrapolate along the same great circle.
+    shortest : bool, default True
+        Follow the shorter arc: replace q1 by -q1 when |q1 + q0| < |q1 - q0|
+        (i.e. q0·q1 < 0; q0·q1 = 0 exactly keeps q1).  q1 = -q0 then gives the
+        constant rotation q0.  With False the arc from q0 to q1 as given is
+        followed; for q1 = -q0 that arc is not unique and the result is the
+        constant rotation (q0 for t < 1/2, q1 from t = 1/2 on).
+
+    Returns
+    -------
+    QuatArray, shape (broadcast batch, 4)
+
+    See Also
+    --------
+    nlerp : cheaper, not constant-speed.
+    Track : many keys, many tracks.
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import slerp
+    >>> z90 = [np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)]   # 90° about z
+    >>> q = slerp([1, 0, 0, 0], z90, [0, 1 / 3, 1])
+    >>> np.allclose(q[1], [np.cos(np.pi / 12), 0, 0, np.sin(np.pi / 12)])  # 30°
+    True
+    >>> slerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5)    # the same rotation: stays put
+    QuatArray([1., 0., 0., 0.])
+    """
+    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    _pairwise(("q0", "q1"), (q0, q1), t)
+    return QuatArray._wrap(IK.slerp(q0, q1, t, bool(shortest)))
+
+
+def unflip(q, axis=0):
+    """Flip signs so that consecutive quaternions along `axis` have a non-negative dot product.
+
+    q and -q are the same rotation; interpolating between consecutive keys
+    takes the short way round only when their dot product is >= 0.  The
+    first quaternion along `axis` keeps its sign.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+    axis : int, default 0
+        A batch axis (the component axis cannot be chosen).
+
+    Returns
+    -------
+    QuatArray, same shape as `q`
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import unflip
+    >>> unflip([[1, 0, 0, 0], [-1, 0, 0, 0], [0, -1, 0, 0], [0.6, 0.8, 0, 0]])
+    QuatArray([[ 1. ,  0. ,  0. ,  0. ],
+               [ 1. , -0. , -0. , -0. ],
+               [ 0. , -1. ,  0. ,  0. ],
+               [-0.6, -0.8, -0. , -0. ]])
+    """
+    q = _quat(q, "q")
+    nb = q.ndim - 1
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
+    if not -nb <= axis < nb:
+        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of q with batch shape "
+                         f"{q.shape[:-1]}), got {axis}")
+    return QuatArray._wrap(IK.unflip(q, int(axis) % nb))
+
+
+def squad(q0, a, b, q1, t):
+    """Shoemake's spherical quadrangle interpolation of one curve segment.
+
+    ``squad = slerp(slerp(q0, q1, t), slerp(a, b, t), 2 t (1 - t))`` with no
+    sign flips (so the curve is continuous in t).  In Shoemake's notation
+    q0 = q_i, q1 = q_{i+1}, a = s_i, b = s_{i+1}; see `squad_control_points`.
+    The argument order (p, a, b, q) matches `bezier`.
+
+    Parameters
+    ----------
+    q0, a, b, q1 : array_like, shape (..., 4)
+        Unit quaternions (segment ends and inner control points); batch
+        shapes broadcast.
+    t : array_like
+        Parameter in [0, 1] along the segment (broadcasting).
+
+    Returns
+    -------
+    QuatArray, shape (broadcast batch, 4)
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import squad, slerp
+    >>> q0, q1 = [1, 0, 0, 0], [np.cos(0.3), np.sin(0.3), 0, 0]
+    >>> np.allclose(squad(q0, q0, q1, q1, 0.25), slerp(q0, q1, 0.25))
+    True
+    """
+    qs = [_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
+    t = _param(t)
+    _pairwise(("q0", "a", "b", "q1"), qs, t)
+    return QuatArray._wrap(IK.squad(*qs, t))
+
+
+def bezier(q0, a, b, q1, t):
+    """Spherical cubic Bézier segment with control points q0, a, b, q1 (Shoemake).
+
+    Evaluated by de Casteljau's construction with SLERP in place of linear
+    interpolation (three levels, no sign flips).  The tangent at t = 0 is
+    3 log(q0⁻¹ a) and at t = 1 is 3 log(b⁻¹ q1) (per unit t, body frame).
+
+    Parameters
+    ----------
+    q0, a, b, q1 : array_like, shape (..., 4)
+        Unit quaternions; batch shapes broadcast.
+    t : array_like
+        Parameter in [0, 1] along the segment (broadcasting).
+
+    Returns
+    -------
+    QuatArray, shape (broadcast batch, 4)
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import bezier, slerp
+    >>> q0, q1 = [1, 0, 0, 0], [np.cos(0.3), np.sin(0.3), 0, 0]
+    >>> a, b = slerp(q0, q1, 1 / 3), slerp(q0, q1, 2 / 3)   # evenly on the arc
+    >>> np.allclose(bezier(q0, a, b, q1, 0.4), slerp(q0, q1, 0.4))
+    True
+    """
+    qs = [_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
+    t = _param(t)
+    _pairwise(("q0", "a", "b", "q1"), qs, t)
+    return QuatArray._wrap(IK.bezier(*qs, t))
+
+
+def _prepared_keys(keys, times, name="keys", times_name="times"):
+    """Validated, normalised and unflipped keys (K, ..., 4) and float64 times (or None)."""
+    keys = float_array(keys, name)
+    if keys.ndim < 2 or keys.shape[-1] != 4:
+        raise ValueError(f"expected {name} of shape (K, ..., 4), got {keys.shape}")
+    K = keys.shape[0]
+    if K < 2:
+        raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
+                         f"(a sequence of at least 2 rotations), got {keys.shape}")
+    finite(keys, name)
+    n = np.sqrt(np.einsum("...i,...i->...", keys, keys))
+    if not (n > 0).all():
+        raise ValueError(f"expected non-zero {name}, got a zero quaternion")
+    keys = IK.unflip(keys / n[..., None].astype(keys.dtype, copy=False), 0)
+    if times is not None:
+        times = _check_times(times, K, times_name, name)
+    return keys, times
+
+
+def _check_times(times, K, name="times", keys_name="keys"):
+    times = float_array(times, name, dtype=np.float64)
+    if times.ndim != 1:
+        raise ValueError(f"expected {name} of shape (K,) (a 1 dimensional array), got {times.shape}")
+    if times.shape[0] != K:
+        raise ValueError(f"expected as many {name} as {keys_name} (number of rotations equal to number "
+                         f"of timestamps), got {times.shape[0]} {name} and {K} {keys_name}")
+    finite(times, name)
+    bad = np.flatnonzero(np.diff(times) <= 0)
+    if bad.size:
+        j = int(bad[0])
+        raise ValueError(f"expected {name} in strictly increasing order, got "
+                         f"{name}[{j + 1}] = {float(times[j + 1])!r} after {name}[{j}] = {float(times[j])!r}")
+    return times
+
+
+def squad_control_points(keys, times=None):
+    """Squad control points s_i, one per key, computed once for a whole track.
+
+    ``s_i = q_i exp(-(w_in L₊ + w_out L₋) / 2)`` with L± = log(q_i⁻¹ q_{i±1}),
+    w_in = Δ_{i-1} / (Δ_{i-1} + Δ_i) and w_out = Δ_i / (Δ_{i-1} + Δ_i) for the
+    key intervals Δ.  With equal spacing this is Shoemake's
+    q_i exp(-(L₊ + L₋) / 4).  With unequal spacing the weights scale the
+    neighbouring tangents by the ratio of the adjacent intervals, so that
+    the angular velocity at q_i is the central difference
+    (L₊ - L₋) / (t_{i+1} - t_{i-1}) from both sides: the curve is C¹ in time.
+    (The same single s_i serves the segments on both sides of q_i.)
+
+    Ends: the sequence is extended by geodesic reflection,
+    q₋₁ = q₀ q₁⁻¹ q₀ at t₀ - Δ₀ (and likewise after the last key), which
+    gives s₀ = q₀ and s_{K-1} = q_{K-1}: the curve leaves the first key and
+    reaches the last one with the velocity of the end segment's SLERP.
+
+    Keys are normalised and unflipped along axis 0 first.
+
+    Parameters
+    ----------
+    keys : array_like, shape (K, ..., 4)
+        K >= 2 keyframes of any batch of tracks.
+    times : array_like, shape (K,), optional
+        Strictly increasing key times; equal spacing if omitted.
+
+    Returns
+    -------
+    QuatArray, shape (K, ..., 4)
+        Segment i uses ``squad(q_i, s_i, s_{i+1}, q_{i+1}, u)``.
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import squad_control_points
+    >>> keys = [[1, 0, 0, 0], [np.cos(0.2), np.sin(0.2), 0, 0], [np.cos(0.4), np.sin(0.4), 0, 0]]
+    >>> s = squad_control_points(keys)      # constant rotation speed: s_i = q_i
+    >>> np.allclose(s, keys)
+    True
+    """
+    keys, times = _prepared_keys(keys, times)
+    return QuatArray._wrap(IK.squad_controls(keys, times))
+
+
+def bezier_control_points(keys, times=None):
+    """Spherical Bézier control points (a_i, b_i) for a whole track (Shoemake's construction).
+
+    With Double(p, q) = 2 (p·q) q - p and Bisect(p, q) = (p + q) / |p + q|,
+    c_i = Bisect(Double(q_{i-1}, q_i), q_{i+1}) is the end of the tangent at
+    q_i.  Taken as the control point as printed in the paper, the tangent
+    would be three times the central difference (the curve overshoots), so
+    the control point lies one third of the way along it:
+    ``a_i = slerp(q_i, c_i, 1/3)`` and ``b_i = Double(a_i, q_i)``.
+
+    Unequal spacing: the fractions become (2/3) w_out and (2/3) w_in, with
+    w_out = Δ_i / (Δ_{i-1} + Δ_i) and w_in = Δ_{i-1} / (Δ_{i-1} + Δ_i), i.e.
+    ``a_i = slerp(q_i, c_i, 2 w_out / 3)`` and
+    ``b_i = slerp(q_i, Double(c_i, q_i), 2 w_in / 3)``, so the velocity in
+    time is continuous across every key (C¹ in time).
+
+    Ends: geodesic reflection (q₋₁ = q₀ q₁⁻¹ q₀ at t₀ - Δ₀, likewise at the
+    end), which gives a₀ = slerp(q₀, q₁, 1/3) and b_{K-1} = slerp(q_{K-1},
+    q_{K-2}, 1/3): the ends move with the velocity of the end segment's SLERP.
+
+    Keys are normalised and unflipped along axis 0 first.
+
+    Parameters
+    ----------
+    keys : array_like, shape (K, ..., 4)
+    times : array_like, shape (K,), optional
+        Strictly increasing key times; equal spacing if omitted.
+
+    Returns
+    -------
+    a, b : QuatArray, shape (K, ..., 4)
+        Segment i is ``bezier(q_i, a_i, b_{i+1}, q_{i+1}, u)``.
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import bezier_control_points, slerp
+    >>> keys = [[1, 0, 0, 0], [np.cos(0.2), np.sin(0.2), 0, 0], [np.cos(0.4), np.sin(0.4), 0, 0]]
+    >>> a, b = bezier_control_points(keys)
+    >>> np.allclose(a[0], slerp(keys[0], keys[1], 1 / 3))
+    True
+    """
+    keys, times = _prepared_keys(keys, times)
+    a, b = IK.bezier_controls(keys, times)
+    return QuatArray._wrap(a), QuatArray._wrap(b)
+
+
+# ---------------------------------------------------------------------------
+# keyframe tracks
+# ---------------------------------------------------------------------------
+
+def _qt_blocks(M, B):
+    """(query slice, track slice) blocks of about BLOCK quaternions each."""
+    if B <= IK.BLOCK:
+        m = max(1, IK.BLOCK // max(B, 1))
+        for s in range(0, M, m):
+            yield slice(s, s + m), slice(None)
+    else:
+        for q in range(M):
+            for s in range(0, B, IK.BLOCK):
+                yield slice(q, q + 1), slice(s, s + IK.BLOCK)
+
+
+class Track:
+    """Rotation keyframes of a batch of tracks, interpolated in time.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+        Key times: finite, strictly increasing, K >= 2.
+    keys : array_like, shape (K, ..., 4)
+        K keyframes of any batch of tracks, e.g. ``(K, joints, 4)``.  They
+        are normalised and unflipped along the key axis (so negating any key
+        changes nothing; outputs follow the sign of the first key).
+    method : {'slerp', 'linear', 'squad', 'bezier'}, default 'slerp'
+        ``'linear'``: NLERP between neighbouring keys (cheap, not
+        constant-speed); ``'slerp'``: piecewise great circles at constant
+        speed (continuous, but the angular velocity jumps at keys);
+        ``'squad'``: Shoemake's squad through `squad_control_points`;
+        ``'bezier'``: spherical cubic Bézier through `bezier_control_points`.
+        squad and Bézier are C¹ in time, also for unequal key spacing; both
+        extend the keys by geodesic reflection at the ends.
+    extrapolate : {'raise', 'clamp', 'extend'}, default 'raise'
+        Queries outside [times[0], times[-1]]: ``'raise'`` a ValueError,
+        ``'clamp'`` to the end keys (zero angular velocity there), or
+        ``'extend'`` the first / last segment's curve.
+
+    Notes
+    -----
+    Control points and per-segment great-circle frames are computed once,
+    here.  A call does one segment lookup (a grid-accelerated equivalent of
+    ``searchsorted(times, t, 'right') - 1``: a query at a key time starts the
+    next segment, so every method passes exactly through its keys) and a
+    fixed number of batched kernels per cache-sized block: no Python loop
+    over keys, queries or tracks.
+
+    Examples
+    --------
+    A track of two joints with three keys (K, joints, 4) = (3, 2, 4):
+
+    >>> from quatarray import QuatArray
+    >>> from quatarray.interpolate import Track
+    >>> def rz(deg):   # rotation about z
+    ...     h = np.radians(deg) / 2
+    ...     return [np.cos(h), 0, 0, np.sin(h)]
+    >>> keys = [[rz(0), rz(0)], [rz(90), rz(10)], [rz(180), rz(20)]]
+    >>> track = Track([0.0, 1.0, 3.0], keys, method='squad')
+    >>> track(np.linspace(0, 3, 7)).shape
+    (7, 2, 4)
+    >>> np.allclose(track(1.0), [rz(90), rz(10)])
+    True
+    >>> track.angular_velocity(1.0).round(4)      # rad per unit time, world frame
+    array([[0.    , 0.    , 1.0472],
+           [0.    , 0.    , 0.1164]])
+    """
+
+    def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
+        self._setup(times, keys, method, extrapolate, "times", "keys")
+
+    def _setup(self, times, keys, method, extrapolate, times_name, keys_name):
+        self._method = _choice(method, "method", METHODS)
+        self._extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
+        keys, _ = _prepared_keys(keys, None, keys_name)
+        K = keys.shape[0]
+        times = _check_times(times, K, times_name, keys_name)
+        times = times.copy()
+        times.flags.writeable = False
+        keys.flags.writeable = False
+        self._times = times
+        self._keys = keys
+        self._batch = keys.shape[1:-1]
+        B = prod(self._batch)
+        self._B = B
+        self._dtype = keys.dtype
+        self._index = IK.SegmentIndex(times)
+        dt = np.diff(times)
+        self._dt = np.append(dt, np.inf)     # phantom segment after the last key: u = 0
+        Q = IK.soa(keys.reshape(K, B, 4))    # (4, K, B)
+        self._controls = None
+        if self._method == "linear":
+            table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
+        elif self._method == "slerp":
+            table = self._frame_rows([(Q[:, :-1], Q[:, 1:], Q[:, -1])])
+        elif self._method == "squad":
+            s = IK.squad_controls(keys, times)
+            self._controls = QuatArray._wrap(s)
+            S = IK.soa(s.reshape(K, B, 4))
+            table = self._frame_rows([(Q[:, :-1], Q[:, 1:], Q[:, -1]), (S[:, :-1], S[:, 1:], S[:, -1])])
+        else:
+            a, b = IK.bezier_controls(keys, times)
+            self._controls = (QuatArray._wrap(a), QuatArray._wrap(b))
+            A = IK.soa(a.reshape(K, B, 4))
+            Bc = IK.soa(b.reshape(K, B, 4))
+            table = self._frame_rows([(Q[:, :-1], A[:, :-1], Q[:, -1]),
+                                      (A[:, :-1], Bc[:, 1:], Q[:, -1]),
+                                      (Bc[:, 1:], Q[:, 1:], Q[:, -1])])
+        self._table = np.ascontiguousarray(table, dtype=self._dtype)
+        for c in (self._controls if isinstance(self._controls, tuple) else (self._controls,)):
+            if c is not None:
+                c.flags.writeable = False
+
+    @staticmethod
+    def _frame_rows(pairs):
+        """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B):
+        frames for segments 0..K-2 plus a constant phantom segment K-1."""
+        Fs, phis = [], []
+        for k0, k1, last in pairs:
+            F, phi = IK.frames(k0, k1)
+            ph = np.zeros((8,) + F.shape[2:], F.dtype)
+            ph[:4] = last
+            Fs.append(np.concatenate([F, ph[:, None]], axis=1))
+            phis.append(np.concatenate([phi, np.zeros((1,) + phi.shape[1:], phi.dtype)])[None])
+        return np.concatenate(Fs + phis)
+
+    # --- properties ---------------------------------------------------------
+    @property
+    def times(self):
+        """Key times, shape (K,) (read-only float64)."""
+        return self._times
+
+    @property
+    def keys(self):
+        """Keys as used: normalised and unflipped, shape (K, ..., 4) (read-only)."""
+        return QuatArray._wrap(self._keys)
+
+    @property
+    def method(self):
+        return self._method
+
+    @property
+    def extrapolate(self):
+        return self._extrapolate
+
+    @property
+    def batch_shape(self):
+        """Batch shape of the tracks (``keys.shape[1:-1]``)."""
+        return self._batch
+
+    @property
+    def dtype(self):
+        return self._dtype
+
+    @property
+    def control_points(self):
+        """None for 'linear' / 'slerp'; s (K, ..., 4) for 'squad'; (a, b) for 'bezier'."""
+        return self._controls
+
+    def __len__(self):
+        return len(self._times)
+
+    def __repr__(self):
+        return (f"{type(self).__name__}(K={len(self._times)}, batch_shape={self._batch}, "
+                f"method={self._method!r}, extrapolate={self._extrapolate!r}, dtype={self._dtype})")
+
+    # --- evaluation ---------------------------------------------------------
+    def _queries(self, t, name):
+        """(shape of t, t as flat float64 (clamped with 'clamp'), mask of clamped queries or None)."""
+        t = float_array(t, name)
+        flat = np.ravel(t).astype(np.float64, copy=False)
+        outside = None
+        if flat.size:
+            lo, hi = float(flat.min()), float(flat.max())
+            if np.isnan(lo) or np.isnan(hi):
+                raise ValueError(f"expected {name} without nan, got nan")
+            t0, t1 = float(self._times[0]), float(self._times[-1])
+            if self._extrapolate == "raise" and (lo < t0 or hi > t1):
+                bad = lo if lo < t0 else hi
+                raise ValueError(f"expected {name} within the range [{t0!r}, {t1!r}], both inclusive "
+                                 f"(extrapolate='raise'), got {bad!r}")
+            if self._extrapolate == "clamp" and (lo < t0 or hi > t1):
+                outside = (flat < t0) | (flat > t1)
+                flat = np.clip(flat, t0, t1)
+            if self._extrapolate == "extend" and not (np.isfinite(lo) and np.isfinite(hi)):
+                raise ValueError(f"expected finite {name} to extrapolate (extrapolate='extend'), got {lo!r} .. {hi!r}")
+        return t.shape, flat, outside
+
+    def _segments(self, tb, velocity):
+        """Segment index i and parameter u (float64) of the queries tb."""
+        i = self._index.find(tb)
+        K = len(self._times)
+        if velocity or self._extrapolate == "extend":
+            np.clip(i, 0, K - 2, out=i)
+        u = np.subtract(tb, np.take(self._times, i, mode="clip"))
+        u /= np.take(self._dt, i, mode="clip")
+        return i, u
+
+    def __call__(self, t):
+        """Interpolated rotations at times `t`.
+
+        Parameters
+        ----------
+        t : array_like
+            Query times, scalar or any shape (typically (M,)).
+
+        Returns
+        -------
+        QuatArray, shape ``t.shape + batch_shape + (4,)``
+        """
+        return self._evaluate(t, "t")
+
+    def _evaluate(self, t, name):
+        tshape, flat, _ = self._queries(t, name)
+        M, B = flat.size, self._B
+        out = np.empty((M, B, 4), self._dtype)
+        work = IK.Work(self._dtype)
+        R = self._table.shape[0]
+        for sm, sb in _qt_blocks(M, B):
+            i, u = self._segments(flat[sm], False)
+            tab = self._table[:, :, sb]
+            m, b = len(i), tab.shape[2]
+            G = work.rows("G", R, (m, b))
+            np.take(tab, i, axis=1, mode="clip", out=G)
+            uu = u.astype(self._dtype)[:, None]
+            self._eval_block(G, uu, IK.soa(out[sm, sb]), work)
+        return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
+
+    def _eval_block(self, G, u, O, work):
+        s = O.shape[1:]
+        method = self._method
+        if method == "slerp":
+            IK.frame_core(G[:8], G[8], u, O, work)
+        elif method == "linear":
+            Gv = G.reshape((2, 4) + s)
+            W = work.rows("lin_W", 2, s)
+            np.subtract(1, u, out=W[0])
+            np.copyto(W[1], u)
+            np.multiply(Gv, W[:, None], out=Gv)
+            np.add(Gv[0], Gv[1], out=O)
+            n = work.rows("lin_n", 1, s)[0]
+            np.copyto(Gv[0], O)
+            IK._sqsum(Gv[0], n)
+            np.sqrt(n, out=n)
+            np.divide(O, n, out=O)
+        elif method == "squad":
+            P = work.rows("sq_P", 4, s)
+            S = work.rows("sq_S", 4, s)
+            IK.frame_core(G[:8], G[16], u, P, work)
+            IK.frame_core(G[8:16], G[17], u, S, work)
+            h = work.rows("sq_h", 1, s[:1] + (1,))[0]
+            np.subtract(1, u, out=h)
+            h *= u
+            h *= 2
+            IK.slerp_core(P, S, h, O, False, work)
+        else:
+            L = work.rows("bz_L", 12, s).reshape((4, 3) + s)
+            for j in range(3):
+                IK.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j], work)
+            M = work.rows("bz_M", 8, s).reshape((4, 2) + s)
+            IK.slerp_core(L[:, :2], L[:, 1:], u, M, False, work)
+            IK.slerp_core(M[:, 0], M[:, 1], u, O, False, work)
+
+    def angular_velocity(self, t, *, frame="world"):
+        """Angular velocity of the interpolated rotation, analytic (no finite differences).
+
+        Parameters
+        ----------
+        t : array_like
+            Query times, scalar or any shape.
+        frame : {'world', 'body'}, default 'world'
+            ``'world'`` (space frame): ω = 2 vec(q̇ q*), i.e. q̇ = ½ ω q;
+            ``'body'``: ω_b = 2 vec(q* q̇) = q* ω q.
+
+        Returns
+        -------
+        ndarray, shape ``t.shape + batch_shape + (3,)``
+            Radians per unit of time.  At a key time the velocity of the
+            segment that starts there is returned (of the last segment at
+            the last key); SLERP's velocity is constant per segment, squad's
+            and Bézier's is continuous.  With ``extrapolate='clamp'`` it is
+            zero outside the key range.
+
+        Examples
+        --------
+        >>> from quatarray.interpolate import Track
+        >>> keys = [[1, 0, 0, 0], [np.cos(0.5), 0, np.sin(0.5), 0]]   # 1 rad about y
+        >>> Track([0, 2], keys).angular_velocity([0.5, 1.5])
+        array([[0. , 0.5, 0. ],
+               [0. , 0.5, 0. ]])
+        """
+        frame = _choice(frame, "frame", FRAMES)
+        tshape, flat, outside = self._queries(t, "t")
+        M, B = flat.size, self._B
+        out = np.empty((M, B, 3), np.float64)
+        for sm, sb in _qt_blocks(M, B):
+            tb = flat[sm]
+            i, u = self._segments(tb, True)
+            tab = self._table[:, :, sb]
+            G = np.take(tab, i, axis=1, mode="clip").astype(np.float64)
+            uu = u[:, None]
+            q, dq = self._deriv_block(G, uu)
+            w = IK.omega_from(q, dq, frame) / np.take(self._dt, i)[:, None]
+            if outside is not None:
+                w[:, outside[sm]] = 0
+            IK.soa(out[sm, sb])[...] = w
+        return out.reshape(tshape + self._batch + (3,)).astype(self._dtype, copy=False)
+
+    def _deriv_block(self, G, u):
+        method = self._method
+        if method == "linear":
+            k0, k1 = G[:4], G[4:]
+            return (1 - u) * k0 + u * k1, k1 - k0
+        if method == "slerp":
+            return IK.frame_deriv(G[:8], G[8], u)
+        if method == "squad":
+            A, dA = IK.frame_deriv(G[:8], G[16], u)
+            S, dS = IK.frame_deriv(G[8:16], G[17], u)
+            return IK.slerp_deriv(A, dA, S, dS, 2 * u * (1 - u), 2 - 4 * u)
+        L = [IK.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
+        M = [IK.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
+        return IK.slerp_deriv(*M[0], *M[1], u, 1.0)
+
+
+def _as_quats(rotations):
+    """Quaternions (scalar first) from a QuatArray, array_like, or a scipy Rotation."""
+    if not isinstance(rotations, np.ndarray) and hasattr(rotations, "as_quat"):
+        try:
+            return rotations.as_quat(scalar_first=True)
+        except TypeError:
+            pass
+    return rotations
+
+
+class Slerp(Track):
+    """scipy's ``Slerp(times, rotations)``, returning `QuatArray` and allowing batches of tracks.
+
+    Same behaviour and errors as `scipy.spatial.transform.Slerp` (times not
+    strictly increasing, fewer than 2 rotations, mismatched lengths, 2-D
+    times, and queries outside [times[0], times[-1]] raise ValueError), but
+    `rotations` may be a `QuatArray` or array_like of shape (K, ..., 4)
+    (scalar-first; any batch of tracks, where scipy allows one leading
+    dimension only) or a scipy ``Rotation`` of length K.  Equivalent to
+    ``Track(times, rotations, method='slerp', extrapolate='raise')``.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+    rotations : QuatArray, array_like of shape (K, ..., 4), or scipy Rotation
+
+    Examples
+    --------
+    >>> from quatarray.interpolate import Slerp
+    >>> keys = [[1, 0, 0, 0], [0, 0, 0, 1]]            # identity, 180° about z
+    >>> s = Slerp([0, 2], keys)
+    >>> s([0.5, 1.0])
+    QuatArray([[0.92387953, 0.        , 0.        , 0.38268343],
+               [0.70710678, 0.        , 0.        , 0.70710678]])
+    >>> s(3.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: expected times within the range [0.0, 2.0], both inclusive (extrapolate='raise'), got 3.0
+    """
+
+    def __init__(self, times, rotations):
+        self._setup(times, _as_quats(rotations), "slerp", "raise", "times", "rotations")
+
+    @property
+    def timedelta(self):
+        """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
+        return np.diff(self._times)
+
+    def __call__(self, times):
+        """Interpolated rotations at `times` (scalar or 1-D), as a `QuatArray`.
+
+        Returns shape ``(M, ..., 4)`` for M times, ``(..., 4)`` for a scalar.
+        """
+        t = float_array(times, "times")
+        if t.ndim > 1:
+            raise ValueError(f"expected times at most 1-dimensional, got shape {t.shape}")
+        return self._evaluate(t, "times")

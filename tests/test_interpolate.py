@@ -1,0 +1,834 @@
+"""Tests for quatarray.interpolate: pairwise lerp/nlerp/slerp, unflip, squad and
+spherical Bézier (control points and evaluation), Track and the scipy-style Slerp.
+
+squad and Bézier are checked against straightforward loop-based reference
+implementations of the formulas (written here, one quaternion at a time, with
+the textbook sin/log/exp forms); slerp tracks against scipy's Slerp.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation as SciRotation
+from scipy.spatial.transform import Slerp as SciSlerp
+
+from quatarray import QuatArray
+from quatarray import _interp_kernels as IK
+from quatarray.interpolate import (
+    Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad,
+    squad_control_points, unflip,
+)
+from quatarray.testing import assert_allclose
+
+from .conftest import random_quats, tol
+
+METHODS = ("linear", "slerp", "squad", "bezier")
+SMOOTH = ("squad", "bezier")
+
+
+# ---------------------------------------------------------------------------
+# reference implementations: one quaternion at a time, float64, textbook forms
+# ---------------------------------------------------------------------------
+
+def r_mul(p, q):
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def r_conj(q):
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def r_log(q):
+    """Vector part of the log of a unit quaternion."""
+    vn = math.sqrt(q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
+    theta = math.atan2(vn, q[0])
+    return np.zeros(3) if vn == 0 else np.asarray(q[1:]) * (theta / vn)
+
+
+def r_exp(v):
+    n = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+    s = 1.0 if n == 0 else math.sin(n) / n
+    return np.array([math.cos(n), v[0] * s, v[1] * s, v[2] * s])
+
+
+def r_slerp(p, q, t):
+    """p (p⁻¹ q)^t, following q as given (no flip)."""
+    return r_mul(p, r_exp(t * r_log(r_mul(r_conj(p), q))))
+
+
+def r_double(p, q):
+    return 2 * np.dot(p, q) * q - p
+
+
+def r_bisect(p, q):
+    s = p + q
+    return s / np.linalg.norm(s)
+
+
+def r_unflip(keys):
+    keys = [np.asarray(k, float) / np.linalg.norm(k) for k in keys]
+    for i in range(1, len(keys)):
+        if np.dot(keys[i], keys[i - 1]) < 0:
+            keys[i] = -keys[i]
+    return keys
+
+
+def r_extend(keys, times):
+    """Geodesic reflection at both ends: q_-1 = q0 q1⁻¹ q0 at t0 - (t1 - t0)."""
+    first = r_mul(r_mul(keys[0], r_conj(keys[1])), keys[0])
+    last = r_mul(r_mul(keys[-1], r_conj(keys[-2])), keys[-1])
+    tx = [times[0] - (times[1] - times[0])] + list(times) + [times[-1] + (times[-1] - times[-2])]
+    return [first] + list(keys) + [last], tx
+
+
+def r_squad_controls(keys, times):
+    """s_i = q_i exp(-(w_in L+ + w_out L-)/2) (Shoemake's -(L+ + L-)/4 when equally spaced)."""
+    ext, tx = r_extend(keys, times)
+    out = []
+    for i in range(len(keys)):
+        q = ext[i + 1]
+        lp = r_log(r_mul(r_conj(q), ext[i + 2]))
+        lm = r_log(r_mul(r_conj(q), ext[i]))
+        din, dout = tx[i + 1] - tx[i], tx[i + 2] - tx[i + 1]
+        w_in, w_out = din / (din + dout), dout / (din + dout)
+        out.append(r_mul(q, r_exp(-(w_in * lp + w_out * lm) / 2)))
+    return out
+
+
+def r_bezier_controls(keys, times):
+    """a_i = slerp(q_i, c_i, 2 w_out / 3), b_i = slerp(q_i, Double(c_i, q_i), 2 w_in / 3),
+    c_i = Bisect(Double(q_{i-1}, q_i), q_{i+1}); equal spacing: a_i at 1/3, b_i = Double(a_i, q_i)."""
+    ext, tx = r_extend(keys, times)
+    a, b = [], []
+    for i in range(len(keys)):
+        q = ext[i + 1]
+        c = r_bisect(r_double(ext[i], q), ext[i + 2])
+        din, dout = tx[i + 1] - tx[i], tx[i + 2] - tx[i + 1]
+        a.append(r_slerp(q, c, 2 / 3 * dout / (din + dout)))
+        b.append(r_slerp(q, r_double(c, q), 2 / 3 * din / (din + dout)))
+    return a, b
+
+
+def r_squad(q0, a, b, q1, u):
+    return r_slerp(r_slerp(q0, q1, u), r_slerp(a, b, u), 2 * u * (1 - u))
+
+
+def r_bezier(q0, a, b, q1, u):
+    p = [q0, a, b, q1]
+    while len(p) > 1:
+        p = [r_slerp(p[j], p[j + 1], u) for j in range(len(p) - 1)]
+    return p[0]
+
+
+def r_track(times, keys, t, method):
+    """Reference evaluation of one track (keys (K, 4)) at query times t (M,)."""
+    keys = r_unflip(keys)
+    times = list(map(float, times))
+    if method == "squad":
+        s = r_squad_controls(keys, times)
+    elif method == "bezier":
+        a, b = r_bezier_controls(keys, times)
+    out = []
+    for tq in t:
+        i = min(max(np.searchsorted(times, tq, side="right") - 1, 0), len(times) - 2)
+        u = (tq - times[i]) / (times[i + 1] - times[i])
+        if method == "slerp":
+            out.append(r_slerp(keys[i], keys[i + 1], u))
+        elif method == "linear":
+            n = (1 - u) * keys[i] + u * keys[i + 1]
+            out.append(n / np.linalg.norm(n))
+        elif method == "squad":
+            out.append(r_squad(keys[i], s[i], s[i + 1], keys[i + 1], u))
+        else:
+            out.append(r_bezier(keys[i], a[i], b[i + 1], keys[i + 1], u))
+    return np.array(out)
+
+
+def random_track(rng, k, batch=(), unequal=True, step=0.6, dtype=np.float64, flip=True):
+    """A smooth-ish random track: neighbouring keys within about `step` rad; random signs."""
+    if unequal:
+        times = np.cumsum(rng.uniform(0.2, 2.0, k))
+    else:
+        times = np.arange(k) * 0.7 + 1.0
+    keys = np.empty((k,) + tuple(batch) + (4,))
+    keys[0] = random_quats(rng, batch)
+    for i in range(1, k):
+        d = np.concatenate([np.ones(tuple(batch) + (1,)), rng.normal(0, step / 2, tuple(batch) + (3,))], -1)
+        keys[i] = r_mul_arr(keys[i - 1], d / np.linalg.norm(d, axis=-1, keepdims=True))
+    if flip:
+        keys *= rng.choice([-1.0, 1.0], (k,) + tuple(batch) + (1,))
+    return times, keys.astype(dtype)
+
+
+def r_mul_arr(p, q):
+    return np.asarray(IK._qmul(np.asarray(p, float), np.asarray(q, float)))
+
+
+def plain(q):
+    return np.asarray(q.ndarray if isinstance(q, QuatArray) else q)
+
+
+def rotation_angle(q):
+    """Rotation angle 2 atan2(|v|, |w|) of (..., 4) quaternions, in [0, pi]."""
+    q = plain(q).astype(np.float64)
+    return 2 * np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), np.abs(q[..., 0]))
+
+
+# ---------------------------------------------------------------------------
+# pairwise slerp
+# ---------------------------------------------------------------------------
+
+def test_slerp_matches_closed_form(rng, dtype, batch_shape):
+    q0 = random_quats(rng, batch_shape, dtype)
+    q1 = random_quats(rng, batch_shape, dtype)
+    t = rng.uniform(-0.5, 1.5, batch_shape).astype(dtype)
+    got = slerp(q0, q1, t)
+    assert isinstance(got, QuatArray) and got.dtype == dtype and got.shape == batch_shape + (4,)
+    a, b, tt = q0.reshape(-1, 4).astype(float), q1.reshape(-1, 4).astype(float), np.ravel(t).astype(float)
+    b = b * np.where(np.sum(a * b, -1) < 0, -1, 1)[:, None]
+    ref = np.array([r_slerp(x, y, s) for x, y, s in zip(a, b, tt)]).reshape(batch_shape + (4,))
+    assert_allclose(got, ref, atol=tol(dtype, 20))
+
+
+def test_slerp_endpoints_and_shortest_flag(rng):
+    q0 = random_quats(rng, (50,))
+    q1 = random_quats(rng, (50,))
+    flip = np.sum(q0 * q1, -1) < 0
+    assert flip.any() and not flip.all()
+    assert_allclose(slerp(q0, q1, 0.0), q0, atol=tol(np.float64, 2))
+    assert_allclose(slerp(q0, q1, 1.0), q1 * np.where(flip, -1, 1)[:, None], atol=tol(np.float64, 4))
+    # shortest=False follows the arc to q1 as given: the long way where the dot is negative
+    long = slerp(q0, q1, 0.5, shortest=False)
+    ref = np.array([r_slerp(a, b, 0.5) for a, b in zip(q0, q1)])
+    assert_allclose(long, ref, atol=tol(np.float64, 20))
+    assert_allclose(slerp(q0, q1, 1.0, shortest=False), q1, atol=tol(np.float64, 8))
+    assert not np.allclose(plain(long)[flip], plain(slerp(q0, q1, 0.5))[flip])
+
+
+def test_slerp_extrapolates_along_the_great_circle(rng):
+    q0, q1 = random_quats(rng, (20,)), random_quats(rng, (20,))
+    q1 = q1 * np.where(np.sum(q0 * q1, -1) < 0, -1, 1)[:, None]
+    for t in (-1.25, 2.0, 3.7):
+        ref = np.array([r_slerp(a, b, t) for a, b in zip(q0, q1)])
+        assert_allclose(slerp(q0, q1, t), ref, atol=tol(np.float64, 50))
+
+
+def test_slerp_antipodal_is_constant(dtype):
+    q = random_quats(np.random.default_rng(1), (6,), dtype)
+    t = np.linspace(-0.5, 1.5, 6).astype(dtype)
+    got = slerp(q, -q, t)
+    assert_allclose(got, q, atol=tol(dtype, 2))   # shortest: -q is q, the rotation stays put
+    got = plain(slerp(q, -q, t, shortest=False))  # no unique arc: still a constant rotation
+    assert np.isfinite(got).all()
+    assert_allclose(got, q * np.where(t < 0.5, 1, -1)[:, None], atol=0)
+
+
+def test_slerp_orthogonal_pair_is_deterministic(dtype):
+    """q0·q1 = 0 exactly (180° apart as rotations): no flip, the arc to q1 as given."""
+    q0 = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0.6, 0.8, 0, 0]], dtype)
+    q1 = np.array([[0, 0, 1, 0], [0, 0, 0, -1], [-0.8, 0.6, 0, 0]], dtype)
+    assert (np.sum(q0 * q1, -1) == 0).all()
+    t = np.array([0.25, 0.5, 0.75], dtype)
+    a, b = slerp(q0, q1, t), slerp(q0, q1, t)
+    np.testing.assert_array_equal(plain(a), plain(b))
+    ref = np.array([r_slerp(x, y, s) for x, y, s in zip(q0.astype(float), q1.astype(float), t)])
+    assert_allclose(a, ref, atol=tol(dtype, 8))
+
+
+def test_slerp_near_identity_closed_form():
+    """Identity -> 1e-10 rad about an axis, at t = 0.3: 3e-11 rad to 1e-14 relative."""
+    axis = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
+    theta = 1e-10
+    q1 = np.concatenate([[np.cos(theta / 2)], np.sin(theta / 2) * axis])
+    got = plain(slerp([1.0, 0, 0, 0], q1, 0.3))
+    expected = np.concatenate([[np.cos(0.3 * theta / 2)], np.sin(0.3 * theta / 2) * axis])
+    np.testing.assert_allclose(got[1:], expected[1:], rtol=1e-14, atol=0)
+    assert got[0] == 1.0
+    assert abs(rotation_angle(got) / 3e-11 - 1) < 1e-14
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_slerp_small_angles_keep_relative_accuracy(dtype):
+    """The angle of slerp(identity, q, t) is t times the angle of q to a few ulp, for
+    angles from 1e-12 rad (1e-5 in float32) up to 2 rad: no arccos cancellation."""
+    eps = np.finfo(dtype).eps
+    lo = -12 if dtype == np.float64 else -5
+    theta = np.logspace(lo, np.log10(2.0), 200)
+    axis = np.array([0.3, 0.5, -0.8]) / np.linalg.norm([0.3, 0.5, -0.8])
+    q1 = np.concatenate([np.cos(theta / 2)[:, None], np.sin(theta / 2)[:, None] * axis], -1).astype(dtype)
+    ident = np.array([1, 0, 0, 0], dtype)
+    for t in (0.3, 0.5, 0.9, 1.7):
+        got = plain(slerp(ident, q1, np.asarray(t, dtype)))
+        # angle of the stored q1, then the expected angle t·theta1 (computed in float64)
+        th1 = 2 * np.arctan2(np.linalg.norm(q1[:, 1:].astype(float), axis=-1), q1[:, 0].astype(float))
+        vn = np.linalg.norm(got[:, 1:].astype(float), axis=-1)
+        rel = np.abs(vn / np.sin(float(dtype(t)) * th1 / 2) - 1)
+        assert rel.max() < 8 * eps, (t, rel.max())
+
+
+def test_slerp_broadcasting_and_scalar_parameter(rng):
+    q0 = random_quats(rng, ())
+    q1 = random_quats(rng, (5,))
+    t = rng.uniform(0, 1, (3, 1))
+    got = slerp(q0, q1, t)
+    assert got.shape == (3, 5, 4)
+    for i in range(3):
+        for j in range(5):
+            assert_allclose(got[i, j], slerp(q0, q1[j], float(t[i, 0])), atol=tol(np.float64, 4))
+    one = slerp(q0, q1[0], 0.4)
+    assert one.shape == (4,) and isinstance(one, QuatArray)
+    assert_allclose(one, slerp(q0[None], q1[:1], [0.4])[0], atol=tol(np.float64, 4))
+
+
+def test_slerp_large_batches_are_blocked(rng):
+    """More quaternions than a block, with a broadcast operand (several blocks)."""
+    n = IK.BLOCK * 2 + 123
+    q0 = random_quats(rng, (2, n))
+    q1 = random_quats(rng, (n,))
+    t = rng.uniform(0, 1, (2, 1))
+    got = plain(slerp(q0, q1, t))
+    for i in range(2):
+        piece = slice(n - 50, n)
+        assert_allclose(got[i, piece], slerp(q0[i, piece], q1[piece], t[i, 0]), atol=tol(np.float64, 4))
+        assert_allclose(got[i, :50], slerp(q0[i, :50], q1[:50], t[i, 0]), atol=tol(np.float64, 4))
+
+
+def test_dtypes_kept_and_promoted(rng):
+    q32 = random_quats(rng, (4,), np.float32)
+    q64 = random_quats(rng, (4,), np.float64)
+    for f in (slerp, nlerp, lerp):
+        assert f(q32, q32, 0.5).dtype == np.float32
+        assert f(q32, q32, np.full(4, 0.5)).dtype == np.float32   # float64 t keeps float32
+        assert f(q32, q64, 0.5).dtype == np.float64
+        assert f([[1, 0, 0, 0]], [[0, 1, 0, 0]], [0.5]).dtype == np.float64   # ints -> float64
+    assert slerp(q32[0], q32[1], 0.5).dtype == np.float32
+
+
+@given(st.integers(0, 2 ** 32 - 1), st.floats(-1, 2))
+def test_slerp_symmetry_and_unit_norm(seed, t):
+    rng = np.random.default_rng(seed)
+    q0, q1 = random_quats(rng, (3,)), random_quats(rng, (3,))
+    a = slerp(q0, q1, t)
+    b = slerp(q1, q0, 1 - t)
+    assert_allclose(a, b, atol=tol(np.float64, 50), double_cover=True)
+    np.testing.assert_allclose(np.linalg.norm(plain(a), axis=-1), 1, atol=tol(np.float64, 10))
+
+
+# ---------------------------------------------------------------------------
+# lerp, nlerp, unflip
+# ---------------------------------------------------------------------------
+
+def test_lerp_and_nlerp(rng, dtype, batch_shape):
+    q0 = random_quats(rng, batch_shape, dtype)
+    q1 = random_quats(rng, batch_shape, dtype)
+    t = rng.uniform(-0.5, 1.5, batch_shape).astype(dtype)
+    tt = np.asarray(t)[..., None].astype(float)
+    ref = (1 - tt) * q0.astype(float) + tt * q1.astype(float)
+    assert_allclose(lerp(q0, q1, t), ref, atol=tol(dtype, 8))
+    sign = np.where(np.sum(q0.astype(float) * q1, -1) < 0, -1, 1)[..., None]
+    n = (1 - tt) * q0.astype(float) + tt * sign * q1.astype(float)
+    got = nlerp(q0, q1, t)
+    assert got.dtype == dtype
+    assert_allclose(got, n / np.linalg.norm(n, axis=-1, keepdims=True), atol=tol(dtype, 40))
+    assert_allclose(nlerp(q0, q1, 1.0), q1 * sign, atol=tol(dtype, 8))
+
+
+def test_nlerp_is_not_constant_speed_but_on_the_slerp_circle(rng):
+    q0, q1 = random_quats(rng, (10,)), random_quats(rng, (10,))
+    t = np.full(10, 0.25)
+    a, s = nlerp(q0, q1, t), slerp(q0, q1, t)
+    # same great circle: a lies in the plane of q0 and the flipped q1
+    assert not np.allclose(plain(a), plain(s))
+    assert_allclose(nlerp(q0, q1, 0.5), slerp(q0, q1, 0.5), atol=tol(np.float64, 20))
+
+
+def test_nlerp_zero_blend_raises():
+    with pytest.raises(ValueError, match="expected a non-zero blend"):
+        nlerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5, shortest=False)
+    assert_allclose(nlerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5), [1, 0, 0, 0], atol=0)
+
+
+def test_unflip(rng, dtype):
+    q = random_quats(rng, (7, 3), dtype)
+    for axis, batch_axis in ((0, 0), (1, 1), (-1, 1), (-2, 0)):   # negative axes count batch axes
+        got = plain(unflip(q, axis=axis))
+        assert got.dtype == dtype
+        moved = np.moveaxis(got, batch_axis, 0)
+        assert (np.sum(moved[1:] * moved[:-1], -1) >= 0).all()
+        np.testing.assert_array_equal(np.abs(got), np.abs(q))    # only signs change
+        np.testing.assert_array_equal(moved[0], np.moveaxis(q, batch_axis, 0)[0])
+    # exactly orthogonal neighbours keep their sign (dot = 0 is non-negative)
+    np.testing.assert_array_equal(plain(unflip([[1, 0, 0, 0], [0, -1, 0, 0]])), [[1, 0, 0, 0], [0, -1, 0, 0]])
+    assert unflip(np.empty((0, 4))).shape == (0, 4)
+
+
+def test_unflip_equals_the_loop_with_exact_zero_dots(rng):
+    """Integer components give exact zero dot products: a zero needs no flip."""
+    def loop(q):
+        q = q.copy()
+        for i in range(1, len(q)):
+            if np.dot(q[i], q[i - 1]) < 0:
+                q[i] = -q[i]
+        return q
+
+    q = rng.integers(-1, 2, (40, 9, 3, 4)).astype(float)
+    assert (np.einsum("...i,...i->...", q[:, 1:], q[:, :-1]) == 0).any()
+    for k in range(40):
+        along0, along1 = plain(unflip(q[k])), plain(unflip(q[k], axis=1))
+        for j in range(3):
+            np.testing.assert_array_equal(along0[:, j], loop(q[k, :, j]))
+        for i in range(9):
+            np.testing.assert_array_equal(along1[i], loop(q[k, i]))
+
+
+def test_unflip_bad_axis():
+    with pytest.raises(ValueError, match=r"expected axis in \[-1, 0\].*got 1"):
+        unflip([[1, 0, 0, 0]], axis=1)
+    with pytest.raises(TypeError, match="expected axis to be an int"):
+        unflip([[1, 0, 0, 0]], axis=0.5)
+    with pytest.raises(ValueError, match=r"expected q of shape \(\.\.\., 4\), got \(3,\)"):
+        unflip([1, 0, 0])
+
+
+# ---------------------------------------------------------------------------
+# inputs: read-only, non-contiguous, empty, never modified; bad input
+# ---------------------------------------------------------------------------
+
+def test_inputs_untouched_readonly_noncontiguous_and_empty(rng):
+    q0 = random_quats(rng, (6, 5))[:, ::2]    # non-contiguous
+    q1 = random_quats(rng, (6, 3))
+    t = rng.uniform(0, 1, (6, 3))
+    for a in (q0, q1, t):
+        a.flags.writeable = False
+    copies = [a.copy() for a in (q0, q1, t)]
+    for f in (slerp, nlerp, lerp):
+        got = f(q0, q1, t)
+        ref = f(np.ascontiguousarray(q0), q1.copy(), t.copy())
+        np.testing.assert_array_equal(plain(got), plain(ref))
+    for f in (squad, bezier):
+        f(q0, q1, q0, q1, t)
+    for a, c in zip((q0, q1, t), copies):
+        np.testing.assert_array_equal(a, c)
+    for f in (slerp, nlerp, lerp):
+        assert f(np.empty((0, 4)), np.empty((0, 4)), np.empty(0)).shape == (0, 4)
+        assert f(np.empty((2, 0, 4)), [1, 0, 0, 0], 0.5).shape == (2, 0, 4)
+    assert squad(np.empty((0, 4)), [1, 0, 0, 0], [1, 0, 0, 0], [1, 0, 0, 0], 0.5).shape == (0, 4)
+
+
+@pytest.mark.parametrize("f", [lerp, nlerp, slerp])
+def test_pairwise_bad_input(f):
+    with pytest.raises(ValueError, match=r"expected q0 of shape \(\.\.\., 4\), got \(5, 3\)"):
+        f(np.zeros((5, 3)), [1, 0, 0, 0], 0.5)
+    with pytest.raises(ValueError, match=r"expected q1 of shape \(\.\.\., 4\), got \(\)"):
+        f([1, 0, 0, 0], 1.0, 0.5)
+    with pytest.raises(ValueError, match=r"expected broadcastable batch shapes for q0, q1, t, got q0: \(2,\), q1: \(3,\)"):
+        f(np.ones((2, 4)), np.ones((3, 4)), 0.5)
+    with pytest.raises(TypeError, match="expected q0 of real numbers"):
+        f(np.ones(4, complex), [1, 0, 0, 0], 0.5)
+    with pytest.raises(TypeError, match="expected t of real numbers"):
+        f([1, 0, 0, 0], [1, 0, 0, 0], "a")
+
+
+# ---------------------------------------------------------------------------
+# control points and segment evaluation vs the reference implementation
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
+def test_control_points_match_reference(rng, unequal):
+    times, keys = random_track(rng, 7, (2,), unequal=unequal)
+    s = plain(squad_control_points(keys, times if unequal else None))
+    a, b = (plain(x) for x in bezier_control_points(keys, times if unequal else None))
+    for j in range(2):
+        ks = r_unflip(keys[:, j])
+        tt = times if unequal else np.arange(7.0)
+        assert_allclose(s[:, j], np.array(r_squad_controls(ks, tt)), atol=tol(np.float64, 20))
+        ra, rb = r_bezier_controls(ks, tt)
+        assert_allclose(a[:, j], np.array(ra), atol=tol(np.float64, 20))
+        assert_allclose(b[:, j], np.array(rb), atol=tol(np.float64, 20))
+        if not unequal:   # the paper's b_n = Double(a_n, q_n)
+            assert_allclose(b[:, j], np.array([r_double(x, q) for x, q in zip(ra, ks)]), atol=tol(np.float64, 20))
+            lp = [r_log(r_mul(r_conj(ks[i]), ks[i + 1])) for i in range(1, 6)]
+            lm = [r_log(r_mul(r_conj(ks[i]), ks[i - 1])) for i in range(1, 6)]
+            shoemake = [r_mul(ks[i], r_exp(-(lp[i - 1] + lm[i - 1]) / 4)) for i in range(1, 6)]
+            assert_allclose(s[1:6, j], np.array(shoemake), atol=tol(np.float64, 20))
+
+
+def test_control_point_ends_by_reflection(rng):
+    times, keys = random_track(rng, 5, unequal=True)
+    k = np.array(r_unflip(keys))
+    s = squad_control_points(keys, times)
+    assert_allclose(s[0], k[0], atol=tol(np.float64, 20))
+    assert_allclose(s[-1], k[-1], atol=tol(np.float64, 20))
+    a, b = bezier_control_points(keys, times)
+    assert_allclose(a[0], r_slerp(k[0], k[1], 1 / 3), atol=tol(np.float64, 20))
+    assert_allclose(b[-1], r_slerp(k[-1], k[-2], 1 / 3), atol=tol(np.float64, 20))
+
+
+def test_pairwise_squad_and_bezier_match_reference(rng, dtype):
+    q0, a, b, q1 = (random_quats(rng, (6,), dtype) for _ in range(4))
+    u = rng.uniform(0, 1, 6).astype(dtype)
+    got_s, got_b = squad(q0, a, b, q1, u), bezier(q0, a, b, q1, u)
+    assert got_s.dtype == got_b.dtype == dtype
+    f = [x.astype(float) for x in (q0, a, b, q1)]
+    ref_s = np.array([r_squad(*(x[i] for x in f), float(u[i])) for i in range(6)])
+    ref_b = np.array([r_bezier(*(x[i] for x in f), float(u[i])) for i in range(6)])
+    assert_allclose(got_s, ref_s, atol=tol(dtype, 100))
+    assert_allclose(got_b, ref_b, atol=tol(dtype, 100))
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
+def test_track_matches_reference(rng, method, unequal):
+    times, keys = random_track(rng, 8, (2,), unequal=unequal)
+    t = np.concatenate([rng.uniform(times[0], times[-1], 40), times])
+    got = plain(Track(times, keys, method=method)(t))
+    for j in range(2):
+        ref = r_track(times, keys[:, j], t, method)
+        assert_allclose(got[:, j], ref, atol=tol(np.float64, 50))
+
+
+# ---------------------------------------------------------------------------
+# Track and Slerp vs scipy
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
+def test_slerp_tracks_equal_scipy(rng, unequal):
+    times, keys = random_track(rng, 30, unequal=unequal, step=2.0)   # big steps, random signs
+    assert (np.sum(keys[1:] * keys[:-1], -1) < 0).any()
+    t = np.concatenate([rng.uniform(times[0], times[-1], 300), times])
+    ref = SciSlerp(times, SciRotation.from_quat(keys, scalar_first=True))(t).as_quat(scalar_first=True)
+    for got in (Track(times, keys)(t), Slerp(times, keys)(t), Slerp(times, QuatArray(keys))(t),
+                Slerp(times, SciRotation.from_quat(keys, scalar_first=True))(t)):
+        assert isinstance(got, QuatArray)
+        assert_allclose(got, ref, atol=tol(np.float64, 20), double_cover=True)
+
+
+def test_slerp_class_batches_equal_scipy_per_track(rng):
+    times, keys = random_track(rng, 6, (2, 3), step=1.5)
+    t = rng.uniform(times[0], times[-1], 25)
+    got = plain(Slerp(times, keys)(t))
+    assert got.shape == (25, 2, 3, 4)
+    for i in range(2):
+        for j in range(3):
+            ref = SciSlerp(times, SciRotation.from_quat(keys[:, i, j], scalar_first=True))(t)
+            assert_allclose(got[:, i, j], ref.as_quat(scalar_first=True), atol=tol(np.float64, 20), double_cover=True)
+    one = Slerp(times, keys)(t[3])
+    assert one.shape == (2, 3, 4)
+    assert_allclose(one, got[3], atol=0)
+
+
+def test_slerp_class_errors_like_scipy():
+    keys = random_quats(np.random.default_rng(0), (3,))
+    with pytest.raises(ValueError, match="strictly increasing order"):
+        Slerp([0, 1, 1], keys)
+    with pytest.raises(ValueError, match="at least 2 rotations"):
+        Slerp([0], keys[:1])
+    with pytest.raises(ValueError, match="number of rotations equal to number of timestamps"):
+        Slerp([0, 1], keys)
+    with pytest.raises(ValueError, match="1 dimensional array"):
+        Slerp([[0, 1, 2]], keys)
+    s = Slerp([0, 1, 2], keys)
+    with pytest.raises(ValueError, match=r"within the range \[0.0, 2.0\], both inclusive"):
+        s([0.5, 2.5])
+    with pytest.raises(ValueError, match=r"within the range \[0.0, 2.0\], both inclusive"):
+        s(-1e-9)
+    with pytest.raises(ValueError, match="at most 1-dimensional"):
+        s([[0.5]])
+    np.testing.assert_array_equal(s.timedelta, [1, 1])
+
+
+# ---------------------------------------------------------------------------
+# Track properties
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("method", METHODS)
+def test_track_passes_through_keys_with_unit_outputs(rng, method):
+    times, keys = random_track(rng, 9, (3,), step=1.0)
+    track = Track(times, keys, method=method)
+    unflipped = np.array([r_unflip(keys[:, j]) for j in range(3)]).transpose(1, 0, 2)
+    assert_allclose(track(times), unflipped, atol=tol(np.float64, 2))
+    assert_allclose(track.keys, unflipped, atol=tol(np.float64, 2))
+    t = rng.uniform(times[0], times[-1], 500)
+    np.testing.assert_allclose(np.linalg.norm(plain(track(t)), axis=-1), 1, atol=1e-12)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_negating_keys_changes_nothing(rng, method):
+    times, keys = random_track(rng, 7, (2,), flip=False)
+    t = rng.uniform(times[0], times[-1], 50)
+    ref = plain(Track(times, keys, method=method)(t))
+    neg = keys.copy()
+    neg[[2, 3, 5]] *= -1
+    got = plain(Track(times, neg, method=method)(t))
+    np.testing.assert_allclose(got, ref, atol=tol(np.float64, 4))
+    got = plain(Track(times, -keys, method=method)(t))   # all negated: the sign of key 0 is followed
+    np.testing.assert_allclose(got, -ref, atol=tol(np.float64, 4))
+
+
+def _one_sided_omegas(track, times, frame="world"):
+    """Angular velocities just left of, and at, every interior key."""
+    inner = times[1:-1]
+    left = track.angular_velocity(np.nextafter(inner, -np.inf), frame=frame)
+    right = track.angular_velocity(inner, frame=frame)
+    return left, right
+
+
+@pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
+def test_c1_continuity_at_keys(rng, unequal):
+    times, keys = random_track(rng, 10, (2,), unequal=unequal, step=1.0)
+    for method in SMOOTH:
+        for frame in ("world", "body"):
+            left, right = _one_sided_omegas(Track(times, keys, method=method), times, frame)
+            scale = np.linalg.norm(right, axis=-1)
+            assert (scale > 0.05).all()
+            rel = np.linalg.norm(left - right, axis=-1) / scale
+            assert rel.max() < 1e-6, (method, frame, rel.max())
+    left, right = _one_sided_omegas(Track(times, keys, method="slerp"), times)
+    rel = np.linalg.norm(left - right, axis=-1) / np.linalg.norm(right, axis=-1)
+    assert rel.min() > 1e-3     # slerp is only C0: the check above could fail
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("frame", ["world", "body"])
+def test_angular_velocity_matches_central_difference(rng, method, frame):
+    times, keys = random_track(rng, 6, (2,), step=1.0)
+    track = Track(times, keys, method=method)
+    # stay away from keys, where slerp and linear are not differentiable
+    seg = rng.integers(0, 5, 40)
+    t = times[seg] + rng.uniform(0.05, 0.95, 40) * np.diff(times)[seg]
+    h = 1e-6
+    q = plain(track(t))
+    dq = (plain(track(t + h)) - plain(track(t - h))) / (2 * h)
+    qc = q * np.array([1, -1, -1, -1])
+    if frame == "world":
+        fd = 2 * IK._qmul(dq, qc)[..., 1:]
+    else:
+        fd = 2 * IK._qmul(qc, dq)[..., 1:]
+    got = track.angular_velocity(t, frame=frame)
+    assert got.shape == (40, 2, 3)
+    np.testing.assert_allclose(got, fd, atol=1e-7 * np.abs(fd).max())
+
+
+def test_slerp_angular_velocity_is_the_segment_rotation_vector(rng):
+    times, keys = random_track(rng, 5, step=1.0)
+    k = np.array(r_unflip(keys))
+    track = Track(times, keys)
+    t = times[:-1] + 0.3 * np.diff(times)
+    expected = np.array([2 * r_log(r_mul(k[i + 1], r_conj(k[i]))) / (times[i + 1] - times[i]) for i in range(4)])
+    np.testing.assert_allclose(track.angular_velocity(t), expected, atol=1e-14)
+    body = np.array([2 * r_log(r_mul(r_conj(k[i]), k[i + 1])) / (times[i + 1] - times[i]) for i in range(4)])
+    np.testing.assert_allclose(track.angular_velocity(t, frame="body"), body, atol=1e-14)
+
+
+@pytest.mark.parametrize("method", SMOOTH)
+def test_uniform_rotation_is_reproduced_with_unequal_spacing(rng, method):
+    """Keys of a rotation at constant angular velocity, at unequal times: squad
+    and Bézier give back the motion exactly (their tangents are central differences)."""
+    omega = np.array([0.4, -0.9, 0.3])
+    times = np.cumsum(rng.uniform(0.3, 1.5, 7))
+    q0 = random_quats(rng, ())
+
+    def motion(t):
+        return np.array([r_mul(r_exp(omega * (s - times[0]) / 2), q0) for s in np.atleast_1d(t)])
+
+    track = Track(times, motion(times), method=method)
+    t = rng.uniform(times[0], times[-1], 60)
+    assert_allclose(track(t), motion(t), atol=tol(np.float64, 100))
+    np.testing.assert_allclose(track.angular_velocity(t), np.broadcast_to(omega, (60, 3)), atol=1e-12)
+
+
+def test_two_keys_squad_and_bezier_are_slerp(rng):
+    times, keys = random_track(rng, 2, (3,), step=1.5)
+    t = np.linspace(times[0], times[1], 11)
+    ref = plain(Track(times, keys)(t))
+    for method in SMOOTH:
+        assert_allclose(Track(times, keys, method=method)(t), ref, atol=tol(np.float64, 20))
+
+
+def test_equal_spacing_tangents_of_squad_and_bezier_agree_closely(rng):
+    times, keys = random_track(rng, 8, (4,), unequal=False, step=0.2)
+    ws = Track(times, keys, method="squad").angular_velocity(times[1:-1])
+    wb = Track(times, keys, method="bezier").angular_velocity(times[1:-1])
+    rel = np.linalg.norm(ws - wb, axis=-1) / np.linalg.norm(ws, axis=-1)
+    assert rel.max() < 0.05
+
+
+@pytest.mark.parametrize("batch", [(), (3,), (2, 3)], ids=["batch0", "batch1", "batch2"])
+@pytest.mark.parametrize("method", METHODS)
+def test_batched_track_equals_separate_tracks(rng, dtype, batch, method):
+    times, keys = random_track(rng, 6, batch, dtype=dtype)
+    t = rng.uniform(times[0], times[-1], 30)
+    track = Track(times, keys, method=method)
+    got, w = plain(track(t)), track.angular_velocity(t)
+    assert got.dtype == dtype and w.dtype == dtype
+    assert got.shape == (30,) + batch + (4,) and w.shape == (30,) + batch + (3,)
+    for j in np.ndindex(*batch):
+        sep = Track(times, keys[(slice(None),) + j], method=method)
+        np.testing.assert_array_equal(got[(slice(None),) + j], plain(sep(t)))
+        np.testing.assert_allclose(w[(slice(None),) + j], sep.angular_velocity(t), rtol=0, atol=tol(dtype, 10))
+    if dtype == np.float32:
+        ref = plain(Track(times, keys.astype(np.float64), method=method)(t))
+        np.testing.assert_allclose(got, ref, atol=tol(np.float32, 50))
+
+
+def test_track_query_shapes(rng):
+    times, keys = random_track(rng, 4, (2,))
+    track = Track(times, keys, method="squad")
+    assert track(times[1]).shape == (2, 4)
+    assert track(np.full((2, 3), times[1])).shape == (2, 3, 2, 4)
+    assert track(np.empty(0)).shape == (0, 2, 4)
+    assert track.angular_velocity(times[1]).shape == (2, 3)
+    assert track.angular_velocity(np.empty((0, 5))).shape == (0, 5, 2, 3)
+    assert len(track) == 4 and track.batch_shape == (2,) and track.method == "squad"
+    assert "squad" in repr(track)
+    assert track.control_points.shape == (4, 2, 4)
+    assert Track(times, keys).control_points is None
+    a, b = Track(times, keys, method="bezier").control_points
+    assert a.shape == b.shape == (4, 2, 4)
+
+
+def test_many_tracks_and_many_queries_are_blocked(rng):
+    """More tracks than a block (split across tracks), and more queries than a block."""
+    times, keys = random_track(rng, 3, (IK.BLOCK + 7,), step=0.5)
+    track = Track(times, keys, method="squad")
+    t = np.array([times[0] + 0.3, times[1] + 0.1])
+    got = plain(track(t))
+    for j in (0, IK.BLOCK - 1, IK.BLOCK + 6):
+        np.testing.assert_array_equal(got[:, j], plain(Track(times, keys[:, j], method="squad")(t)))
+    times, keys = random_track(rng, 50)
+    t = rng.uniform(times[0], times[-1], 2 * IK.BLOCK + 5)
+    for method in METHODS:
+        track = Track(times, keys, method=method)
+        got = plain(track(t))
+        np.testing.assert_array_equal(got[-7:], plain(track(t[-7:])))
+        np.testing.assert_array_equal(track.angular_velocity(t)[-7:], track.angular_velocity(t[-7:]))
+
+
+def test_track_inputs_untouched_readonly_noncontiguous(rng):
+    times, keys = random_track(rng, 5, (4,))
+    keys_nc = keys[:, ::2]
+    times_ro = times.copy()
+    for a in (keys, times_ro):
+        a.flags.writeable = False
+    before = keys.copy()
+    track = Track(times_ro, keys_nc, method="bezier")
+    t = rng.uniform(times[0], times[-1], 10)
+    t.flags.writeable = False
+    np.testing.assert_array_equal(plain(track(t)), plain(Track(times, np.ascontiguousarray(keys_nc), method="bezier")(t)))
+    np.testing.assert_array_equal(keys, before)
+    assert not track.times.flags.writeable and not track.keys.flags.writeable
+
+
+def test_extrapolation_modes(rng):
+    times, keys = random_track(rng, 5, (2,))
+    k = plain(Track(times, keys).keys)
+    out_t = np.array([times[0] - 1.0, times[-1] + 2.0])
+    for method in METHODS:
+        clamp = Track(times, keys, method=method, extrapolate="clamp")
+        assert_allclose(clamp(out_t), k[[0, -1]], atol=tol(np.float64, 2))
+        assert (clamp.angular_velocity(out_t) == 0).all()
+        assert_allclose(clamp([-np.inf, np.inf]), k[[0, -1]], atol=tol(np.float64, 2))
+        ext = Track(times, keys, method=method, extrapolate="extend")
+        w = ext.angular_velocity(out_t)
+        assert np.isfinite(plain(ext(out_t))).all() and (np.abs(w) > 0).any()
+    ext = Track(times, keys, extrapolate="extend")
+    u = (out_t[1] - times[-2]) / (times[-1] - times[-2])
+    assert_allclose(ext(out_t[1]), slerp(k[-2], k[-1], u), atol=tol(np.float64, 20))
+    u = (out_t[0] - times[0]) / (times[1] - times[0])
+    assert_allclose(ext(out_t[0]), slerp(k[0], k[1], u), atol=tol(np.float64, 20))
+
+
+# ---------------------------------------------------------------------------
+# segment lookup
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kind", ["uniform", "random", "clustered", "two", "tiny_span"])
+def test_segment_index_equals_searchsorted(rng, kind):
+    times = {
+        "uniform": np.arange(100.0) * 0.1,
+        "random": np.sort(rng.uniform(-5, 5, 300)),
+        "clustered": np.concatenate([np.linspace(0, 1e-6, 500), np.linspace(1, 2, 5)]),
+        "two": np.array([3.0, 3.5]),
+        "tiny_span": np.array([1.0, np.nextafter(1.0, 2), np.nextafter(np.nextafter(1.0, 2), 2)]),
+    }[kind]
+    index = IK.SegmentIndex(times)
+    if kind in ("uniform", "random", "two"):
+        assert index.grid is not None
+    t = np.concatenate([times, np.nextafter(times, -np.inf), np.nextafter(times, np.inf),
+                        rng.uniform(times[0] - 1, times[-1] + 1, 500), [times[0] - 1e300, times[-1] + 1e300]])
+    np.testing.assert_array_equal(index.find(t), np.searchsorted(times, t, side="right") - 1)
+
+
+# ---------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------
+
+GOOD_T = [0.0, 1.0, 2.5]
+GOOD_K = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]
+
+BAD_TRACKS = [
+    ("not increasing", ([0, 2, 1], GOOD_K, {}), ValueError, r"expected times in strictly increasing order, got times\[2\] = 1.0 after times\[1\] = 2.0"),
+    ("repeated time", ([0, 1, 1], GOOD_K, {}), ValueError, "strictly increasing order"),
+    ("nan time", ([0, np.nan, 2], GOOD_K, {}), ValueError, "expected finite values in times, got nan or inf"),
+    ("inf time", ([0, 1, np.inf], GOOD_K, {}), ValueError, "expected finite values in times"),
+    ("one key", ([0.0], GOOD_K[:1], {}), ValueError, r"expected keys of shape \(K, \.\.\., 4\) with K >= 2.*got \(1, 4\)"),
+    ("mismatched K", ([0, 1], GOOD_K, {}), ValueError, "expected as many times as keys .*got 2 times and 3 keys"),
+    ("2-D times", ([[0, 1, 2]], GOOD_K, {}), ValueError, r"expected times of shape \(K,\).*got \(1, 3\)"),
+    ("keys not (K, ..., 4)", (GOOD_T, [[1, 0, 0], [0, 1, 0], [0, 0, 1]], {}), ValueError, r"expected keys of shape \(K, \.\.\., 4\), got \(3, 3\)"),
+    ("single quaternion", (GOOD_T, [1, 0, 0, 0], {}), ValueError, r"expected keys of shape \(K, \.\.\., 4\), got \(4,\)"),
+    ("zero key", (GOOD_T, [[1, 0, 0, 0], [0, 0, 0, 0], [0, 0, 1, 0]], {}), ValueError, "expected non-zero keys, got a zero quaternion"),
+    ("nan key", (GOOD_T, [[1, 0, 0, 0], [np.nan, 0, 0, 0], [0, 0, 1, 0]], {}), ValueError, "expected finite values in keys"),
+    ("complex keys", (GOOD_T, np.ones((3, 4), complex), {}), TypeError, "expected keys of real numbers"),
+    ("unknown method", (GOOD_T, GOOD_K, {"method": "cubic"}), ValueError, r"expected method in \('linear', 'slerp', 'squad', 'bezier'\), got 'cubic'"),
+    ("unknown extrapolate", (GOOD_T, GOOD_K, {"extrapolate": "wrap"}), ValueError, r"expected extrapolate in \('raise', 'clamp', 'extend'\), got 'wrap'"),
+]
+
+
+@pytest.mark.parametrize("args,exc,match", [c[1:] for c in BAD_TRACKS], ids=[c[0] for c in BAD_TRACKS])
+def test_track_bad_input(args, exc, match):
+    times, keys, kw = args
+    with pytest.raises(exc, match=match):
+        Track(times, keys, **kw)
+
+
+BAD_QUERIES = [
+    ("below range", "raise", [-0.1, 1.0], r"expected t within the range \[0.0, 2.5\], both inclusive \(extrapolate='raise'\), got -0.1"),
+    ("above range", "raise", 2.6, r"expected t within the range \[0.0, 2.5\].*got 2.6"),
+    ("nan query", "clamp", [0.5, np.nan], "expected t without nan, got nan"),
+    ("nan query raise", "raise", np.nan, "expected t without nan"),
+    ("inf query extend", "extend", [np.inf], "expected finite t to extrapolate"),
+]
+
+
+@pytest.mark.parametrize("mode,t,match", [c[1:] for c in BAD_QUERIES], ids=[c[0] for c in BAD_QUERIES])
+def test_track_bad_queries(mode, t, match):
+    track = Track(GOOD_T, GOOD_K, extrapolate=mode)
+    with pytest.raises(ValueError, match=match):
+        track(t)
+    with pytest.raises(ValueError, match=match):
+        track.angular_velocity(t)
+
+
+def test_track_bad_frame_and_query_type():
+    track = Track(GOOD_T, GOOD_K)
+    with pytest.raises(ValueError, match=r"expected frame in \('world', 'body'\), got 'local'"):
+        track.angular_velocity(1.0, frame="local")
+    with pytest.raises(TypeError, match="expected t of real numbers"):
+        track("1.0")
+
+
+def test_control_points_bad_input():
+    with pytest.raises(ValueError, match=r"expected keys of shape \(K, \.\.\., 4\) with K >= 2"):
+        squad_control_points([[1, 0, 0, 0]])
+    with pytest.raises(ValueError, match="strictly increasing order"):
+        bezier_control_points(GOOD_K, [0, 0, 1])
+    with pytest.raises(ValueError, match="got 2 times and 3 keys"):
+        squad_control_points(GOOD_K, [0, 1])
