@@ -1,0 +1,398 @@
+"""Side-by-side timings of quatarray and its peers, in one process, and the issue-5 targets.
+
+Usage::
+
+    python -m benchmarks.compare            # full table (a few minutes)
+    python -m benchmarks.compare --quick    # the rows the targets need (under a minute)
+    python -m benchmarks.compare --targets  # only the targets, PASS / FAIL
+    python -m benchmarks.compare --json results.json
+
+Each row runs one asv benchmark (same class, same seeded data) for every
+installed library.  The libraries are timed **interleaved**: repeat r times
+quatarray, then scipy, then each peer, and so on, keeping the best time per
+call of each -- on a noisy, shared machine only the ratios inside one run
+mean anything.  The reference column is a plain ``np.add`` of two arrays of
+the batch's quaternions (same dtype and byte count): the memory-bandwidth
+bound of an element-wise operation.  ``peer/qa`` > 1 means quatarray is
+faster.
+"""
+
+import argparse
+import datetime
+import gc
+import json
+import platform
+import subprocess
+import sys
+import time
+import tracemalloc
+
+import numpy as np
+
+from . import _common
+from ._common import LIBS, installed
+
+__all__ = ["main", "Row", "measure", "targets"]
+
+PEERS = LIBS[1:]
+
+
+class Row:
+    """One operation at one size: an asv class, a benchmark method, its params (without lib).
+
+    `size` is the number of quaternions whose np.add is the reference (None:
+    no reference row); `libs` limits the libraries compared.
+    """
+
+    def __init__(self, op, cls, method, params, size=None, libs=LIBS, n=None):
+        self.op, self.cls, self.method, self.params = op, cls, method, tuple(params)
+        self.size, self.libs, self._n = size, libs, n
+
+    @property
+    def dtype(self):
+        return next((p for p in self.params if p in _common.DTYPES), "float64")
+
+    @property
+    def n(self):
+        if self._n is not None:
+            return self._n
+        return self.params[0] if isinstance(self.params[0], int) else None
+
+    def key(self):
+        return (self.op, self.n, self.dtype)
+
+
+def _callable(row, lib):
+    """Set the benchmark up for `lib`; return (zero-argument call, seconds of the warm-up
+    call), or None when skipped."""
+    bench = row.cls()
+    args = row.params + (lib,)
+    if hasattr(bench, "setup_cache"):
+        args = (_cache(row.cls),) + args
+    try:
+        bench.setup(*args)
+        fn = getattr(bench, row.method)
+        t0 = time.perf_counter()
+        fn(*args)  # warm-up, and checks that the library has the operation
+        warm = time.perf_counter() - t0
+    except NotImplementedError:
+        return None
+    return (lambda: fn(*args)), warm
+
+
+_CACHES = {}
+
+
+def _cache(cls):
+    if cls not in _CACHES:
+        import os
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="quatarray-bench-")
+        cwd = os.getcwd()
+        os.chdir(tmp)
+        try:
+            _CACHES[cls] = cls().setup_cache()
+        finally:
+            os.chdir(cwd)
+    return _CACHES[cls]
+
+
+def _number(fn, min_time):
+    """Calls per sample so that a sample lasts at least `min_time` seconds."""
+    number = 1
+    while True:
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        dt = time.perf_counter() - t0
+        if dt >= min_time or number >= 1 << 20:
+            return number
+        number *= 2 if dt == 0 else max(2, min(10, int(1.5 * min_time / dt)))
+
+
+def measure(calls, repeat, min_time, warm=None):
+    """Best seconds per call of each callable in `calls` (dict), timed interleaved.
+
+    `warm` maps a key to the duration of a call already made: one that took
+    at least `min_time` is timed one call per sample without calibration.
+    """
+    warm = warm or {}
+    numbers = {k: 1 if warm.get(k, 0) >= min_time else _number(f, min_time) for k, f in calls.items()}
+    best = dict.fromkeys(calls, float("inf"))
+    for _ in range(repeat):
+        for k, f in calls.items():
+            n = numbers[k]
+            gc.disable()
+            t0 = time.perf_counter()
+            for _ in range(n):
+                f()
+            dt = (time.perf_counter() - t0) / n
+            gc.enable()
+            best[k] = min(best[k], dt)
+    return best
+
+
+def _add_reference(size, dtype):
+    a = np.random.default_rng(0).standard_normal((size, 4)).astype(dtype)
+    b = a[::-1].copy()
+    return lambda: np.add(a, b)
+
+
+def run_rows(rows, repeat, min_time, log=None):
+    """Time every row; returns a list of result dicts."""
+    results = []
+    for row in rows:
+        calls, warm = {}, {}
+        for lib in row.libs:
+            if installed(lib):
+                got = _callable(row, lib)
+                if got is not None:
+                    calls[lib], warm[lib] = got
+        if "quatarray" not in calls:
+            results.append(dict(op=row.op, n=row.n, dtype=row.dtype, times={}, skipped=True))
+            continue
+        if row.size:
+            calls["np.add"] = _add_reference(row.size, row.dtype)
+        best = measure(calls, repeat, min_time, warm)
+        res = dict(op=row.op, n=row.n, dtype=row.dtype, params=list(row.params), times=best)
+        results.append(res)
+        if log:
+            log(_format_row(res))
+        _release(calls)
+    return results
+
+
+def _release(calls):
+    calls.clear()
+    gc.collect()
+
+
+# --------------------------------------------------------------------------- memory and import
+
+def peak_memory(row, call):
+    """(peak bytes allocated during one call above what existed before, output bytes)."""
+    bench = row.cls()
+    bench.setup(*row.params, "quatarray")
+    gc.collect()
+    tracemalloc.start()
+    try:
+        base = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        out = call(bench)
+        peak = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    return peak, np.asarray(out).nbytes
+
+
+def import_times(repeat):
+    """Best wall time of ``python -c "import quatarray"`` and ``... "import numpy"``, interleaved."""
+    best = {"quatarray": float("inf"), "numpy": float("inf")}
+    for _ in range(repeat):
+        for mod in best:
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-c", f"import {mod}"], check=True)
+            best[mod] = min(best[mod], time.perf_counter() - t0)
+    check = "import sys, quatarray; print(sorted(m for m in ('scipy', 'quaternion', 'quaternionic', 'numba') if m in sys.modules))"
+    loaded = subprocess.run([sys.executable, "-c", check], check=True, capture_output=True, text=True).stdout
+    return best, loaded.strip()
+
+
+# --------------------------------------------------------------------------- rows
+
+def _rows(full):
+    """The rows of the table; without `full`, only those the targets need, with the peers they need."""
+    from .algebra import Algebra
+    from .conversions import Conversions
+    from .pairwise import Pairwise
+    from .resample import Resample
+    from .rotate import RotateVectors
+    from .tracks import OneQuery, Tracks
+
+    big = 1_000_000
+    qa, sp, nq = "quatarray", "scipy", "numpy-quaternion"
+    rows = []
+
+    def add(op, cls, method, sizes, dtypes, libs):
+        for n in sizes:
+            for dt in dtypes:
+                rows.append(Row(op, cls, method, (n, dt), size=n, libs=LIBS if full else libs))
+
+    sizes = _common.SIZES if full else [1, big]
+    dtypes = _common.DTYPES if full else ["float64"]
+    add("product", Algebra, "time_product", sizes, _common.DTYPES, (qa, sp))
+    for op in ("inv", "magnitude") + (("conjugate", "normalize", "exp", "log", "power") if full else ()):
+        add(op, Algebra, f"time_{op}", sizes if full else [big], dtypes, (qa, sp))
+    add("rotate", RotateVectors, "time_rotate", sizes, dtypes, (qa, sp))
+    add("apply", RotateVectors, "time_apply", sizes, dtypes, (qa, sp))
+    for op in ("as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler"):
+        add(op, Conversions, f"time_{op}", sizes if full else [big], dtypes, (qa, sp))
+    add("slerp", Pairwise, "time_slerp", sizes if full else [big], _common.DTYPES, (qa, nq, "quaternionic"))
+    if full:
+        add("nlerp", Pairwise, "time_nlerp", sizes, dtypes, LIBS)
+    rows.append(Row("Slerp(t), one query", OneQuery, "time_slerp_call", ("float64",), libs=(qa, sp), n=1))
+    tracks = [(10_000, big)] + ([(10, 10), (10, big), (10_000, 10)] if full else [])
+    for k, m in tracks:
+        for method, libs in (("slerp", (qa, sp)), ("squad", (qa, nq))) + ((("bezier", (qa, sp)),) if full else ()):
+            rows.append(Row(f"track {method}, {k} keys", Tracks, f"time_{method}", (k, m, "float64"),
+                            size=m, libs=LIBS if full else libs, n=m))
+    if full:
+        for case in ("npz", "bvh"):
+            rows.append(Row(f"resample {case}", Resample, "time_resample", (case,), libs=Resample.params[-1]))
+    return rows
+
+
+# --------------------------------------------------------------------------- report
+
+def _fmt(t):
+    if t is None or not np.isfinite(t):
+        return "-"
+    for unit, scale in (("s", 1), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9)):
+        if t >= scale:
+            return f"{t / scale:.3g} {unit}"
+    return f"{t / 1e-9:.3g} ns"
+
+
+def _format_row(res):
+    t = res["times"]
+    qa = t.get("quatarray")
+    cells = [f"{res['op']:<24}", f"{res['n'] if res['n'] is not None else '':>8}", f"{res['dtype']:<8}",
+             f"{_fmt(qa):>10}"]
+    add = t.get("np.add")
+    cells.append(f"{_fmt(add):>10} {('%.2fx' % (qa / add)) if add else '':>7}")
+    for lib in PEERS:
+        if lib in t:
+            cells.append(f"{_fmt(t[lib]):>10} {t[lib] / qa:>7.2f}")
+        else:
+            cells.append(f"{'-':>10} {'':>7}")
+    return " ".join(cells)
+
+
+def header():
+    cols = [f"{'operation':<24}", f"{'N':>8}", f"{'dtype':<8}", f"{'quatarray':>10}",
+            f"{'np.add':>10} {'qa/add':>7}"] + [f"{lib[:10]:>10} {'/qa':>7}" for lib in PEERS]
+    line = " ".join(cols)
+    return line + "\n" + "-" * len(line)
+
+
+def _find(results, op, n=None, dtype="float64"):
+    for r in results:
+        if r["op"] == op and (n is None or r["n"] == n) and r["dtype"] == dtype and r["times"]:
+            return r["times"]
+    return None
+
+
+def targets(results, memory, imports):
+    """The issue-5 targets: list of (description, measured value, PASS/FAIL/n/a)."""
+    out = []
+    big = 1_000_000
+
+    def ratio(op, peer, n=big, dtype="float64", inverse=False):
+        t = _find(results, op, n, dtype)
+        if not t or peer not in t or "quatarray" not in t:
+            return None
+        return t["quatarray"] / t[peer] if inverse else t[peer] / t["quatarray"]
+
+    def check(desc, value, ok, unit="x"):
+        if value is None:
+            out.append((desc, "n/a", "n/a"))
+        else:
+            out.append((desc, f"{value:.2f}{unit}", "PASS" if ok(value) else "FAIL"))
+
+    check("product: scipy r1*r2 / quatarray >= 20", ratio("product", "scipy"), lambda v: v >= 20)
+    check("product: quatarray / np.add <= 2.5", ratio("product", "np.add", inverse=True), lambda v: v <= 2.5)
+    apply_op = "apply" if _find(results, "apply", big) else "rotate"
+    check(f"{apply_op}: scipy apply / quatarray >= 2", ratio(apply_op, "scipy"), lambda v: v >= 2)
+    for op in ("as_matrix", "from_rotvec", "inv", "magnitude"):
+        check(f"{op}: scipy / quatarray >= 1", ratio(op, "scipy"), lambda v: v >= 1)
+    for op in ("from_matrix", "as_rotvec"):
+        check(f"{op}: scipy / quatarray >= 3", ratio(op, "scipy"), lambda v: v >= 3)
+    check("as_euler: scipy / quatarray >= 2", ratio("as_euler", "scipy"), lambda v: v >= 2)
+    check("from_euler: scipy / quatarray >= 5", ratio("from_euler", "scipy"), lambda v: v >= 5)
+    check("pairwise slerp: numpy-quaternion / quatarray >= 2", ratio("slerp", "numpy-quaternion"), lambda v: v >= 2)
+    check("pairwise slerp: quaternionic / quatarray (no target)", ratio("slerp", "quaternionic"), lambda v: True)
+    check("track 1e4 keys -> 1e6 queries, slerp: scipy Slerp / quatarray >= 10",
+          ratio("track slerp, 10000 keys", "scipy"), lambda v: v >= 10)
+    check("track 1e4 keys -> 1e6 queries, squad: numpy-quaternion / quatarray >= 4",
+          ratio("track squad, 10000 keys", "numpy-quaternion"), lambda v: v >= 4)
+    check("N=1 product: scipy / quatarray >= 1", ratio("product", "scipy", n=1), lambda v: v >= 1)
+    check(f"N=1 {apply_op}: scipy / quatarray >= 1", ratio(apply_op, "scipy", n=1), lambda v: v >= 1)
+    check("N=1 one-query Slerp(t): scipy / quatarray >= 1", ratio("Slerp(t), one query", "scipy", n=1),
+          lambda v: v >= 1)
+    for op in ("product", "slerp"):
+        t32, t64 = _find(results, op, big, "float32"), _find(results, op, big, "float64")
+        v = t64["quatarray"] / t32["quatarray"] if t32 and t64 else None
+        check(f"float32 {op}: float64 / float32 time >= 1.3", v, lambda v: v >= 1.3)
+    for op, (peak, size) in memory.items():
+        check(f"memory {op} N=1e6: peak extra / output size <= 1.5", peak / size if size else None,
+              lambda v: v <= 1.5)
+    if imports:
+        best, loaded = imports
+        check("import quatarray / import numpy (wall, python -c) <= 1.5", best["quatarray"] / best["numpy"],
+              lambda v: v <= 1.5)
+        out.append(("modules loaded by import quatarray (scipy must not be)", loaded or "[]",
+                    "FAIL" if "scipy" in loaded else "PASS"))
+    return out
+
+
+def _versions():
+    v = {"python": platform.python_version(), "numpy": np.__version__}
+    for lib, mod in (("quatarray", "quatarray"), ("scipy", "scipy"), ("numpy-quaternion", "quaternion"),
+                     ("quaternionic", "quaternionic")):
+        try:
+            v[lib] = __import__(mod).__version__
+        except ImportError:
+            v[lib] = None
+    return v
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.compare", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="only the rows the targets need, fewer repeats")
+    parser.add_argument("--targets", action="store_true", help="print only the targets table")
+    parser.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+    parser.add_argument("--repeat", type=int, help="interleaved repeats (default 7, quick 5)")
+    args = parser.parse_args(argv)
+    repeat = args.repeat or (5 if args.quick else 7)
+    min_time = 0.02 if args.quick else 0.05
+    full = not (args.quick or args.targets)
+    versions = _versions()
+    date = datetime.date.today().isoformat()
+    say = (lambda s: None) if args.targets else (lambda s: print(s, flush=True))
+    say(f"# quatarray benchmarks, {date}, " + ", ".join(f"{k} {v}" for k, v in versions.items() if v)
+        + f"; {platform.machine()}, {_ncpu()} cores; best of {repeat} interleaved repeats")
+    say(header())
+    results = run_rows(_rows(full), repeat, min_time, log=say)
+
+    from .algebra import Algebra
+    from .pairwise import Pairwise
+    memory = {}
+    for op, cls, call in (("product", Algebra, lambda b: b.lib.product(b.p, b.q)),
+                          ("slerp", Pairwise, lambda b: b.lib.slerp(b.q0, b.q1, b.t))):
+        try:
+            memory[op] = peak_memory(Row(op, cls, None, (1_000_000, "float64")), call)
+        except NotImplementedError:
+            pass
+    imports = import_times(7 if args.quick else 15)
+
+    rows = targets(results, memory, imports)
+    print(f"\n# issue-5 targets ({date}; N = 1e6, float64 unless said)")
+    width = max(len(r[0]) for r in rows)
+    for desc, value, verdict in rows:
+        print(f"{desc:<{width}}  {value:>10}  {verdict}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"date": date, "versions": versions, "repeat": repeat, "results": results,
+                       "memory": {k: {"peak": p, "output": s} for k, (p, s) in memory.items()},
+                       "imports": {"seconds": imports[0], "loaded": imports[1]},
+                       "targets": [dict(target=d, value=v, verdict=x) for d, v, x in rows]}, f, indent=1)
+    return 0
+
+
+def _ncpu():
+    import os
+    return os.cpu_count()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,93 @@
+"""Smoke test of the benchmark suites: every benchmark runs once at its smallest size.
+
+A broken benchmark (renamed API, bad data, wrong signature) fails here in
+seconds instead of in an asv run.  Benchmarks of a library that is not
+installed, or of an operation it lacks, are skipped as asv skips them.
+"""
+
+import importlib
+import inspect
+import itertools
+import os
+
+import numpy as np
+import pytest
+
+from benchmarks import _common
+
+MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample"]
+
+
+def _classes():
+    for name in MODULES:
+        mod = importlib.import_module(f"benchmarks.{name}")
+        for cname, cls in vars(mod).items():
+            if inspect.isclass(cls) and cls.__module__ == mod.__name__ and hasattr(cls, "params"):
+                yield pytest.param(cls, id=f"{name}.{cname}")
+
+
+def _smallest(cls):
+    """Every parameter combination with the smallest numeric sizes."""
+    axes = [[min(p)] if all(isinstance(v, int) for v in p) else p for p in cls.params]
+    return list(itertools.product(*axes))
+
+
+def _benchmarks(cls):
+    return [n for n in dir(cls) if n.startswith(("time_", "peakmem_"))]
+
+
+@pytest.mark.parametrize("cls", _classes())
+def test_benchmarks_run(cls, tmp_path, monkeypatch):
+    if cls.__name__ == "Resample":
+        monkeypatch.setattr("benchmarks.resample.SCALE", {"npz": (40, 3), "bvh": (30, 4)})
+        monkeypatch.chdir(tmp_path)
+        cache = (cls().setup_cache(),)
+    else:
+        cache = ()
+    ran = 0
+    for params in _smallest(cls):
+        bench = cls()
+        try:
+            bench.setup(*cache, *params)
+        except NotImplementedError:  # library not installed, or module not landed
+            continue
+        for name in _benchmarks(cls):
+            try:
+                getattr(bench, name)(*cache, *params)
+            except NotImplementedError:  # operation missing in that library (asv: skipped)
+                continue
+            ran += 1
+    if "quatarray" in [p for ps in cls.params for p in ps]:
+        assert ran > 0, f"no benchmark of {cls.__name__} ran"
+
+
+@pytest.mark.parametrize("cls", _classes())
+def test_benchmarks_documented(cls):
+    assert cls.__doc__
+    for name in _benchmarks(cls):
+        assert getattr(cls, name).__doc__, f"{cls.__name__}.{name} has no docstring"
+    assert len(cls.param_names) == len(cls.params)
+
+
+def test_same_data_for_every_library():
+    q = _common.unit_quats(100, "float32", salt=1)
+    assert q.dtype == np.float32 and q.shape == (100, 4)
+    np.testing.assert_array_equal(q, _common.unit_quats(100, "float32", salt=1))
+    assert _common.unit_quats(1, "float64").shape == (4,)
+    m = _common.matrices(5, "float64")
+    np.testing.assert_allclose(m @ np.swapaxes(m, -1, -2), np.broadcast_to(np.eye(3), (5, 3, 3)), atol=1e-12)
+
+
+def test_missing_library_skips(monkeypatch):
+    monkeypatch.setitem(_common._MODULES, "quaternionic", "no_such_module_xyz")
+    assert not _common.installed("quaternionic")
+    monkeypatch.setitem(_common._ADAPTERS, "quaternionic", lambda: importlib.import_module("no_such_module_xyz"))
+    with pytest.raises(NotImplementedError, match="not installed"):
+        _common.adapter("quaternionic")
+
+
+def test_missing_operation_skips():
+    lib = _common.adapter("quatarray")
+    with pytest.raises(NotImplementedError, match="no frobnicate"):
+        lib.frobnicate(1)
+    assert os.path.basename(_common.__file__) == "_common.py"
