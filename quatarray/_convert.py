@@ -1,0 +1,1005 @@
+"""Conversions between scalar-first quaternions and other rotation representations.
+
+Rotation matrices, rotation vectors, Euler and Davenport angles and modified
+Rodrigues parameters, both ways, plus the rotation kernels behind
+`Rotation.apply`, `inv` and `magnitude`.  Everything works on raw ndarrays:
+quaternions are ``(..., 4)`` scalar-first ``(w, x, y, z)``, any batch shape,
+float32 stays float32, inputs are never modified.  A quaternion ``q`` is read
+as the rotation by ``q / |q|``, so the ``as_*`` functions accept non-unit
+quaternions; the ``from_*`` functions return unit quaternions.
+
+How the work is done
+--------------------
+Long inputs are processed in blocks of `CHUNK` rows (`_blockwise`): each block
+is copied into component-major scratch (one contiguous row per component, so
+that every ufunc runs on contiguous memory), computed with whole-row ufuncs
+and copied into a preallocated output.  No per-element Python, no
+``(N, 4, 4)`` temporaries.
+
+Half-angle sines and cosines come from one tangent: with ``t = tan(a / 4)``,
+``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and ``sin(a / 2) = 2 t / (1 + t²)``.  NumPy's
+float64 ``tan`` is SIMD-vectorised (about 1.4 ns per element on AVX2) while
+``sin`` and ``cos`` are not (about 10 ns each), so this halves the cost of
+`from_rotvec` and makes `from_euler` several times cheaper.  Angles come back
+through ``arctan2`` (accurate at 0 and at π), never ``arccos``.
+"""
+
+import re
+import warnings
+
+import numpy as np
+
+from ._validate import CHUNK, float_array
+
+__all__ = [
+    "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler",
+    "as_mrp", "from_mrp", "as_davenport", "from_davenport", "canonical", "inv",
+    "magnitude", "apply", "check_seq", "check_order",
+]
+
+_TINY = {np.dtype(np.float32): 1e-30, np.dtype(np.float64): 1e-300}
+"""A positive floor for rotation angles: tan(θ/4)/θ is then exactly 1/4 at θ = 0."""
+
+_POLAR_MAXITER = 60
+"""Newton steps allowed for the polar factor before falling back to an SVD."""
+
+_GIMBAL_EPS = 1e-7
+"""Middle Euler angle this close to 0 or π counts as gimbal lock (scipy's value)."""
+
+_GIMBAL_MESSAGE = ("Gimbal lock detected. Setting third angle to zero since it is not "
+                   "possible to uniquely determine all angles.")
+
+
+# --- the block runner ---------------------------------------------------------------
+
+def _blockwise(kernel, ins, outs, **params):
+    """Run `kernel` over blocks of rows of 2-D arrays.
+
+    `ins` and `outs` are ``(n, k)`` arrays (any strides, broadcast views
+    allowed for `ins`).  For each block of at most `CHUNK` rows, the inputs are
+    copied into component-major scratch ``(k, m)`` and ``kernel(*ins, *outs,
+    **params)`` fills the component-major output scratch, which is then copied
+    into `outs`.  Returns True if any call of `kernel` returned a true value.
+    """
+    n = outs[0].shape[0]
+    c = min(n, CHUNK)
+    ibuf = [np.empty((a.shape[1], c), a.dtype) for a in ins]
+    obuf = [np.empty((a.shape[1], c), a.dtype) for a in outs]
+    flag = False
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for start in range(0, n, CHUNK):
+            stop = min(start + CHUNK, n)
+            m = stop - start
+            iv = [b[:, :m] for b in ibuf]
+            ov = [b[:, :m] for b in obuf]
+            for b, a in zip(iv, ins):
+                np.copyto(b, a[start:stop].T)
+            if kernel(*iv, *ov, **params):
+                flag = True
+            for b, a in zip(ov, outs):
+                np.copyto(a[start:stop].T, b)
+    return flag
+
+
+def _quat(q, name="quat"):
+    return float_array(q, name, last=4)
+
+
+def _vec3(v, name):
+    return float_array(v, name, last=3)
+
+
+def _half_angle(angle, scale):
+    """(cos(a/2), sin(a/2)) of ``a = angle * 4 * scale`` from one tangent.
+
+    ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π (t ≈ 1) it keeps the
+    small cosine accurate to about one ulp of t.
+    """
+    t = np.tan(angle * scale)
+    d = 1.0 / (1.0 + t * t)
+    c = (1.0 - t) * (1.0 + t)
+    c *= d
+    d *= 2.0
+    d *= t
+    return c, d
+
+
+# --- matrices -----------------------------------------------------------------------
+
+def _k_as_matrix(q, o):
+    w, x, y, z = q
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz = w * xs, w * ys, w * zs
+    xx, xy, xz = x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    np.subtract(1.0, yy + zz, out=o[0])
+    np.subtract(xy, wz, out=o[1])
+    np.add(xz, wy, out=o[2])
+    np.add(xy, wz, out=o[3])
+    np.subtract(1.0, xx + zz, out=o[4])
+    np.subtract(yz, wx, out=o[5])
+    np.subtract(xz, wy, out=o[6])
+    np.add(yz, wx, out=o[7])
+    np.subtract(1.0, xx + yy, out=o[8])
+
+
+def as_matrix(q):
+    """Rotation matrices of quaternions (the rotation by q/|q|).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Scalar-first quaternions, not necessarily unit.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        ``M @ v`` rotates the column vector ``v``.  Zero quaternions give NaN.
+
+    Examples
+    --------
+    >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])  # 90° about z
+    >>> np.round(as_matrix(q), 12) + 0.0
+    array([[ 0., -1.,  0.],
+           [ 1.,  0.,  0.],
+           [ 0.,  0.,  1.]])
+    """
+    q = _quat(q)
+    out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
+    _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)])
+    return out
+
+
+def _shepperd(mat, q):
+    """Quaternions (4, m) of orthogonal matrices (9, m) by Shepperd's method.
+
+    The 4x4 symmetric matrix K with diagonal 1 ± m00 ± m11 ± m22 has every
+    column proportional to the quaternion; the column with the largest
+    diagonal entry is the best conditioned.  Ties pick x, then y, z, w, as
+    scipy does (argmax over m00, m11, m22, trace).
+    """
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
+    m = m00.shape[0]
+    k = np.empty((4, 4, m), mat.dtype)  # k[column, component]
+    tr = m00 + m11 + m22
+    np.add(1.0, tr, out=k[0, 0])
+    np.subtract(m21, m12, out=k[0, 1])
+    np.subtract(m02, m20, out=k[0, 2])
+    np.subtract(m10, m01, out=k[0, 3])
+    np.subtract(1.0, tr, out=k[1, 1])
+    k[1, 1] += 2 * m00
+    np.add(m10, m01, out=k[1, 2])
+    np.add(m20, m02, out=k[1, 3])
+    np.subtract(1.0, tr, out=k[2, 2])
+    k[2, 2] += 2 * m11
+    np.add(m21, m12, out=k[2, 3])
+    np.subtract(1.0, tr, out=k[3, 3])
+    k[3, 3] += 2 * m22
+    for i in range(4):  # symmetric: fill the lower triangle
+        for j in range(i):
+            k[i, j] = k[j, i]
+    # column choice: x if m00 is the largest of (m00, m11, m22, tr), ...; first wins ties
+    best = m00.copy()
+    choice = np.ones(m, np.intp)
+    for col, value in ((2, m11), (3, m22), (0, tr)):
+        bigger = value > best
+        np.maximum(best, value, out=best)
+        np.copyto(choice, col, where=bigger)
+    index = choice * (4 * m) + (np.arange(4)[:, None] * m + np.arange(m))
+    np.take(k.reshape(-1), index, out=q)
+    q /= np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+
+
+def _k_from_matrix(mat, q, status, tol_diag, tol_off):
+    _shepperd(mat, q)
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
+    det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+           + m02 * (m10 * m21 - m11 * m20))
+    # M Mᵀ close to I, entry by entry, as scipy's isclose(gram, eye, atol=1e-12)
+    worst_diag = np.abs(m00 * m00 + m01 * m01 + m02 * m02 - 1.0)
+    np.maximum(worst_diag, np.abs(m10 * m10 + m11 * m11 + m12 * m12 - 1.0), out=worst_diag)
+    np.maximum(worst_diag, np.abs(m20 * m20 + m21 * m21 + m22 * m22 - 1.0), out=worst_diag)
+    worst_off = np.abs(m00 * m10 + m01 * m11 + m02 * m12)
+    np.maximum(worst_off, np.abs(m00 * m20 + m01 * m21 + m02 * m22), out=worst_off)
+    np.maximum(worst_off, np.abs(m10 * m20 + m11 * m21 + m12 * m22), out=worst_off)
+    orthogonal = (worst_diag <= tol_diag) & (worst_off <= tol_off)
+    np.copyto(status[0], 1)
+    np.copyto(status[0], 0, where=orthogonal)
+    np.copyto(status[0], 2, where=~((det > 0) & (det < np.inf)))
+
+
+def _k_shepperd(mat, q):
+    _shepperd(mat, q)
+
+
+def _k_polar(mat, out, bad, tol, maxiter):
+    """Orthogonal polar factor of matrices with det > 0 (9, m) by scaled Newton.
+
+    X ← (γ X + X⁻ᵀ / γ) / 2 with γ = sqrt(|X⁻¹|_F / |X|_F) converges
+    quadratically to U Vᵀ (the nearest rotation, scipy's SVD answer).
+    X⁻ᵀ = cof(X) / det(X), rows of cof(X) being cross products of rows of X.
+    """
+    x = mat.copy()
+    new = np.empty_like(x)
+    for _ in range(maxiter):
+        r0, r1, r2 = x[0:3], x[3:6], x[6:9]
+        cof = np.concatenate([np.cross(r1, r2, axis=0), np.cross(r2, r0, axis=0),
+                              np.cross(r0, r1, axis=0)])
+        det = np.einsum("ij,ij->j", r0, cof[0:3])
+        gamma = np.sqrt(np.sqrt(np.einsum("ij,ij->j", cof, cof) / np.einsum("ij,ij->j", x, x)) / np.abs(det))
+        np.multiply(x, 0.5 * gamma, out=new)
+        new += cof * (0.5 / (gamma * det))
+        delta = np.abs(new - x).max(axis=0)
+        x, new = new, x
+        if not (delta > tol).any():
+            break
+    np.copyto(out, x)
+    np.copyto(bad[0], ~(delta <= np.sqrt(tol)))
+
+
+def _svd_polar(mat):
+    """Fallback nearest rotation U Vᵀ for (k, 3, 3) matrices (very rarely used)."""
+    u, _, vt = np.linalg.svd(mat)
+    return u @ vt
+
+
+def from_matrix(matrix, assume_valid=False):
+    """Quaternions of rotation matrices, as scipy's ``Rotation.from_matrix``.
+
+    Parameters
+    ----------
+    matrix : array_like, shape (..., 3, 3)
+        Rotation matrices.  A matrix that is not orthogonal is replaced by the
+        nearest rotation matrix (its orthogonal polar factor, the SVD answer
+        ``U Vᵀ`` that scipy computes), as in scipy: scipy's test
+        ``isclose(M Mᵀ, I, atol=1e-12)`` decides which matrices are projected
+        (for float32 input the tolerance is ``64 eps``).
+    assume_valid : bool, default False
+        Skip the determinant and orthogonality checks (faster; the matrices
+        must then be rotations).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Unit scalar-first quaternions, float32 for float32 input.
+
+    Raises
+    ------
+    ValueError
+        For a matrix with determinant ≤ 0 (not a rotation, nor close to one),
+        or with NaN or infinite entries, or of the wrong shape.
+
+    Examples
+    --------
+    >>> np.round(from_matrix([[0, -1, 0], [1, 0, 0], [0, 0, 1]]), 6)
+    array([0.707107, 0.      , 0.      , 0.707107])
+    >>> np.round(from_matrix(2 * np.eye(3)), 12)  # projected to the nearest rotation
+    array([1., 0., 0., 0.])
+    """
+    m = float_array(matrix, "matrix")
+    if m.ndim < 2 or m.shape[-2:] != (3, 3):
+        raise ValueError(f"expected matrix of shape (..., 3, 3), got {m.shape}")
+    batch = m.shape[:-2]
+    flat = m.reshape(-1, 9)
+    n = flat.shape[0]
+    out = np.empty(batch + (4,), m.dtype)
+    qflat = out.reshape(-1, 4)
+    if assume_valid:
+        _blockwise(_k_shepperd, [flat], [qflat])
+        return out
+    eps = np.finfo(m.dtype).eps
+    tol_off = 1e-12 if m.dtype == np.float64 else 64 * eps
+    status = np.empty((n, 1), np.int8)
+    _blockwise(_k_from_matrix, [flat], [qflat, status], tol_diag=1e-5 + tol_off, tol_off=tol_off)
+    status = status[:, 0]
+    if n and status.max() == 2:
+        first = int(np.argmax(status == 2))
+        where = tuple(int(i) for i in np.unravel_index(first, batch)) if batch else ()
+        bad = flat[first].reshape(3, 3)
+        if not np.isfinite(bad).all():
+            raise ValueError(f"expected finite values in matrix, got nan or inf in matrix {where}")
+        det = float(np.linalg.det(bad.astype(np.float64)))
+        raise ValueError(
+            "Non-positive determinant (left-handed or null coordinate frame) in rotation "
+            f"matrix {where}: expected det > 0, got det = {det:.6g} for\n{bad}")
+    fix = np.flatnonzero(status == 1)
+    if fix.size:
+        sub = flat[fix]
+        ortho = np.empty_like(sub)
+        bad = np.empty((fix.size, 1), bool)
+        _blockwise(_k_polar, [sub], [ortho, bad], tol=16 * eps, maxiter=_POLAR_MAXITER)
+        bad = bad[:, 0]
+        if bad.any():
+            ortho[bad] = _svd_polar(sub[bad].reshape(-1, 3, 3)).reshape(-1, 9)
+        qsub = np.empty((fix.size, 4), m.dtype)
+        _blockwise(_k_shepperd, [ortho], [qsub])
+        qflat[fix] = qsub
+    return out
+
+
+# --- rotation vectors, angles, MRPs -----------------------------------------------------
+
+def _flip_mask(w, x, y, z):
+    """True where q is not canonical: w < 0, or w == 0 and the first non-zero of x, y, z < 0."""
+    flip = w < 0
+    zero = w == 0
+    if zero.any():
+        later = (x < 0) | ((x == 0) & ((y < 0) | ((y == 0) & (z < 0))))
+        flip |= zero & later
+    return flip
+
+
+def _k_as_rotvec(q, o, factor):
+    w, x, y, z = q
+    nv = np.sqrt(x * x + y * y + z * z)
+    half = np.arctan2(nv, np.abs(w))
+    # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
+    scale = half / np.where(nv > 0, nv, 1.0)
+    np.negative(scale, out=scale, where=_flip_mask(w, x, y, z))
+    scale *= factor
+    np.multiply(x, scale, out=o[0])
+    np.multiply(y, scale, out=o[1])
+    np.multiply(z, scale, out=o[2])
+
+
+def as_rotvec(q, degrees=False):
+    """Rotation vectors (axis × angle, angle in [0, π]) of quaternions.
+
+    Accurate for every angle: the angle is ``2 atan2(|v|, |w|)`` and the
+    vector ``v · angle / |v|``, with no cancellation near 0 and no ``arccos``
+    near π.  At exactly π the sign follows scipy's canonical quaternion.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Scalar-first quaternions, not necessarily unit.
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
+    >>> as_rotvec(q, degrees=True)
+    array([ 0.,  0., 90.])
+    """
+    q = _quat(q)
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    factor = 2.0 * (180.0 / np.pi if degrees else 1.0)
+    _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=factor)
+    return out
+
+
+def _k_from_rotvec(v, q, factor):
+    x, y, z = v
+    theta = np.sqrt(x * x + y * y + z * z)
+    if factor != 1.0:
+        theta *= factor
+    np.maximum(theta, _TINY[theta.dtype], out=theta)
+    cos_half, sin_half = _half_angle(theta, 0.25)
+    np.copyto(q[0], cos_half)
+    # sin(θ/2) / θ, times the degree factor that converts v itself
+    scale = sin_half / theta
+    if factor != 1.0:
+        scale *= factor
+    np.multiply(x, scale, out=q[1])
+    np.multiply(y, scale, out=q[2])
+    np.multiply(z, scale, out=q[3])
+
+
+def from_rotvec(rotvec, degrees=False):
+    """Unit quaternions of rotation vectors (axis × angle).
+
+    Parameters
+    ----------
+    rotvec : array_like, shape (..., 3)
+        Rotation vectors; the angle is the norm (any size, not limited to π).
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Scalar-first unit quaternions (w = cos(angle/2) may be negative for
+        angles above π, as in scipy).
+
+    Examples
+    --------
+    >>> np.round(from_rotvec([0, 0, 90], degrees=True), 6)
+    array([0.707107, 0.      , 0.      , 0.707107])
+    """
+    v = _vec3(rotvec, "rotvec")
+    out = np.empty(v.shape[:-1] + (4,), v.dtype)
+    factor = np.pi / 180.0 if degrees else 1.0
+    _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
+    return out
+
+
+def _k_magnitude(q, o):
+    w, x, y, z = q
+    np.arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w), out=o[0])
+    o[0] *= 2.0
+
+
+def magnitude(q):
+    """Rotation angles in [0, π] of quaternions, ``2 atan2(|v|, |w|)``.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, batch shape
+
+    Examples
+    --------
+    >>> magnitude(np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [-1, 1, 0, 0]]))
+    array([0.        , 3.14159265, 1.57079633])
+    """
+    q = _quat(q)
+    out = np.empty(q.shape[:-1], q.dtype)
+    _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
+    return out
+
+
+def _k_as_mrp(q, o):
+    w, x, y, z = q
+    k = 1.0 / (np.sqrt(w * w + x * x + y * y + z * z) + np.abs(w))
+    np.negative(k, out=k, where=w < 0)
+    np.multiply(x, k, out=o[0])
+    np.multiply(y, k, out=o[1])
+    np.multiply(z, k, out=o[2])
+
+
+def as_mrp(q):
+    """Modified Rodrigues parameters ``v / (|q| + |w|)`` (norm ≤ 1, angle ≤ π).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``axis * tan(angle / 4)``; the sign follows scipy (w < 0 is flipped).
+
+    Examples
+    --------
+    >>> np.round(as_mrp(np.array([0.0, 0, 0, 1])), 12)  # 180° about z
+    array([0., 0., 1.])
+    """
+    q = _quat(q)
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
+    return out
+
+
+def _k_from_mrp(p, q):
+    x, y, z = p
+    n = x * x + y * y + z * z
+    d = 1.0 / (1.0 + n)
+    np.multiply(1.0 - n, d, out=q[0])
+    d *= 2.0
+    np.multiply(x, d, out=q[1])
+    np.multiply(y, d, out=q[2])
+    np.multiply(z, d, out=q[3])
+
+
+def from_mrp(mrp):
+    """Unit quaternions of modified Rodrigues parameters.
+
+    Parameters
+    ----------
+    mrp : array_like, shape (..., 3)
+        ``axis * tan(angle / 4)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> from_mrp([0, 0, 1])
+    array([0., 0., 0., 1.])
+    """
+    p = _vec3(mrp, "mrp")
+    out = np.empty(p.shape[:-1] + (4,), p.dtype)
+    _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
+    return out
+
+
+# --- Euler angles ----------------------------------------------------------------------------
+
+def check_seq(seq, n=None):
+    """Validate an Euler sequence; return (axis indices, intrinsic).
+
+    Lower case is extrinsic, upper case intrinsic; 1 to 3 axes (exactly `n` if
+    given), no axis repeated consecutively.
+
+    >>> check_seq("ZXY")
+    ([2, 0, 1], True)
+    """
+    if not isinstance(seq, str):
+        raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    if n is not None and len(seq) != n:
+        raise ValueError(f"expected seq of {n} axes, got {seq!r} ({len(seq)} axes)")
+    if not 1 <= len(seq) <= 3:
+        raise ValueError(f"expected seq of 1 to 3 axes, got {seq!r} ({len(seq)} axes)")
+    intrinsic = re.fullmatch("[XYZ]+", seq) is not None
+    if not intrinsic and re.fullmatch("[xyz]+", seq) is None:
+        raise ValueError(f"expected seq of axes from 'xyz' (extrinsic) or from 'XYZ' "
+                         f"(intrinsic), not mixed, got {seq!r}")
+    if any(a == b for a, b in zip(seq, seq[1:])):
+        raise ValueError(f"expected consecutive axes of seq to be different, got {seq!r}")
+    return ["xyz".index(a) for a in seq.lower()], intrinsic
+
+
+def _lin(c, a, sign, s, b, out=None):
+    """c*a + sign*s*b for rows or None (a zero row); None if both are zero."""
+    if a is None and b is None:
+        return None
+    if b is None:
+        return np.multiply(c, a, out=out)
+    sb = np.multiply(s, b, out=out if a is None else None)
+    if a is None:
+        return sb if sign > 0 else np.negative(sb, out=sb)
+    ca = np.multiply(c, a, out=out)
+    return np.add(ca, sb, out=ca) if sign > 0 else np.subtract(ca, sb, out=ca)
+
+
+def _times_axis(p, c, s, k, right, out=None):
+    """p (c + s e_k) if `right` else (c + s e_k) p, on rows [w, x, y, z] (None = 0)."""
+    i, j = (k + 1) % 3, (k + 2) % 3
+    w, pk, pi, pj = p[0], p[k + 1], p[i + 1], p[j + 1]
+    sg = 1 if right else -1
+    o = out if out is not None else [None] * 4
+    res = [None] * 4
+    res[0] = _lin(c, w, -1, s, pk, o[0])
+    res[k + 1] = _lin(c, pk, 1, s, w, o[k + 1])
+    res[i + 1] = _lin(c, pi, sg, s, pj, o[i + 1])
+    res[j + 1] = _lin(c, pj, -sg, s, pi, o[j + 1])
+    return res
+
+
+def _k_from_euler(angles, q, axes, intrinsic, scale):
+    c, s = _half_angle(angles[0], scale)
+    p = [c, None, None, None]
+    p[axes[0] + 1] = s
+    last = len(axes) - 1
+    for n in range(1, len(axes)):
+        c, s = _half_angle(angles[n], scale)
+        p = _times_axis(p, c, s, axes[n], intrinsic, out=q if n == last else None)
+    for row, value in zip(q, p):  # rows not written through `out`
+        if value is None:
+            row.fill(0)
+        elif len(axes) == 1:
+            np.copyto(row, value)
+
+
+def from_euler(seq, angles, degrees=False):
+    """Unit quaternions of Euler angles, as scipy's ``Rotation.from_euler``.
+
+    Parameters
+    ----------
+    seq : str
+        1 to 3 axes from ``'xyz'`` (extrinsic: about the fixed frame) or
+        ``'XYZ'`` (intrinsic: about the rotating frame), e.g. ``'ZXZ'``.
+    angles : array_like, shape (..., len(seq))
+        A scalar is accepted for a single axis.
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``from_euler('xyz', [a, b, c])`` is the rotation about x by a, then
+        about the fixed y by b, then the fixed z by c.
+
+    Notes
+    -----
+    The elementary quaternions are multiplied in closed form, skipping their
+    zero components: a 3-axis sequence costs 3 tangents and 16 products.
+
+    Examples
+    --------
+    >>> np.round(from_euler("z", 90, degrees=True), 6)
+    array([0.707107, 0.      , 0.      , 0.707107])
+    >>> np.round(from_euler("XY", [[90, 0], [0, 90]], degrees=True), 6)
+    array([[0.707107, 0.707107, 0.      , 0.      ],
+           [0.707107, 0.      , 0.707107, 0.      ]])
+    """
+    axes, intrinsic = check_seq(seq)
+    a = float_array(angles, "angles")
+    if a.ndim == 0:
+        a = a.reshape(1)
+    if a.shape[-1] != len(axes):
+        raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
+    scale = np.pi / 720.0 if degrees else 0.25
+    _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
+               axes=axes, intrinsic=intrinsic, scale=scale)
+    return out
+
+
+def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
+    """Bernardes & Viollet's step 2-3 on rows a, b, c, d: writes o (3, m).
+
+    Returns True if any element is in gimbal lock (middle angle within
+    1e-7 of 0 or π); its third angle is then set to 0, as in scipy.
+    """
+    first, third = (0, 2) if extrinsic else (2, 0)
+    half_sum = np.arctan2(b, a)
+    half_diff = np.arctan2(d, c)
+    middle = o[1]
+    np.arctan2(np.sqrt(c * c + d * d), np.sqrt(a * a + b * b), out=middle)
+    middle *= 2.0
+    np.subtract(half_sum, half_diff, out=o[first])
+    np.add(half_sum, half_diff, out=o[third])
+    case1 = middle <= _GIMBAL_EPS
+    case2 = np.abs(middle - np.pi) <= _GIMBAL_EPS
+    locked = case1 | case2
+    gimbal = bool(locked.any())
+    if gimbal:
+        np.copyto(o[2], 0, where=locked)
+        lock_angle = np.where(case1, 2 * half_sum, (-2 if extrinsic else 2) * half_diff)
+        np.copyto(o[0], lock_angle, where=locked)
+    if not symmetric:
+        if sign < 0:
+            np.negative(o[third], out=o[third])
+        middle -= lamb
+    for row in o:  # into [-π, π]
+        np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
+        np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
+    return gimbal
+
+
+def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
+    w = q[0]
+    qi, qj, qk = q[i + 1], q[j + 1], q[k + 1]
+    qk = qk if sign > 0 else -qk
+    if symmetric:
+        a, b, c, d = w, qi, qj, qk
+    else:
+        a, b, c, d = w - qj, qi + qk, qj + w, qk - qi
+    return _angles(a, b, c, d, o, extrinsic, symmetric, sign, np.pi / 2)
+
+
+def _warn_gimbal(gimbal, suppress_warnings):
+    if gimbal and not suppress_warnings:
+        warnings.warn(_GIMBAL_MESSAGE, UserWarning, stacklevel=4)
+
+
+def as_euler(q, seq, degrees=False, suppress_warnings=False):
+    """Euler angles of quaternions, as scipy's ``Rotation.as_euler``.
+
+    Uses the quaternion method of Bernardes & Viollet (2022) as scipy does,
+    with no rotation matrix.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Scalar-first quaternions, not necessarily unit.
+    seq : str
+        3 axes from ``'xyz'`` (extrinsic) or ``'XYZ'`` (intrinsic).
+    degrees : bool, default False
+    suppress_warnings : bool, default False
+        Do not warn about gimbal lock.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        First and third angles in [-π, π]; the second in [0, π] for
+        symmetric sequences (``'zxz'``) and in [-π/2, π/2] otherwise.  In
+        gimbal lock (second angle within 1e-7 of its ends) the third angle is
+        set to 0 and a `UserWarning` is issued.
+
+    Examples
+    --------
+    >>> q = from_euler("zyx", [90, 30, 10], degrees=True)
+    >>> np.round(as_euler(q, "zyx", degrees=True), 9)
+    array([90., 30., 10.])
+    """
+    axes, intrinsic = check_seq(seq, 3)
+    q = _quat(q)
+    i, j, k = axes[::-1] if intrinsic else axes
+    symmetric = i == k
+    if symmetric:
+        k = 3 - i - j
+    sign = (i - j) * (j - k) * (k - i) // 2
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
+                        symmetric=symmetric, sign=sign, extrinsic=not intrinsic)
+    _warn_gimbal(gimbal, suppress_warnings)
+    return np.rad2deg(out, out=out) if degrees else out
+
+
+# --- Davenport angles ---------------------------------------------------------------------------
+
+def check_order(order):
+    """True for extrinsic (``'e'``, ``'extrinsic'``), False for intrinsic (``'i'``, ``'intrinsic'``).
+
+    >>> check_order("e")
+    True
+    """
+    if order in ("e", "extrinsic"):
+        return True
+    if order in ("i", "intrinsic"):
+        return False
+    raise ValueError(f"expected order 'e'/'extrinsic' or 'i'/'intrinsic', got {order!r}")
+
+
+def _unit_axes(axes, n=None):
+    """Axes as unit float64 rows (k, 3); consecutive axes must be orthogonal."""
+    a = float_array(axes, "axes").astype(np.float64)
+    if a.ndim == 1:
+        a = a[None]
+    if a.ndim != 2 or a.shape[-1] != 3:
+        raise ValueError(f"expected axes of shape (3,) or (n, 3): vectors of length 3, got {np.shape(axes)}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"expected {n} axes, got {a.shape[0]}")
+    if not 1 <= a.shape[0] <= 3:
+        raise ValueError(f"expected 1 to 3 axes, got {a.shape[0]}")
+    norms = np.linalg.norm(a, axis=1, keepdims=True)
+    if not (np.isfinite(a).all() and (norms > 0).all()):
+        raise ValueError("expected finite, non-zero axes")
+    a = a / norms
+    dots = np.abs(np.sum(a[1:] * a[:-1], axis=1))
+    if (dots >= 1e-7).any():
+        raise ValueError(f"Consecutive axes must be orthogonal: got |cos| = {dots.max():.3g} between them")
+    return a
+
+
+def _k_from_davenport(angles, q, axes, extrinsic, scale):
+    c, s = _half_angle(angles[0], scale)
+    p = [c] + [s * n for n in axes[0]]
+    for n in range(1, len(axes)):
+        c, s = _half_angle(angles[n], scale)
+        e = [c] + [s * a for a in axes[n]]
+        p = _mul_rows(e, p) if extrinsic else _mul_rows(p, e)
+    for row, value in zip(q, p):
+        np.copyto(row, value)
+
+
+def _mul_rows(p, q):
+    """Hamilton product on component rows."""
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return [w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2]
+
+
+def from_davenport(axes, order, angles, degrees=False):
+    """Unit quaternions of Davenport angles (Euler angles about any axes).
+
+    Parameters
+    ----------
+    axes : array_like, shape (3,) or (n, 3), n ≤ 3
+        Rotation axes (normalised here); consecutive axes must be orthogonal.
+    order : {'e', 'extrinsic', 'i', 'intrinsic'}
+    angles : array_like, shape (..., n)
+        A scalar is accepted for a single axis.
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> ez, ex = [0, 0, 1], [1, 0, 0]
+    >>> q = from_davenport([ez, ex], "extrinsic", [90, 45], degrees=True)
+    >>> np.allclose(q, from_euler("zx", [90, 45], degrees=True))
+    True
+    """
+    extrinsic = check_order(order)
+    ax = _unit_axes(axes)
+    a = float_array(angles, "angles")
+    if a.ndim == 0:
+        a = a.reshape(1)
+    if a.shape[-1] != ax.shape[0]:
+        raise ValueError(f"Expected `angles` to match number of axes: expected angles of shape "
+                         f"(..., {ax.shape[0]}), got {a.shape}")
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
+    scale = np.pi / 720.0 if degrees else 0.25
+    _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
+               axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale)
+    return out
+
+
+def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
+    gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
+    if flip:
+        np.negative(o[1], out=o[1])
+    return gimbal
+
+
+def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
+    """Davenport angles (Euler angles about three given axes) of quaternions.
+
+    The generalisation of Bernardes & Viollet's method that scipy uses: the
+    quaternion is first turned by the angle λ between the first and third
+    axes, then read like Euler angles.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+    axes : array_like, shape (3, 3)
+        Three axes; the middle one must be orthogonal to the other two.
+    order : {'e', 'extrinsic', 'i', 'intrinsic'}
+    degrees : bool, default False
+    suppress_warnings : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        First and third angles in [-π, π], the second in a range of width π
+        set by λ; gimbal lock warns and sets the third angle to 0.
+
+    Examples
+    --------
+    >>> ez, ex, ey = np.eye(3)[[2, 0, 1]]
+    >>> q = from_euler("zxy", [90, 30, 10], degrees=True)
+    >>> np.round(as_davenport(q, [ez, ex, ey], "e", degrees=True), 9)
+    array([90., 30., 10.])
+    """
+    extrinsic = check_order(order)
+    n1, n2, n3 = _unit_axes(axes, 3)
+    q = _quat(q)
+    if not extrinsic:
+        n1, n3 = n3, n1
+    ncross = np.cross(n1, n2)
+    lamb = float(np.arctan2(n3 @ ncross, n3 @ n1))
+    flip = lamb < 0
+    if flip:
+        n2, ncross, lamb = -n2, -ncross, -lamb
+    # (a, b, c, d) = P L(q_λ) q: q turned by λ about n2, read along n1, n2, n1 × n2
+    p0, pv = np.cos(lamb / 2), np.sin(lamb / 2) * n2
+    left = np.array([[p0, -pv[0], -pv[1], -pv[2]],
+                     [pv[0], p0, -pv[2], pv[1]],
+                     [pv[1], pv[2], p0, -pv[0]],
+                     [pv[2], -pv[1], pv[0], p0]])
+    proj = np.zeros((4, 4))
+    proj[0, 0] = 1
+    proj[1:, 1:] = [n1, n2, ncross]
+    lmat = (proj @ left).astype(q.dtype)
+    abcd = q.reshape(-1, 4) @ lmat.T
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
+                        extrinsic=extrinsic, lamb=lamb, flip=flip)
+    _warn_gimbal(gimbal, suppress_warnings)
+    return np.rad2deg(out, out=out) if degrees else out
+
+
+# --- canonical form, inverse, applying ---------------------------------------------------------
+
+def canonical(q):
+    """The representative with w > 0 (for w = 0: first non-zero of x, y, z positive).
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        A new array (the input is not modified).
+
+    Examples
+    --------
+    >>> canonical(np.array([[-1.0, 0, 0, 0], [0, 0, -1, 1]]))
+    array([[ 1.,  0.,  0.,  0.],
+           [-0., -0.,  1., -1.]])
+    """
+    q = _quat(q)
+    flip = _flip_mask(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
+    return np.where(flip[..., None], -q, q)
+
+
+_SIGNS = {}
+
+
+def _conj_signs(dtype):
+    key = np.dtype(dtype)
+    if key not in _SIGNS:
+        _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], key), CHUNK)
+    return _SIGNS[key]
+
+
+def inv(q):
+    """Inverse rotations: the conjugates (w, -x, -y, -z), norms kept.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> inv(np.array([0.5, 0.5, -0.5, 0.5]))
+    array([ 0.5, -0.5,  0.5, -0.5])
+    """
+    q = _quat(q)
+    out = np.empty(q.shape, q.dtype)
+    src = q.reshape(-1)
+    dst = out.reshape(-1)
+    signs = _conj_signs(q.dtype)
+    step = signs.size
+    for start in range(0, src.size, step):
+        stop = min(start + step, src.size)
+        np.multiply(src[start:stop], signs[:stop - start], out=dst[start:stop])
+    return out
+
+
+def _k_apply(q, v, o, wsign):
+    w, x, y, z = q
+    vx, vy, vz = v
+    s = 2.0 / (w * w + x * x + y * y + z * z)
+    if wsign < 0:
+        w = -w  # the conjugate (w, -u) gives t -> -t, u -> -u: v' = v - w t + u × t
+    # t = s (u × v);  v' = v + w t + u × t   (u = (x, y, z))
+    tx = (y * vz - z * vy) * s
+    ty = (z * vx - x * vz) * s
+    tz = (x * vy - y * vx) * s
+    np.add(vx, w * tx, out=o[0])
+    o[0] += y * tz - z * ty
+    np.add(vy, w * ty, out=o[1])
+    o[1] += z * tx - x * tz
+    np.add(vz, w * tz, out=o[2])
+    o[2] += x * ty - y * tx
+
+
+def apply(q, v, inverse=False):
+    """Rotate vectors by quaternions (q/|q|), broadcasting batch shapes.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+    v : ndarray, shape (..., 3)
+        Batch shapes broadcast against each other the NumPy way.
+    inverse : bool, default False
+        Rotate by the inverse rotations.
+
+    Returns
+    -------
+    ndarray, shape (broadcast batch, 3)
+        float32 only if both inputs are float32.
+
+    Notes
+    -----
+    One rotation and many vectors use the 3x3 matrix and a matrix product;
+    otherwise ``v + w t + u × t`` with ``t = 2 u × v / |q|²`` per pair.
+
+    Examples
+    --------
+    >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
+    >>> np.round(apply(q, np.array([[1.0, 0, 0], [0, 1, 0]])), 12) + 0.0
+    array([[ 0.,  1.,  0.],
+           [-1.,  0.,  0.]])
+    """
+    q = _quat(q)
+    v = _vec3(v, "vectors")
+    dtype = np.result_type(q.dtype, v.dtype)
+    batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    out = np.empty(batch + (3,), dtype)
+    if q.size == 4 and v.size > 3:
+        m = as_matrix(q.reshape(4).astype(dtype))
+        np.matmul(v, m if inverse else m.T, out=out.reshape(v.shape))
+        return out
+    if q.shape[:-1] == batch:
+        qf = q.reshape(-1, 4)
+    else:
+        qf = np.broadcast_to(q, batch + (4,)).reshape(-1, 4)
+    if v.shape[:-1] == batch:
+        vf = v.reshape(-1, 3)
+    else:
+        vf = np.broadcast_to(v, batch + (3,)).reshape(-1, 3)
+    _blockwise(_k_apply, [qf.astype(dtype, copy=False), vf.astype(dtype, copy=False)],
+               [out.reshape(-1, 3)], wsign=-1 if inverse else 1)
+    return out

@@ -1,0 +1,594 @@
+"""Raw-array conversions (`quatarray._convert`) cross-checked against scipy's
+Rotation: every representation both ways, all Euler sequences, edge cases
+(identity, π, gimbal lock, tiny angles, non-orthogonal matrices), layouts,
+chunking, dtypes and bad input."""
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.spatial.transform import Rotation as R
+
+from quatarray import _convert as C
+from quatarray._validate import CHUNK
+
+from .conftest import random_quats, tol
+
+SEQS = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "xyx", "xzx", "yxy", "yzy", "zxz", "zyz"]
+ALL_SEQS = SEQS + [s.upper() for s in SEQS]
+SHAPES = [(), (7,), (3, 5)]
+
+
+def sp(q):
+    """scipy Rotation of scalar-first quaternions (float64)."""
+    return R.from_quat(np.asarray(q, np.float64), scalar_first=True)
+
+
+def sp_quat(r):
+    return r.as_quat(scalar_first=True)
+
+
+def assert_same_rotation(got, want, atol):
+    """Quaternions equal up to the double cover (q and -q)."""
+    got, want = np.broadcast_arrays(np.asarray(got, np.float64), np.asarray(want, np.float64))
+    sign = np.where(np.sum(got * want, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+    np.testing.assert_allclose(got * sign, want, rtol=0, atol=atol)
+
+
+def angle_diff(a, b):
+    """Differences of angles modulo 2π, in [0, π]."""
+    return np.abs(np.angle(np.exp(1j * (np.asarray(a, np.float64) - np.asarray(b, np.float64)))))
+
+
+def unit(rng, shape, dtype):
+    return random_quats(rng, shape, dtype)
+
+
+# --- matrices ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_as_matrix_matches_scipy(rng, dtype, shape):
+    q = unit(rng, shape, dtype)
+    got = C.as_matrix(q)
+    assert got.dtype == dtype and got.shape == shape + (3, 3)
+    np.testing.assert_allclose(got, sp(q).as_matrix(), rtol=0, atol=tol(dtype))
+
+
+def test_as_matrix_of_non_unit_quaternion_is_the_rotation_by_q_over_norm(rng, dtype):
+    q = unit(rng, (50,), dtype)
+    scale = np.geomspace(1e-3, 1e3, 50).astype(dtype)[:, None]
+    np.testing.assert_allclose(C.as_matrix(q * scale), C.as_matrix(q), rtol=0, atol=tol(dtype))
+
+
+def test_as_matrix_of_zero_quaternion_is_nan_without_warning():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = C.as_matrix(np.zeros(4))
+    assert np.isnan(m).all()
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_from_matrix_matches_scipy(rng, dtype, shape):
+    m = R.random(int(np.prod(shape)), rng=rng).as_matrix().reshape(shape + (3, 3))
+    got = C.from_matrix(m.astype(dtype))
+    assert got.dtype == dtype and got.shape == shape + (4,)
+    want = R.from_matrix(m.reshape(-1, 3, 3)).as_quat(scalar_first=True).reshape(shape + (4,))
+    if dtype == np.float64:  # same branch as scipy, so the same sign
+        np.testing.assert_allclose(got, want, rtol=0, atol=tol(dtype))
+    assert_same_rotation(got, want, tol(dtype))
+
+
+def test_from_matrix_every_branch_and_exact_half_turns(dtype):
+    # the largest of (m00, m11, m22, trace) picks the branch: cover all four and π turns
+    cases = {
+        (1.0, 0, 0, 0): np.eye(3),
+        (0.0, 1, 0, 0): np.diag([1.0, -1, -1]),
+        (0.0, 0, 1, 0): np.diag([-1.0, 1, -1]),
+        (0.0, 0, 0, 1): np.diag([-1.0, -1, 1]),
+    }
+    for q, m in cases.items():
+        np.testing.assert_array_equal(C.from_matrix(m.astype(dtype)), np.array(q, dtype))
+    qs = np.array([[0.1, 0.9, 0.3, -0.2], [0.2, -0.3, 0.9, 0.1], [0.1, 0.2, -0.3, 0.9], [0.9, 0.1, 0.2, 0.3]])
+    qs /= np.linalg.norm(qs, axis=1, keepdims=True)
+    got = C.from_matrix(C.as_matrix(qs.astype(dtype)))
+    assert_same_rotation(got, qs, tol(dtype))
+
+
+@pytest.mark.parametrize("noise", [1e-10, 1e-6, 1e-2])
+def test_from_matrix_projects_noisy_matrices_like_scipy(rng, noise):
+    m = R.random(200, rng=rng).as_matrix() + noise * rng.standard_normal((200, 3, 3))
+    got = C.from_matrix(m)
+    want = R.from_matrix(m).as_quat(scalar_first=True)
+    assert_same_rotation(got, want, 20 * np.finfo(float).eps)
+
+
+def test_from_matrix_projects_arbitrary_positive_det_matrices_like_scipy(rng):
+    m = rng.standard_normal((500, 3, 3))
+    m[np.linalg.det(m) < 0] *= -1
+    m[0] = 2 * np.eye(3)          # scaled rotation
+    m[1] = np.diag([1.0, 2, 3])   # stretch
+    m[2] = np.diag([1.0, 1, 1e-8])  # nearly singular, det > 0
+    got = C.from_matrix(m)
+    want = R.from_matrix(m).as_quat(scalar_first=True)
+    assert_same_rotation(got[:2], [[1, 0, 0, 0], [1, 0, 0, 0]], 1e-15)
+    assert_same_rotation(got, want, 1e-12)
+
+
+def test_from_matrix_svd_fallback_gives_the_same_rotation(rng, monkeypatch):
+    m = rng.standard_normal((50, 3, 3))
+    m[np.linalg.det(m) < 0] *= -1
+    newton = C.from_matrix(m)
+    monkeypatch.setattr(C, "_POLAR_MAXITER", 1)  # Newton cannot converge in one step
+    fallback = C.from_matrix(m)
+    assert_same_rotation(fallback, newton, 1e-12)
+
+
+def test_from_matrix_float32_noisy(rng):
+    m = R.random(100, rng=rng).as_matrix() + 1e-3 * rng.standard_normal((100, 3, 3))
+    got = C.from_matrix(m.astype(np.float32))
+    assert got.dtype == np.float32
+    assert_same_rotation(got, R.from_matrix(m.astype(np.float32).astype(float)).as_quat(scalar_first=True),
+                         tol(np.float32))
+
+
+def test_from_matrix_assume_valid_skips_checks(rng):
+    m = R.random(20, rng=rng).as_matrix()
+    np.testing.assert_array_equal(C.from_matrix(m, assume_valid=True), C.from_matrix(m))
+    C.from_matrix(-np.eye(3), assume_valid=True)  # no check: no error
+
+
+@pytest.mark.parametrize("matrix, match", [
+    (-np.eye(3), r"Non-positive determinant .* matrix \(\): expected det > 0, got det = -1"),
+    (np.zeros((3, 3)), "Non-positive determinant"),
+    (np.stack([np.eye(3), np.diag([1.0, 1, -1])]), r"matrix \(1,\)"),
+    (np.full((3, 3), np.nan), "expected finite values in matrix"),
+    (np.diag([np.inf, 1, 1]), "expected finite values in matrix"),
+    (np.eye(4), r"expected matrix of shape \(\.\.\., 3, 3\), got \(4, 4\)"),
+    (np.ones(3), r"expected matrix of shape \(\.\.\., 3, 3\), got \(3,\)"),
+])
+def test_from_matrix_bad_input(matrix, match):
+    with pytest.raises(ValueError, match=match):
+        C.from_matrix(matrix)
+
+
+# --- rotation vectors, magnitude, MRPs ------------------------------------------------------
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("degrees", [False, True])
+def test_rotvec_both_ways_match_scipy(rng, dtype, shape, degrees):
+    q = unit(rng, shape, dtype)
+    got = C.as_rotvec(q, degrees=degrees)
+    assert got.dtype == dtype and got.shape == shape + (3,)
+    unit_scale = 180 / np.pi if degrees else 1.0
+    np.testing.assert_allclose(got, sp(q).as_rotvec(degrees=degrees), rtol=0, atol=tol(dtype) * unit_scale)
+    v = (rng.uniform(-4, 4, shape + (3,)) * unit_scale).astype(dtype)  # angles up to 2π and beyond
+    q2 = C.from_rotvec(v, degrees=degrees)
+    assert q2.dtype == dtype
+    np.testing.assert_allclose(q2, sp_quat(R.from_rotvec(v.astype(float), degrees=degrees)),
+                               rtol=0, atol=tol(dtype))
+
+
+@pytest.mark.parametrize("angle", [1e-12, 1e-9, 1e-6, 1e-3, 1.0, np.pi - 1e-6, np.pi - 1e-9])
+def test_as_rotvec_accurate_from_tiny_angles_to_pi(rng, angle):
+    axis = rng.standard_normal((20, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    q = np.concatenate([np.full((20, 1), np.cos(angle / 2)), np.sin(angle / 2) * axis], axis=1)
+    got = C.as_rotvec(q)
+    # relative accuracy of a few ulps in every component
+    np.testing.assert_allclose(got, angle * axis, rtol=8 * np.finfo(float).eps, atol=0)
+    np.testing.assert_allclose(C.magnitude(q), angle, rtol=4 * np.finfo(float).eps, atol=0)
+
+
+def test_as_rotvec_tiny_angle_float32():
+    q = np.array([1.0, 5e-13, 0, 0], np.float32)
+    np.testing.assert_allclose(C.as_rotvec(q), [1e-12, 0, 0], rtol=4 * np.finfo(np.float32).eps)
+
+
+def test_rotvec_exact_half_turn_and_identity():
+    for q in np.eye(4)[1:]:
+        np.testing.assert_array_equal(C.as_rotvec(q), np.pi * q[1:])
+        np.testing.assert_array_equal(C.as_rotvec(-q), np.pi * q[1:])  # canonical sign, as scipy
+        np.testing.assert_array_equal(C.as_rotvec(-q), sp(-q).as_rotvec())
+    np.testing.assert_array_equal(C.as_rotvec(np.array([1.0, 0, 0, 0])), [0, 0, 0])
+    np.testing.assert_array_equal(C.as_rotvec(np.array([-1.0, 0, 0, 0])), [0, 0, 0])
+    np.testing.assert_array_equal(C.from_rotvec(np.zeros(3)), [1, 0, 0, 0])
+    half = C.from_rotvec([np.pi, 0, 0])
+    assert abs(half[0]) < 2e-16 and half[1] == 1.0
+
+
+@pytest.mark.parametrize("angle", [0.0, 1e-300, 1e-12, 1e-9, 1e-4])
+def test_from_rotvec_tiny_angles(angle):
+    v = np.array([angle, 0.0, 0.0])
+    q = C.from_rotvec(v)
+    np.testing.assert_allclose(q, [np.cos(angle / 2), np.sin(angle / 2), 0, 0], rtol=2 * np.finfo(float).eps)
+
+
+def test_from_rotvec_large_angles_wrap_like_scipy(rng):
+    v = rng.standard_normal((100, 3)) * 50
+    np.testing.assert_allclose(C.from_rotvec(v), sp_quat(R.from_rotvec(v)), atol=1e-13)
+
+
+def test_magnitude_matches_scipy_and_range(rng, dtype, batch_shape):
+    q = unit(rng, batch_shape, dtype)
+    got = C.magnitude(q)
+    assert got.dtype == dtype and got.shape == batch_shape
+    np.testing.assert_allclose(got, sp(q).magnitude(), rtol=0, atol=tol(dtype))
+    assert ((got >= 0) & (got <= np.float32(np.pi))).all()
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_mrp_both_ways_match_scipy(rng, dtype, shape):
+    q = unit(rng, shape, dtype)
+    got = C.as_mrp(q)
+    assert got.dtype == dtype and got.shape == shape + (3,)
+    np.testing.assert_allclose(got, sp(q).as_mrp(), rtol=0, atol=tol(dtype))
+    assert (np.linalg.norm(got, axis=-1) <= 1 + tol(dtype)).all()
+    p = rng.uniform(-3, 3, shape + (3,)).astype(dtype)
+    np.testing.assert_allclose(C.from_mrp(p), sp_quat(R.from_mrp(p.astype(float))), rtol=0, atol=tol(dtype))
+
+
+def test_mrp_of_negative_w_uses_the_short_way():
+    q = np.array([-0.5, 0.5, 0.5, 0.5])
+    np.testing.assert_allclose(C.as_mrp(q), sp(q).as_mrp(), atol=1e-15)
+    np.testing.assert_allclose(C.as_mrp(q), C.as_mrp(-q), atol=1e-15)
+
+
+# --- Euler angles ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seq", ALL_SEQS)
+def test_euler_both_ways_match_scipy(rng, seq):
+    q = unit(rng, (300,), np.float64)
+    got = C.as_euler(q, seq)
+    want = sp(q).as_euler(seq)
+    assert angle_diff(got, want).max() <= tol(np.float64)
+    np.testing.assert_allclose(got, want, atol=tol(np.float64))  # same branch, not just mod 2π
+    np.testing.assert_allclose(C.as_euler(q, seq, degrees=True), sp(q).as_euler(seq, degrees=True),
+                               atol=tol(np.float64) * 180 / np.pi)
+    angles = rng.uniform(-2 * np.pi, 2 * np.pi, (300, 3))
+    assert_same_rotation(C.from_euler(seq, angles), sp_quat(R.from_euler(seq, angles)), tol(np.float64))
+    deg = np.degrees(angles)
+    assert_same_rotation(C.from_euler(seq, deg, degrees=True),
+                         sp_quat(R.from_euler(seq, deg, degrees=True)), tol(np.float64))
+
+
+@pytest.mark.parametrize("seq", ALL_SEQS)
+def test_euler_ranges_and_round_trip(rng, seq):
+    q = unit(rng, (500,), np.float64)
+    a = C.as_euler(q, seq)
+    assert (np.abs(a[:, [0, 2]]) <= np.pi).all()
+    lo, hi = (0, np.pi) if seq[0].lower() == seq[2].lower() else (-np.pi / 2, np.pi / 2)
+    assert ((a[:, 1] >= lo) & (a[:, 1] <= hi)).all()
+    assert_same_rotation(C.from_euler(seq, a), q, tol(np.float64))
+
+
+@pytest.mark.parametrize("seq", ["xyz", "ZXZ", "yxy", "XZY"])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_euler_float32_and_batch_shapes(rng, seq, shape):
+    q = unit(rng, shape, np.float32)
+    a = C.as_euler(q, seq)
+    assert a.dtype == np.float32 and a.shape == shape + (3,)
+    want = sp(q).as_euler(seq)
+    # where the middle angle is well away from gimbal lock the angles are well conditioned
+    mid = want[..., 1] if seq[0].lower() == seq[2].lower() else want[..., 1] + np.pi / 2
+    ok = np.minimum(mid, np.pi - mid) > 0.05
+    assert (angle_diff(a, want)[ok] <= 20 * tol(np.float32)).all()
+    back = C.from_euler(seq, a)
+    assert back.dtype == np.float32
+    assert_same_rotation(back, q / np.linalg.norm(q, axis=-1, keepdims=True), 4 * tol(np.float32))
+    angles = rng.uniform(-np.pi, np.pi, shape + (3,)).astype(np.float32)
+    assert_same_rotation(C.from_euler(seq, angles), sp_quat(R.from_euler(seq, angles.astype(float))),
+                         tol(np.float32))
+
+
+@pytest.mark.parametrize("seq", ALL_SEQS)
+def test_gimbal_lock_for_every_sequence(seq):
+    symmetric = seq[0].lower() == seq[2].lower()
+    locks = [0.0, np.pi] if symmetric else [-np.pi / 2, np.pi / 2]
+    angles = np.array([[0.3, m, -0.7] for m in locks] + [[1.2, m, 0.4] for m in locks])
+    q = sp_quat(R.from_euler(seq, angles))
+    with pytest.warns(UserWarning, match="Gimbal lock detected"):
+        got = C.as_euler(q, seq)
+    with pytest.warns(UserWarning, match="Gimbal lock detected"):
+        want = R.from_quat(q, scalar_first=True).as_euler(seq)
+    assert angle_diff(got, want).max() <= 1e-12
+    assert (got[:, 2] == 0).all()  # the third angle is set to zero
+    assert_same_rotation(C.from_euler(seq, got), q, 1e-12)  # and it is still the same rotation
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(C.as_euler(q, seq, suppress_warnings=True), got)
+
+
+def test_no_gimbal_warning_away_from_lock(rng):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        C.as_euler(C.from_euler("xyz", [0.1, 0.2, 0.3]), "xyz")
+
+
+def test_euler_of_identity_and_tiny_angles():
+    with pytest.warns(UserWarning, match="Gimbal"):  # zxz: the identity is in gimbal lock
+        np.testing.assert_array_equal(C.as_euler(np.array([1.0, 0, 0, 0]), "zxz"), [0, 0, 0])
+    np.testing.assert_array_equal(C.as_euler(np.array([1.0, 0, 0, 0]), "xyz"), [0, 0, 0])
+    a = np.array([1e-9, -2e-9, 3e-9])
+    np.testing.assert_allclose(C.as_euler(C.from_euler("xyz", a), "xyz"), a, rtol=1e-6)
+    np.testing.assert_allclose(C.from_euler("x", 1e-9), [1, 5e-10, 0, 0], rtol=1e-15)
+
+
+@pytest.mark.parametrize("seq, angles", [("x", 0.5), ("x", [[0.5], [0.2]]), ("XY", [0.1, 0.2]),
+                                         ("zy", [[0.1, 0.2], [0.3, 0.4]]), ("ZYX", [[[0.1, 0.2, 0.3]]])])
+def test_from_euler_shapes_like_scipy(seq, angles):
+    got = C.from_euler(seq, angles)
+    want = sp_quat(R.from_euler(seq, np.reshape(angles, (-1, len(seq))))).reshape(got.shape)
+    assert got.shape == np.shape(angles)[:-1] + (4,) if np.ndim(angles) else got.shape == (4,)
+    assert_same_rotation(got, want, 1e-15)
+
+
+@pytest.mark.parametrize("seq, exc, match", [
+    ("xxy", ValueError, "consecutive axes of seq to be different, got 'xxy'"),
+    ("XYY", ValueError, "consecutive axes"),
+    ("xYz", ValueError, "from 'xyz' .* or from 'XYZ' .*not mixed, got 'xYz'"),
+    ("abc", ValueError, "from 'xyz'"),
+    ("xyzx", ValueError, r"1 to 3 axes, got 'xyzx' \(4 axes\)"),
+    ("", ValueError, "1 to 3 axes"),
+    (3, TypeError, "expected seq to be a str"),
+])
+def test_from_euler_bad_sequences(seq, exc, match):
+    with pytest.raises(exc, match=match):
+        C.from_euler(seq, [0.1, 0.2, 0.3])
+
+
+@pytest.mark.parametrize("seq, match", [("xy", r"3 axes, got 'xy'"), ("xyzx", "3 axes"),
+                                        ("xyy", "consecutive"), ("Xyz", "not mixed")])
+def test_as_euler_bad_sequences(seq, match):
+    with pytest.raises(ValueError, match=match):
+        C.as_euler(np.array([1.0, 0, 0, 0]), seq)
+
+
+@pytest.mark.parametrize("seq, angles", [("xyz", [0.1, 0.2]), ("x", [0.1, 0.2, 0.3]), ("xy", 0.3),
+                                         ("xyz", np.zeros((4, 2)))])
+def test_from_euler_angles_shape_mismatch(seq, angles):
+    with pytest.raises(ValueError, match=rf"expected angles of shape \(\.\.\., {len(seq)}\)"):
+        C.from_euler(seq, angles)
+
+
+# --- Davenport angles ------------------------------------------------------------------------------
+
+def _axes_sets(rng):
+    """Axis triples whose middle axis is orthogonal to the other two (some non-unit)."""
+    sets = [np.eye(3)[[2, 0, 1]], np.eye(3)[[0, 1, 0]], [[2.0, 0, 0], [0, 1, 0], [1, 0, 1]]]
+    for _ in range(3):
+        basis = R.random(rng=rng).as_matrix()
+        n2 = basis[:, 1]
+        n1 = basis[:, 0]
+        n3 = np.cos(0.7) * basis[:, 0] + np.sin(0.7) * basis[:, 2]
+        sets.append(np.array([n1, n2, n3]))
+    return [np.asarray(s, float) for s in sets]
+
+
+@pytest.mark.parametrize("order", ["e", "extrinsic", "i", "intrinsic"])
+def test_davenport_both_ways_match_scipy(rng, order):
+    q = unit(rng, (200,), np.float64)
+    angles = rng.uniform(-np.pi, np.pi, (200, 3))
+    for axes in _axes_sets(rng):
+        assert_same_rotation(C.from_davenport(axes, order, angles),
+                             sp_quat(R.from_davenport(axes, order, angles)), tol(np.float64))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # random data may touch a lock
+            got = C.as_davenport(q, axes, order)
+            want = sp(q).as_davenport(axes, order)
+        assert angle_diff(got, want).max() <= 1e-12
+        assert_same_rotation(C.from_davenport(axes, order, got), q, 1e-12)
+
+
+def test_davenport_degrees_fewer_axes_and_float32(rng):
+    ez, ex = [0, 0, 1], [1, 0, 0]
+    a = [[90, 45], [35, 45]]
+    assert_same_rotation(C.from_davenport([ez, ex], "e", a, degrees=True),
+                         sp_quat(R.from_davenport([ez, ex], "e", a, degrees=True)), 1e-15)
+    assert_same_rotation(C.from_davenport(ez, "i", 30, degrees=True), C.from_euler("z", 30, degrees=True), 1e-15)
+    q = unit(rng, (50,), np.float32)
+    axes = np.eye(3)[[2, 0, 2]]
+    got = C.as_davenport(q, axes, "e", degrees=True)
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, C.as_euler(q, "zxz", degrees=True), atol=1e-3)
+
+
+def test_davenport_gimbal_lock_warns():
+    axes = np.eye(3)[[2, 0, 2]]
+    q = C.from_euler("zxz", [0.3, 0.0, 0.2])
+    with pytest.warns(UserWarning, match="Gimbal lock"):
+        a = C.as_davenport(q, axes, "e")
+    assert a[2] == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        C.as_davenport(q, axes, "e", suppress_warnings=True)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: C.from_davenport(np.eye(3), "x", [1, 2, 3]), "order 'e'/'extrinsic' or 'i'/'intrinsic', got 'x'"),
+    (lambda: C.from_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), "Consecutive axes must be orthogonal"),
+    (lambda: C.from_davenport(np.ones((4, 3)), "e", [1, 2, 3, 4]), "1 to 3 axes, got 4"),
+    (lambda: C.from_davenport(np.eye(3), "e", [1, 2]), r"angles of shape \(\.\.\., 3\), got \(2,\)"),
+    (lambda: C.from_davenport(np.eye(2), "e", [1, 2]), "vectors of length 3"),
+    (lambda: C.from_davenport([[0, 0, 0], [0, 1, 0]], "e", [1, 2]), "non-zero axes"),
+    (lambda: C.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3)[:2], "e"), "expected 3 axes, got 2"),
+    (lambda: C.as_davenport(np.array([1.0, 0, 0, 0]), [[1, 0, 0], [-1, 1, 0], [0, 0, 1]], "e"), "orthogonal"),
+    (lambda: C.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3), "intrinsic-ish"), "order"),
+])
+def test_davenport_bad_input(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+# --- canonical form, inverse, applying --------------------------------------------------------------
+
+def test_canonical_matches_scipy_including_zero_w():
+    q = np.array([[-1.0, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0], [0, 0, 0, -1], [0, 0, -1, 1],
+                  [0, 1, -1, 0], [-0.5, 0.5, 0.5, 0.5], [0.5, -0.5, -0.5, -0.5]])
+    r = sp(q)
+    np.testing.assert_array_equal(C.canonical(r.as_quat(scalar_first=True)),
+                                  r.as_quat(canonical=True, scalar_first=True))
+
+
+def test_inv_matches_scipy(rng, dtype, batch_shape):
+    q = unit(rng, batch_shape, dtype)
+    got = C.inv(q)
+    assert got.dtype == dtype and got.shape == q.shape
+    np.testing.assert_array_equal(got[..., 0], q[..., 0])
+    np.testing.assert_array_equal(got[..., 1:], -q[..., 1:])
+    assert_same_rotation(got, sp_quat(sp(q).inv()), tol(dtype))
+
+
+@pytest.mark.parametrize("qshape, vshape", [((), ()), ((), (9,)), ((9,), ()), ((9,), (9,)), ((9,), (1,)),
+                                            ((5, 1, 4), (3, 4)), ((2, 3), (3,)), ((1,), (4, 1))])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_apply_broadcasts_and_matches_scipy(rng, dtype, qshape, vshape, inverse):
+    q = unit(rng, qshape, dtype)
+    v = rng.standard_normal(vshape + (3,)).astype(dtype)
+    got = C.apply(q, v, inverse=inverse)
+    assert got.dtype == dtype
+    assert got.shape == np.broadcast_shapes(qshape, vshape) + (3,)
+    qb = np.array(np.broadcast_to(q.astype(float), got.shape[:-1] + (4,)).reshape(-1, 4))
+    vb = np.array(np.broadcast_to(v.astype(float), got.shape).reshape(-1, 3))
+    want = R.from_quat(qb, scalar_first=True).apply(vb, inverse=inverse).reshape(got.shape)
+    np.testing.assert_allclose(got, want, rtol=0, atol=tol(dtype) * 4)
+
+
+def test_apply_mixed_dtypes_promote(rng):
+    q = unit(rng, (4,), np.float32)
+    v = rng.standard_normal((4, 3))
+    assert C.apply(q, v).dtype == np.float64
+    assert C.apply(q[0], v).dtype == np.float64
+    assert C.apply(q.astype(float), v.astype(np.float32)).dtype == np.float64
+
+
+def test_apply_by_non_unit_quaternion_is_a_rotation(rng):
+    q = unit(rng, (30,), np.float64) * 3.0
+    v = rng.standard_normal((30, 3))
+    np.testing.assert_allclose(C.apply(q, v), C.apply(q / 3.0, v), atol=1e-14)
+    np.testing.assert_allclose(C.apply(q[0], v), C.apply(q[0] / 3.0, v), atol=1e-14)
+
+
+# --- layouts, chunking, empties, dtype rules ---------------------------------------------------------
+
+FUNCS = {
+    "as_matrix": (C.as_matrix, 4), "as_rotvec": (C.as_rotvec, 4), "magnitude": (C.magnitude, 4),
+    "as_mrp": (C.as_mrp, 4), "inv": (C.inv, 4), "canonical": (C.canonical, 4),
+    "as_euler": (lambda q: C.as_euler(q, "zxz"), 4),
+    "as_davenport": (lambda q: C.as_davenport(q, np.eye(3)[[0, 1, 2]], "i"), 4),
+    "from_rotvec": (C.from_rotvec, 3), "from_mrp": (C.from_mrp, 3),
+    "from_euler": (lambda a: C.from_euler("XYZ", a), 3),
+    "from_davenport": (lambda a: C.from_davenport(np.eye(3), "e", a), 3),
+    "from_matrix": (lambda m: C.from_matrix(m.reshape(m.shape[:-1] + (3, 3))), 9),
+    "apply": (lambda x: C.apply(x[..., :4], x[..., 4:]), 7),
+}
+
+
+def _input(rng, k, n):
+    if k == 9:
+        return R.random(n, rng=rng).as_matrix().reshape(n, 9)
+    x = rng.standard_normal((n, k))
+    if k in (4, 7):
+        x[:, :4] /= np.linalg.norm(x[:, :4], axis=1, keepdims=True)
+    return x
+
+
+@pytest.mark.parametrize("name", sorted(FUNCS))
+def test_long_strided_readonly_inputs_are_chunked_and_untouched(rng, name):
+    func, k = FUNCS[name]
+    n = 2 * CHUNK + 37  # three blocks, the last one short
+    base = _input(rng, k, 2 * n)
+    contiguous = np.ascontiguousarray(base[::2])
+    strided = base[::2]            # non-contiguous rows
+    strided.flags.writeable = False
+    before = strided.copy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        want = func(contiguous)
+        got = func(strided)
+        fortran = func(np.asfortranarray(contiguous))
+        small = func(contiguous[:5])
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(fortran, want)
+    np.testing.assert_array_equal(small, want[:5])
+    np.testing.assert_array_equal(strided, before)
+
+
+@pytest.mark.parametrize("name", sorted(FUNCS))
+def test_empty_inputs(name):
+    func, k = FUNCS[name]
+    x = np.zeros((0, 2, k))
+    out = func(x)
+    assert out.shape[:2] == (0, 2)
+
+
+@pytest.mark.parametrize("name", sorted(FUNCS))
+def test_float32_kept_and_ints_become_float64(rng, name):
+    func, k = FUNCS[name]
+    x = _input(rng, k, 6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        assert func(x.astype(np.float32)).dtype == np.float32
+        ints = np.zeros((2, k), int)
+        if k in (4, 7):
+            ints[:, 0] = 1
+        if k == 9:
+            ints[:] = np.eye(3).reshape(9)
+        assert func(ints).dtype == np.float64
+
+
+@pytest.mark.parametrize("call, exc, match", [
+    (lambda: C.as_matrix(np.ones(3)), ValueError, r"expected quat of shape \(\.\.\., 4\), got \(3,\)"),
+    (lambda: C.as_rotvec(np.ones((2, 5))), ValueError, r"expected quat of shape \(\.\.\., 4\), got \(2, 5\)"),
+    (lambda: C.from_rotvec([1, 2]), ValueError, r"expected rotvec of shape \(\.\.\., 3\), got \(2,\)"),
+    (lambda: C.from_mrp(np.ones((3, 4))), ValueError, r"expected mrp of shape \(\.\.\., 3\)"),
+    (lambda: C.apply(np.ones(4), np.ones(2)), ValueError, r"expected vectors of shape \(\.\.\., 3\)"),
+    (lambda: C.apply(np.ones((3, 4)), np.ones((2, 3))), ValueError, "shape mismatch|broadcast"),
+    (lambda: C.as_matrix(np.ones(4, complex)), TypeError, "real numbers"),
+    (lambda: C.from_rotvec(["a", "b", "c"]), TypeError, "real numbers"),
+    (lambda: C.from_euler("xyz", [1j, 0, 0]), TypeError, "angles of real numbers"),
+])
+def test_bad_input(call, exc, match):
+    with pytest.raises(exc, match=match):
+        call()
+
+
+# --- identities (hypothesis) -----------------------------------------------------------------------
+
+finite = st.floats(-10, 10, allow_nan=False).map(lambda c: c if abs(c) > 1e-100 else 0.0)
+unit_quat = arrays(np.float64, 4, elements=finite).filter(lambda q: np.linalg.norm(q) > 1e-3).map(
+    lambda q: q / np.linalg.norm(q))
+rotvec = arrays(np.float64, 3, elements=st.floats(-3, 3, allow_nan=False))
+
+
+@given(unit_quat, unit_quat)
+def test_matrix_of_product_is_product_of_matrices(p, q):
+    from quatarray import _kernels as K
+    np.testing.assert_allclose(C.as_matrix(K.multiply(p, q)), C.as_matrix(p) @ C.as_matrix(q), atol=1e-14)
+
+
+@given(unit_quat)
+def test_round_trips_through_every_representation(q):
+    assert_same_rotation(C.from_matrix(C.as_matrix(q)), q, 1e-14)
+    assert_same_rotation(C.from_rotvec(C.as_rotvec(q)), q, 1e-14)
+    assert_same_rotation(C.from_mrp(C.as_mrp(q)), q, 1e-14)
+    for seq in ("zyx", "XZX"):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            angles = C.as_euler(q, seq)
+        # in gimbal lock (middle angle within 1e-7 of a lock) the third angle is zeroed, as scipy
+        assert_same_rotation(C.from_euler(seq, angles), q, 2e-7 if caught else 1e-12)
+
+
+@given(rotvec)
+def test_rotvec_round_trip_inside_pi(v):
+    if np.linalg.norm(v) < np.pi - 1e-6:
+        np.testing.assert_allclose(C.as_rotvec(C.from_rotvec(v)), v, atol=1e-14)
+
+
+@given(unit_quat, arrays(np.float64, 3, elements=st.floats(-10, 10, allow_nan=False)))
+def test_apply_is_matrix_times_vector(q, v):
+    np.testing.assert_allclose(C.apply(q, v), C.as_matrix(q) @ v, atol=1e-13)
+    np.testing.assert_allclose(C.apply(q, C.apply(q, v), inverse=True), v, atol=1e-13)
