@@ -31,10 +31,8 @@ from ._kernels import _sub, blocks
 from ._validate import CHUNK
 
 __all__ = [
-    "BLOCK", "Work", "soa", "slerp_core", "frame_core", "frames",
-    "slerp", "lerp", "nlerp", "squad", "bezier", "unflip",
-    "squad_controls", "bezier_controls", "SegmentIndex",
-    "slerp_deriv", "frame_deriv", "omega_from",
+    "BLOCK", "Work", "soa", "sqsum", "slerp_core", "frame_core", "frames",
+    "slerp", "lerp", "nlerp", "squad", "bezier", "unflip", "SegmentIndex",
 ]
 
 #: Quaternions per block for the interpolation kernels (two of the shared
@@ -74,7 +72,7 @@ def soa(out):
     return out.transpose((n,) + tuple(range(n)))
 
 
-def _sqsum(T, out):
+def sqsum(T, out):
     """out = T[0]² + ... + T[3]² for a (4, ...) array (T is overwritten)."""
     np.multiply(T, T, out=T)
     np.add(T[0], T[1], out=out)
@@ -320,9 +318,9 @@ def nlerp(q0, q1, t, shortest=True):
         if shortest:
             T = work.rows("nl_T", 4, s)
             np.subtract(B, A, out=T)
-            a2 = _sqsum(T, n)
+            a2 = sqsum(T, n)
             np.add(B, A, out=T)
-            b2 = _sqsum(T, O[0])  # O[0] as scratch (it is overwritten below)
+            b2 = sqsum(T, O[0])  # O[0] as scratch (it is overwritten below)
             np.subtract(b2, a2, out=n)
             np.copysign(1, n, out=n)
             w1 *= n
@@ -331,7 +329,7 @@ def nlerp(q0, q1, t, shortest=True):
         np.multiply(B, w1, out=O)
         O += T
         np.copyto(T, O)
-        _sqsum(T, n)
+        sqsum(T, n)
         if not (n > 0).all():
             raise ValueError("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
                              "got a zero quaternion (q1 = -q0 with shortest=False, or zero input)")
@@ -351,7 +349,7 @@ def unflip(q, axis):
     zero (a zero dot product needs no flip and restarts the product).
     Vectorised with a cumulative product; no loop over the axis.
     """
-    qa = np.moveaxis(q, axis, 0)
+    qa = np.moveaxis(q, axis, 0) if axis else q
     dtype = _dtype_of(q)
     n = qa.shape[0]
     if n < 2:
@@ -367,7 +365,7 @@ def unflip(q, axis):
         last = np.maximum.accumulate(np.where(zero, idx, 0), axis=0)
         c = c * np.take_along_axis(c, last, axis=0)         # restart at the last zero
     out = qa * c[..., None].astype(dtype)
-    return np.moveaxis(out, 0, axis)
+    return np.moveaxis(out, 0, axis) if axis else out
 
 
 # --------------------------------------------------------------------------
@@ -416,219 +414,6 @@ def bezier(q0, a, b, q1, t):
 
 
 # --------------------------------------------------------------------------
-# Control points (computed once per track; keys unit and unflipped, axis 0)
-# --------------------------------------------------------------------------
-
-def _qmul(p, q):
-    """Hamilton product of (..., 4) arrays (small helper for construction)."""
-    pw, px, py, pz = np.moveaxis(p, -1, 0)
-    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-    return np.stack([
-        pw * qw - px * qx - py * qy - pz * qz,
-        pw * qx + px * qw + py * qz - pz * qy,
-        pw * qy - px * qz + py * qw + pz * qx,
-        pw * qz + px * qy - py * qx + pz * qw,
-    ], axis=-1)
-
-
-def _conj(q):
-    return q * np.array([1, -1, -1, -1], q.dtype)
-
-
-def _log_vec(q):
-    """Vector part of the principal log of unit quaternions: theta · v/|v|."""
-    v = q[..., 1:]
-    vn = np.sqrt(np.einsum("...i,...i->...", v, v))
-    theta = np.arctan2(vn, q[..., 0])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(vn > 0, theta / vn, 1.0)
-    return v * scale[..., None]
-
-
-def _exp_vec(x):
-    """exp of the pure quaternion (0, x): (cos|x|, sin|x| x/|x|)."""
-    n = np.sqrt(np.einsum("...i,...i->...", x, x))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sinc = np.where(n > 0, np.sin(n) / n, 1.0)
-    return np.concatenate([np.cos(n)[..., None], x * sinc[..., None]], axis=-1)
-
-
-def _extended(keys, times):
-    """Keys and times extended by one geodesic reflection at each end:
-    q[-1] = q0 q1⁻¹ q0 = 2 (q0·q1) q0 - q1 at t0 - (t1 - t0), likewise at the end."""
-    first = _double(keys[1], keys[0])
-    last = _double(keys[-2], keys[-1])
-    ext = np.concatenate([first[None], keys, last[None]])
-    dt = np.diff(times)
-    tx = np.concatenate([[times[0] - dt[0]], times, [times[-1] + dt[-1]]])
-    return ext, tx
-
-
-def _dot(p, q):
-    return np.einsum("...i,...i->...", p, q)
-
-
-def _double(p, q):
-    """Shoemake's Double(p, q) = 2 (p·q) q - p: p reflected through q."""
-    return 2 * _dot(p, q)[..., None] * q - p
-
-
-def _bisect(p, q):
-    """Shoemake's Bisect(p, q) = (p + q) / |p + q|; p = -q gives p (no midpoint)."""
-    s = p + q
-    n = np.sqrt(_dot(s, s))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        res = s / n[..., None]
-    return np.where((n > 0)[..., None], res, p)
-
-
-def _interval_weights(times, K, batch_ndim):
-    """w_in = dt_{n-1} / (dt_{n-1} + dt_n), w_out = dt_n / (...) for each key
-    (with the mirrored intervals at both ends), shaped to broadcast over the batch."""
-    if times is None:
-        w = np.full(K, 0.5)
-        return w.reshape((K,) + (1,) * (batch_ndim + 1)), w.reshape((K,) + (1,) * (batch_ndim + 1))
-    dt = np.diff(times)
-    din = np.concatenate([[dt[0]], dt])
-    dout = np.concatenate([dt, [dt[-1]]])
-    tot = din + dout
-    shape = (K,) + (1,) * (batch_ndim + 1)
-    return (din / tot).reshape(shape), (dout / tot).reshape(shape)
-
-
-def squad_controls(keys, times=None):
-    """Squad control points s_n (one per key) for unit, unflipped keys (K, ..., 4).
-
-    s_n = q_n exp(-(w_in L+ + w_out L-) / 2), L± = log(q_n⁻¹ q_{n±1}),
-    w_in = dt_{n-1} / (dt_{n-1} + dt_n), w_out = 1 - w_in: with equal spacing
-    Shoemake's q_n exp(-(L+ + L-)/4); in general the curve's angular velocity
-    at q_n is the central difference (L+ - L-)/(dt_{n-1} + dt_n) from both
-    sides.  Ends use the geodesic reflection (s_0 = q_0, s_{K-1} = q_{K-1}).
-    """
-    K = keys.shape[0]
-    ext, _ = _extended(keys, np.arange(K + 0.0) if times is None else times)
-    inv = _conj(keys)
-    Lp = _log_vec(_qmul(inv, ext[2:]))
-    Lm = _log_vec(_qmul(inv, ext[:-2]))
-    w_in, w_out = _interval_weights(times, K, keys.ndim - 2)
-    s = _qmul(keys, _exp_vec(-(w_in * Lp + w_out * Lm) / 2))
-    return s.astype(keys.dtype, copy=False)
-
-
-def _slerp_small(p, q, h):
-    """SLERP (no flip) of construction-time (..., 4) arrays; h broadcastable to the batch."""
-    A, B = soa(p), soa(q)
-    s = np.broadcast_shapes(A.shape[1:], B.shape[1:], np.shape(h))
-    O = np.empty((4,) + s, np.result_type(A, B))
-    slerp_core(np.broadcast_to(A, O.shape), np.broadcast_to(B, O.shape), h, O, False, Work(O.dtype))
-    return np.moveaxis(O, 0, -1)
-
-
-def bezier_controls(keys, times=None):
-    """Spherical Bézier control points (a_n, b_n) for unit, unflipped keys.
-
-    c_n = Bisect(Double(q_{n-1}, q_n), q_{n+1}) is the end of Shoemake's
-    tangent at q_n (three times the length a cubic needs).  The outgoing
-    control point is a_n = slerp(q_n, c_n, (2/3) w_out) and the incoming one
-    b_n = slerp(q_n, Double(c_n, q_n), (2/3) w_in), with w_out, w_in the
-    interval fractions of `_interval_weights`: with equal spacing (1/3 each)
-    b_n = Double(a_n, q_n) exactly as in the paper, and in general the
-    velocity in time is continuous across q_n.  Ends use the geodesic
-    reflection (a_0 = slerp(q_0, q_1, 1/3), b_{K-1} = slerp(q_{K-1}, q_{K-2}, 1/3)).
-    """
-    K = keys.shape[0]
-    ext, _ = _extended(keys, np.arange(K + 0.0) if times is None else times)
-    c = _bisect(_double(ext[:-2], keys), ext[2:])
-    w_in, w_out = _interval_weights(times, K, keys.ndim - 2)
-    a = _slerp_small(keys, c, (2 / 3) * w_out[..., 0])
-    b = _slerp_small(keys, _double(c, keys), (2 / 3) * w_in[..., 0])
-    return a.astype(keys.dtype, copy=False), b.astype(keys.dtype, copy=False)
-
-
-# --------------------------------------------------------------------------
-# Derivatives (angular velocity): forward mode through the SLERPs
-# --------------------------------------------------------------------------
-
-_SERIES = tuple((-1) ** k / float(np.prod(np.arange(1.0, 2 * k + 2))) for k in range(8, 0, -1))
-
-
-def _sin_minus_x(x):
-    """sin(x) - x without cancellation: for |x| < 0.5 the series
-    x³ (-1/3! + x²/5! - ... + x^14/17!) (the next term is < 1e-18 relative)."""
-    x2 = x * x
-    p = np.zeros_like(x)
-    for c in _SERIES:
-        p = p * x2 + c
-    return np.where(np.abs(x) < 0.5, p * x2 * x, np.sin(x) - x)
-
-
-def _n_weight(h, om):
-    """N(h, Omega) = h cos(h Om) sin(Om) - sin(h Om) cos(Om), without cancellation:
-    ½[(h - 1) g((1 + h) Om) + (h + 1) g((1 - h) Om)] with g(x) = sin x - x."""
-    return 0.5 * ((h - 1) * _sin_minus_x((1 + h) * om) + (h + 1) * _sin_minus_x((1 - h) * om))
-
-
-def slerp_deriv(A, dA, B, dB, h, dh):
-    """(q, dq) for q = slerp(A, B, h) (no flip) and its derivative along
-    dA, dB, dh.  Components-first float64 arrays; h, dh broadcastable."""
-    D = B - A
-    S = B + A
-    dD = dB - dA
-    dS = dB + dA
-    a2 = np.einsum("i...,i...->...", D, D)
-    b2 = np.einsum("i...,i...->...", S, S)
-    a = np.sqrt(a2)
-    b = np.sqrt(b2)
-    om = 2 * np.arctan2(a, b)
-    n2 = a2 + b2
-    sin_om = 2 * a * b / n2
-    h = np.broadcast_to(h, om.shape)
-    dh = np.broadcast_to(dh, om.shape)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ok = sin_om > 0
-        inv = np.where(ok, 1 / sin_om, 0)
-        w1 = np.where(ok, np.sin(h * om) * inv, h)
-        w0 = np.where(ok, np.sin((1 - h) * om) * inv, 1 - h)
-        w1h = np.where(ok, om * np.cos(h * om) * inv, 1)
-        w0h = np.where(ok, -om * np.cos((1 - h) * om) * inv, -1)
-        w1o = np.where(ok, _n_weight(h, om) * inv * inv, 0)
-        w0o = np.where(ok, _n_weight(1 - h, om) * inv * inv, 0)
-        da = np.where(a > 0, np.einsum("i...,i...->...", D, dD) / a, 0)
-        db = np.where(b > 0, np.einsum("i...,i...->...", S, dS) / b, 0)
-        dom = np.where(n2 > 0, 2 * (b * da - a * db) / n2, 0)
-    q = w0 * A + w1 * B
-    dq = w0 * dA + w1 * dB + (w0h * dh + w0o * dom) * A + (w1h * dh + w1o * dom) * B
-    return q, dq
-
-
-def frame_deriv(F, phi, u):
-    """(q, dq/du) along a frame F = [k; p] (8, *s): q = cos(2uφ) k + sin(2uφ) p."""
-    ang = 2 * phi * u
-    c = np.cos(ang)
-    s = np.sin(ang)
-    k, p = F[:4], F[4:]
-    q = c * k + s * p
-    dq = (2 * phi) * (c * p - s * k)
-    return q, dq
-
-
-def omega_from(q, dq, frame):
-    """Angular velocity 2 vec(dq q*) / |q|² (world) or 2 vec(q* dq) / |q|² (body),
-    components first: (4, *s) in, (3, *s) out (per unit of the parameter)."""
-    qw, qv = q[0], q[1:]
-    pw, pv = dq[0], dq[1:]
-    cross = np.stack([
-        pv[1] * qv[2] - pv[2] * qv[1],
-        pv[2] * qv[0] - pv[0] * qv[2],
-        pv[0] * qv[1] - pv[1] * qv[0],
-    ])
-    lin = qw * pv - pw * qv
-    vec = lin - cross if frame == "world" else lin + cross
-    n2 = np.einsum("i...,i...->...", q, q)
-    return vec * (2 / n2)
-
-
-# --------------------------------------------------------------------------
 # Segment lookup: searchsorted(times, t, 'right') - 1 without a binary
 # search over all K keys per query
 # --------------------------------------------------------------------------
@@ -646,11 +431,14 @@ class SegmentIndex:
     """
 
     MAX_STEPS = 4
+    MIN_KEYS = 32   # below this a binary search is as cheap as the grid
 
-    def __init__(self, times):
+    def __init__(self, times, min_keys=MIN_KEYS):
         self.times = times
         self.grid = None
         K = len(times)
+        if K < min_keys:
+            return
         span = float(times[-1] - times[0])
         for cells in (2 * K, 16 * K):
             if cells > 1 << 24:

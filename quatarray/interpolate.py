@@ -23,6 +23,7 @@ from math import prod
 
 import numpy as np
 
+from . import _interp_curves as IC
 from . import _interp_kernels as IK
 from ._array import QuatArray
 from ._validate import finite, float_array, real_array
@@ -360,7 +361,7 @@ def squad_control_points(keys, times=None):
     True
     """
     keys, times = _prepared_keys(keys, times)
-    return QuatArray._wrap(IK.squad_controls(keys, times))
+    return QuatArray._wrap(IC.squad_controls(keys, times))
 
 
 def bezier_control_points(keys, times=None):
@@ -405,7 +406,7 @@ def bezier_control_points(keys, times=None):
     True
     """
     keys, times = _prepared_keys(keys, times)
-    a, b = IK.bezier_controls(keys, times)
+    a, b = IC.bezier_controls(keys, times)
     return QuatArray._wrap(a), QuatArray._wrap(b)
 
 
@@ -499,42 +500,42 @@ class Track:
         self._index = IK.SegmentIndex(times)
         dt = np.diff(times)
         self._dt = np.append(dt, np.inf)     # phantom segment after the last key: u = 0
-        Q = IK.soa(keys.reshape(K, B, 4))    # (4, K, B)
+        Q = IK.soa(keys.reshape(K, B, 4).astype(np.float64))    # (4, K, B)
         self._controls = None
         if self._method == "linear":
             table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
         elif self._method == "slerp":
-            table = self._frame_rows([(Q[:, :-1], Q[:, 1:], Q[:, -1])])
+            table = self._frame_rows(Q[:, None, :-1], Q[:, None, 1:], Q[:, -1])
         elif self._method == "squad":
-            s = IK.squad_controls(keys, times)
+            s = IC.squad_controls(keys, times)
             self._controls = QuatArray._wrap(s)
-            S = IK.soa(s.reshape(K, B, 4))
-            table = self._frame_rows([(Q[:, :-1], Q[:, 1:], Q[:, -1]), (S[:, :-1], S[:, 1:], S[:, -1])])
+            S = IK.soa(s.reshape(K, B, 4).astype(np.float64))
+            table = self._frame_rows(np.stack([Q[:, :-1], S[:, :-1]], 1), np.stack([Q[:, 1:], S[:, 1:]], 1), Q[:, -1])
         else:
-            a, b = IK.bezier_controls(keys, times)
+            a, b = IC.bezier_controls(keys, times)
             self._controls = (QuatArray._wrap(a), QuatArray._wrap(b))
-            A = IK.soa(a.reshape(K, B, 4))
-            Bc = IK.soa(b.reshape(K, B, 4))
-            table = self._frame_rows([(Q[:, :-1], A[:, :-1], Q[:, -1]),
-                                      (A[:, :-1], Bc[:, 1:], Q[:, -1]),
-                                      (Bc[:, 1:], Q[:, 1:], Q[:, -1])])
+            A = IK.soa(a.reshape(K, B, 4).astype(np.float64))
+            Bc = IK.soa(b.reshape(K, B, 4).astype(np.float64))
+            table = self._frame_rows(np.stack([Q[:, :-1], A[:, :-1], Bc[:, 1:]], 1),
+                                     np.stack([A[:, :-1], Bc[:, 1:], Q[:, 1:]], 1), Q[:, -1])
         self._table = np.ascontiguousarray(table, dtype=self._dtype)
         for c in (self._controls if isinstance(self._controls, tuple) else (self._controls,)):
             if c is not None:
                 c.flags.writeable = False
 
     @staticmethod
-    def _frame_rows(pairs):
-        """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B):
-        frames for segments 0..K-2 plus a constant phantom segment K-1."""
-        Fs, phis = [], []
-        for k0, k1, last in pairs:
-            F, phi = IK.frames(k0, k1)
-            ph = np.zeros((8,) + F.shape[2:], F.dtype)
-            ph[:4] = last
-            Fs.append(np.concatenate([F, ph[:, None]], axis=1))
-            phis.append(np.concatenate([phi, np.zeros((1,) + phi.shape[1:], phi.dtype)])[None])
-        return np.concatenate(Fs + phis)
+    def _frame_rows(k0, k1, last):
+        """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B) for the n
+        great-circle pieces k0[:, j] -> k1[:, j] ((4, n, K-1, B) each) of every segment,
+        plus a phantom segment K-1 that stays at `last` (4, B) (so t = t_end is exact)."""
+        F, phi = IK.frames(k0, k1)                       # (8, n, K-1, B), (n, K-1, B)
+        n, B = F.shape[1], F.shape[3]
+        hold = np.zeros((8, n, 1, B))
+        hold[:4] = last[:, None, None]
+        F = np.concatenate([F, hold], axis=2)
+        phi = np.concatenate([phi, np.zeros((n, 1, B))], axis=1)
+        K = F.shape[2]
+        return np.concatenate([F.transpose(1, 0, 2, 3).reshape(8 * n, K, B), phi])
 
     # --- properties ---------------------------------------------------------
     @property
@@ -652,7 +653,7 @@ class Track:
             np.add(Gv[0], Gv[1], out=O)
             n = work.rows("lin_n", 1, s)[0]
             np.copyto(Gv[0], O)
-            IK._sqsum(Gv[0], n)
+            IK.sqsum(Gv[0], n)
             np.sqrt(n, out=n)
             np.divide(O, n, out=O)
         elif method == "squad":
@@ -712,7 +713,7 @@ class Track:
             G = np.take(tab, i, axis=1, mode="clip").astype(np.float64)
             uu = u[:, None]
             q, dq = self._deriv_block(G, uu)
-            w = IK.omega_from(q, dq, frame) / np.take(self._dt, i)[:, None]
+            w = IC.omega_from(q, dq, frame) / np.take(self._dt, i)[:, None]
             if outside is not None:
                 w[:, outside[sm]] = 0
             IK.soa(out[sm, sb])[...] = w
@@ -724,14 +725,14 @@ class Track:
             k0, k1 = G[:4], G[4:]
             return (1 - u) * k0 + u * k1, k1 - k0
         if method == "slerp":
-            return IK.frame_deriv(G[:8], G[8], u)
+            return IC.frame_deriv(G[:8], G[8], u)
         if method == "squad":
-            A, dA = IK.frame_deriv(G[:8], G[16], u)
-            S, dS = IK.frame_deriv(G[8:16], G[17], u)
-            return IK.slerp_deriv(A, dA, S, dS, 2 * u * (1 - u), 2 - 4 * u)
-        L = [IK.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
-        M = [IK.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
-        return IK.slerp_deriv(*M[0], *M[1], u, 1.0)
+            A, dA = IC.frame_deriv(G[:8], G[16], u)
+            S, dS = IC.frame_deriv(G[8:16], G[17], u)
+            return IC.slerp_deriv(A, dA, S, dS, 2 * u * (1 - u), 2 - 4 * u)
+        L = [IC.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
+        M = [IC.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
+        return IC.slerp_deriv(*M[0], *M[1], u, 1.0)
 
 
 def _as_quats(rotations):
