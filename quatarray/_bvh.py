@@ -19,6 +19,8 @@ from .interpolate import Track
 
 __all__ = ["Joint", "Motion", "read_bvh", "write_bvh", "resample_motion"]
 
+_BLOCK = 1 << 15  # joint rotations converted back to Euler angles per block
+
 
 @dataclasses.dataclass(frozen=True)
 class Joint:
@@ -300,17 +302,19 @@ def _nearest_euler(angles, ref, proper):
     interpolated input keeps output curves continuous and in the input's
     range (angles beyond +-180 stay so).
     """
+    def nearest_turn(a):  # a + 360 k, nearest to ref, in place
+        step = ref - a
+        step /= 360.0
+        np.rint(step, out=step)
+        step *= 360.0
+        a += step
+        return a
+
     alt = angles + np.array([180.0, 0.0, 180.0])
     alt[..., 1] = -angles[..., 1] if proper else 180.0 - angles[..., 1]
-    best = None
-    for cand in (angles, alt):
-        cand = cand + 360.0 * np.round((ref - cand) / 360.0)
-        dist = np.square(cand - ref).sum(axis=-1)
-        if best is None:
-            best, best_dist = cand, dist
-        else:
-            closer = dist < best_dist
-            best[closer] = cand[closer]
+    best, alt = nearest_turn(angles.copy()), nearest_turn(alt)
+    dist = np.square(best - ref).sum(axis=-1)
+    np.copyto(best, alt, where=(np.square(alt - ref).sum(axis=-1) < dist)[..., None])
     return best
 
 
@@ -348,6 +352,10 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
     for seq, cols in motion.rotation_groups().items():
         quats = _unflip(np.array(_convert.from_euler(seq, motion.frames[:, cols], degrees=True), np.float64))
         track = Track(times, quats, method=method, extrapolate=extrapolate)
-        angles = _convert.as_euler(np.asarray(track(t)), seq, degrees=True, suppress_warnings=True)
-        frames[:, cols] = _nearest_euler(angles, frames[:, cols], seq[0] == seq[2])
+        rows = max(1, _BLOCK // len(cols))  # output frames per block: temporaries stay small
+        for start in range(0, len(t), rows):
+            block = frames[start:start + rows]
+            angles = _convert.as_euler(np.asarray(track(t[start:start + rows])), seq, degrees=True,
+                                       suppress_warnings=True)
+            block[:, cols] = _nearest_euler(angles, block[:, cols], seq[0] == seq[2])
     return Motion(motion.hierarchy, motion.joints, frame_time, frames)
