@@ -1,0 +1,540 @@
+"""The scipy-compatible surface (`quatarray.Rotation` is `QuatArray`): every
+method cross-checked against scipy's Rotation in batch shapes (), (N,), (N, M)
+and both dtypes; randomness, averaging and fitting; the bad-input table; the
+documented migration differences; and a realistic workflow run with either
+import giving the same numbers."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import stats
+from scipy.spatial.transform import Rotation as SR
+
+import quatarray
+from quatarray import QuatArray, Rotation
+
+from .conftest import random_quats, tol
+
+SHAPES = [(), (6,), (3, 4)]
+
+
+def scipy_of(r):
+    """The scipy Rotation of a QuatArray, from its float64 components."""
+    return SR.from_quat(r.ndarray.astype(np.float64), scalar_first=True)
+
+
+def pair(rng, shape, dtype):
+    """The same random rotations as a QuatArray (dtype) and a scipy Rotation."""
+    q = random_quats(rng, shape, dtype)
+    return Rotation.from_quat(q, scalar_first=True), SR.from_quat(q.astype(np.float64), scalar_first=True)
+
+
+def assert_same_rotation(got, want, atol):
+    got, want = np.broadcast_arrays(np.asarray(got, np.float64), np.asarray(want, np.float64))
+    sign = np.where(np.sum(got * want, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+    np.testing.assert_allclose(got * sign, want, rtol=0, atol=atol)
+
+
+def angle_diff(a, b):
+    return np.abs(np.angle(np.exp(1j * (np.asarray(a, np.float64) - np.asarray(b, np.float64)))))
+
+
+def test_rotation_is_quatarray():
+    assert quatarray.Rotation is QuatArray
+    assert isinstance(Rotation.from_rotvec([0, 0, 1]), QuatArray)
+
+
+# --- quaternions in and out ------------------------------------------------------------------
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("scalar_first", [False, True])
+def test_from_quat_as_quat_match_scipy(rng, dtype, shape, scalar_first):
+    q = (3 * random_quats(rng, shape, np.float64, unit=False)).astype(dtype)  # not normalised
+    before = q.copy()
+    r = Rotation.from_quat(q, scalar_first=scalar_first)
+    s = SR.from_quat(q.astype(np.float64), scalar_first=scalar_first)
+    assert r.dtype == dtype and r.shape == shape + (4,) and r.batch_shape == s.shape
+    np.testing.assert_array_equal(q, before)  # input untouched
+    for canonical in (False, True):
+        for sf in (False, True):
+            got = r.as_quat(canonical=canonical, scalar_first=sf)
+            want = s.as_quat(canonical=canonical, scalar_first=sf)
+            assert type(got) is np.ndarray and got.dtype == dtype
+            np.testing.assert_allclose(got, want, rtol=0, atol=tol(dtype))
+    # canonical=True: the same sign as scipy's, exactly (away from w = 0)
+    np.testing.assert_array_equal(np.sign(r.as_quat(canonical=True))[..., 3],
+                                  np.sign(s.as_quat(canonical=True))[..., 3])
+    np.testing.assert_allclose(np.linalg.norm(r.ndarray, axis=-1), 1, atol=tol(dtype))
+
+
+def test_as_quat_canonical_zero_w_rule():
+    q = np.array([[0, 0, -1, 0], [0, -1, 1, 0], [-1, 0, 0, 0], [0, 0, 0, -1.0]])  # scalar-last
+    np.testing.assert_array_equal(Rotation.from_quat(q).as_quat(canonical=True),
+                                  SR.from_quat(q).as_quat(canonical=True))
+
+
+def test_as_quat_is_a_copy(rng):
+    r = Rotation.from_quat(random_quats(rng, (3,)))
+    a = r.as_quat(scalar_first=True)
+    a[:] = 0
+    assert np.all(np.linalg.norm(r.ndarray, axis=-1) > 0.99)
+
+
+# --- conversions through the class ----------------------------------------------------------------
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_conversions_match_scipy(rng, dtype, shape):
+    r, s = pair(rng, shape, dtype)
+    t = tol(dtype)
+    np.testing.assert_allclose(r.as_matrix(), s.as_matrix(), rtol=0, atol=t)
+    np.testing.assert_allclose(r.as_rotvec(), s.as_rotvec(), rtol=0, atol=t)
+    np.testing.assert_allclose(r.as_rotvec(degrees=True), s.as_rotvec(degrees=True), rtol=0, atol=t * 60)
+    np.testing.assert_allclose(r.as_mrp(), s.as_mrp(), rtol=0, atol=t)
+    np.testing.assert_allclose(r.magnitude(), s.magnitude(), rtol=0, atol=t)
+    mat = s.as_matrix().astype(dtype)
+    assert_same_rotation(Rotation.from_matrix(mat).ndarray, s.as_quat(scalar_first=True), t)
+    assert_same_rotation(Rotation.from_rotvec(s.as_rotvec().astype(dtype)).ndarray, s.as_quat(scalar_first=True), t)
+    assert_same_rotation(Rotation.from_mrp(s.as_mrp().astype(dtype)).ndarray, s.as_quat(scalar_first=True), t)
+    for res in (r.as_matrix(), r.as_rotvec(), r.as_mrp(), Rotation.from_matrix(mat)):
+        assert res.dtype == dtype
+    assert Rotation.from_matrix(mat).batch_shape == shape
+
+
+@pytest.mark.parametrize("seq", ["xyz", "ZYX", "zxz", "YXY", "xzy", "XYZ"])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_euler_and_davenport_match_scipy(rng, seq, shape):
+    r, s = pair(rng, shape, np.float64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        np.testing.assert_allclose(r.as_euler(seq), s.as_euler(seq), atol=1e-12)
+        np.testing.assert_allclose(r.as_euler(seq, degrees=True), s.as_euler(seq, degrees=True), atol=1e-10)
+        axes = np.eye(3)[["xyz".index(c) for c in seq.lower()]]
+        order = "e" if seq.islower() else "i"
+        assert angle_diff(r.as_davenport(axes, order), s.as_davenport(axes, order)).max() < 1e-12
+    angles = rng.uniform(-np.pi, np.pi, shape + (3,))
+    assert_same_rotation(Rotation.from_euler(seq, angles).ndarray,
+                         SR.from_euler(seq, angles).as_quat(scalar_first=True), 1e-14)
+    assert_same_rotation(Rotation.from_davenport(axes, order, angles).ndarray,
+                         SR.from_davenport(axes, order, angles).as_quat(scalar_first=True), 1e-14)
+
+
+def test_gimbal_warning_points_at_the_caller():
+    r = Rotation.from_euler("zxz", [0.3, 0.0, 0.2])
+    with pytest.warns(UserWarning, match="Gimbal lock detected") as caught:
+        r.as_euler("zxz")
+    assert caught[0].filename == __file__
+    with pytest.warns(UserWarning, match="Gimbal lock detected") as caught:
+        r.as_davenport(np.eye(3)[[2, 0, 2]], "e")
+    assert caught[0].filename == __file__
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r.as_euler("zxz", suppress_warnings=True)
+
+
+def test_edge_rotations_match_scipy():
+    angles = [0.0, 1e-9, -1e-9, np.pi, -np.pi, np.pi - 1e-9, 2 * np.pi]
+    rv = np.array([[a, 0, 0] for a in angles] + [[0, a, 0] for a in angles] + [[a, a, a] for a in angles])
+    r, s = Rotation.from_rotvec(rv), SR.from_rotvec(rv)
+    assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), 1e-15)
+    np.testing.assert_allclose(r.as_rotvec(), s.as_rotvec(), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(r.as_matrix(), s.as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(r.magnitude(), s.magnitude(), rtol=1e-12, atol=1e-15)
+    assert_same_rotation(Rotation.from_matrix(s.as_matrix()).ndarray, s.as_quat(scalar_first=True), 1e-15)
+
+
+# --- apply, inv, magnitude, approx_equal, composition, power ------------------------------------------
+
+@pytest.mark.parametrize("rshape, vshape", [((), ()), ((), (5,)), ((5,), ()), ((5,), (5,)), ((1,), (5,)),
+                                            ((), (1,)), ((5, 1, 4), (3, 4)), ((2, 3), (2, 3))])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_apply_matches_scipy_broadcasting(rng, dtype, rshape, vshape, inverse):
+    r, s = pair(rng, rshape, dtype)
+    v = rng.standard_normal(vshape + (3,)).astype(dtype)
+    got = r.apply(v, inverse=inverse)
+    want = s.apply(v.astype(np.float64), inverse=inverse)
+    assert type(got) is np.ndarray and got.dtype == dtype
+    assert got.shape == want.shape
+    np.testing.assert_allclose(got, want, rtol=0, atol=4 * tol(dtype))
+
+
+def test_apply_to_lists_and_noncontiguous_readonly_vectors(rng):
+    r, s = pair(rng, (40,), np.float64)
+    v = rng.standard_normal((80, 3))[::2]
+    v.flags.writeable = False  # scipy 1.17 itself refuses read-only vectors: compare on a copy
+    np.testing.assert_allclose(r.apply(v), s.apply(v.copy()), atol=1e-14)
+    np.testing.assert_allclose(r.apply([1, 2, 3]), s.apply([1, 2, 3]), atol=1e-14)
+    np.testing.assert_allclose(r[0].apply(v), s[0].apply(v.copy()), atol=1e-14)
+
+
+def test_inv_magnitude_and_composition_match_scipy(rng, dtype, batch_shape):
+    r, s = pair(rng, batch_shape, dtype)
+    r2, s2 = pair(rng, batch_shape, dtype)
+    inv = r.inv()
+    assert isinstance(inv, QuatArray) and inv.dtype == dtype
+    assert_same_rotation(inv.ndarray, s.inv().as_quat(scalar_first=True), tol(dtype))
+    assert_same_rotation((r * r2).ndarray, (s * s2).as_quat(scalar_first=True), tol(dtype))
+    assert_same_rotation((r * r.inv()).ndarray, [1, 0, 0, 0], tol(dtype))
+    m = r.magnitude()
+    np.testing.assert_allclose(m, s.magnitude(), rtol=0, atol=tol(dtype))
+    if batch_shape == ():
+        assert isinstance(m, np.floating) and not isinstance(m, np.ndarray)
+
+
+def test_power_is_the_quaternion_power_and_scipy_power_via_rotvec(rng):
+    # `**` is exp(t log q) (issue 2).  For w >= 0 it equals scipy's rotation power;
+    # for w < 0 it is the power of the other representative (a different rotation for
+    # non-integer t).  scipy's power is always from_rotvec(t * as_rotvec()).
+    q = random_quats(rng, (200,))
+    q[:, 0] = np.abs(q[:, 0])
+    r, s = Rotation.from_quat(q, scalar_first=True), SR.from_quat(q, scalar_first=True)
+    for t in (0.5, -0.3, 2.0, 3.7):
+        assert_same_rotation((r ** t).ndarray, (s ** t).as_quat(scalar_first=True), 1e-13)
+    neg = Rotation.from_quat(-q, scalar_first=True)
+    assert_same_rotation((neg ** 2.0).ndarray, (s ** 2.0).as_quat(scalar_first=True), 1e-13)  # integer t: same rotation
+    half = (neg ** 0.5).ndarray
+    diff = Rotation.from_quat(half, scalar_first=True).approx_equal(Rotation.from_quat((s ** 0.5).as_quat()), atol=1e-6)
+    assert not diff[q[:, 0] < 0.99].any()  # different rotations, except near the identity
+    recipe = Rotation.from_rotvec(0.5 * neg.as_rotvec())
+    assert_same_rotation(recipe.ndarray, (s ** 0.5).as_quat(scalar_first=True), 1e-13)
+
+
+def test_approx_equal(rng, dtype):
+    r, s = pair(rng, (8,), dtype)
+    tiny = Rotation.from_rotvec(np.array([1e-10, 0, 0], dtype))
+    near = r * tiny
+    far = r * Rotation.from_rotvec(np.array([1e-3, 0, 0], dtype))
+    assert r.approx_equal(r).all()
+    assert r.approx_equal(near).all()
+    assert not r.approx_equal(far).any()
+    assert r.approx_equal(far, atol=2e-3).all()
+    assert r.approx_equal(far, atol=0.1, degrees=True).all()
+    assert not r.approx_equal(far, atol=0.01, degrees=True).any()
+    np.testing.assert_array_equal(r.approx_equal(r[0]), s.approx_equal(s[0]))
+    single = r[0].approx_equal(near[0])
+    assert single.shape == () and bool(single)
+    with pytest.warns(UserWarning, match="atol must be set to use the degrees flag"):
+        r.approx_equal(near, degrees=True)
+
+
+def test_approx_equal_default_atol_is_scipy_in_float64(rng):
+    r = Rotation.from_rotvec([0, 0, 1.0])
+    assert r.approx_equal(Rotation.from_rotvec([0, 0, 1 + 5e-9]))
+    assert not r.approx_equal(Rotation.from_rotvec([0, 0, 1 + 2e-8]))
+    s = SR.from_rotvec([0, 0, 1.0])
+    assert s.approx_equal(SR.from_rotvec([0, 0, 1 + 5e-9])) and not s.approx_equal(SR.from_rotvec([0, 0, 1 + 2e-8]))
+
+
+# --- mean ---------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("shape", [(1,), (7,), (4, 5)])
+def test_mean_matches_scipy(rng, dtype, shape):
+    r, s = pair(rng, shape, dtype)
+    # a cluster, so that the mean is well defined
+    r = r * Rotation.from_rotvec(np.array([0.3, -0.2, 0.1], dtype))
+    s = s * SR.from_rotvec([0.3, -0.2, 0.1])
+    base, sbase = Rotation.from_quat(r.as_quat()[(0,) * len(shape)]), SR.from_quat(s.as_quat()[(0,) * len(shape)])
+    noise = rng.normal(scale=0.2, size=shape + (3,))
+    r = Rotation.from_rotvec(noise.astype(dtype)) * base
+    s = SR.from_rotvec(noise) * sbase
+    w = rng.uniform(0.1, 2, shape)
+    for kwargs in ({}, {"weights": w}):
+        got, want = r.mean(**kwargs), s.mean(**kwargs)
+        assert got.single and got.dtype == dtype
+        assert got.ndarray[0] >= 0  # canonical sign
+        assert_same_rotation(got.ndarray, want.as_quat(scalar_first=True), 20 * tol(dtype))
+    if len(shape) == 2:
+        for axis in (0, 1, -1, (0,), (0, 1)):
+            got, want = r.mean(axis=axis), s.mean(axis=axis)
+            assert got.batch_shape == want.shape
+            assert_same_rotation(got.ndarray, want.as_quat(scalar_first=True), 20 * tol(dtype))
+        got, want = r.mean(weights=w[0], axis=0), s.mean(weights=w[0], axis=0)
+        assert_same_rotation(got.ndarray, want.as_quat(scalar_first=True), 20 * tol(dtype))
+
+
+def test_mean_of_single_rotation_and_zero_weights(rng):
+    r = Rotation.random(rng=rng)
+    assert_same_rotation(r.mean().ndarray, r.ndarray, 1e-15)
+    many = Rotation.random(3, rng=rng)
+    assert_same_rotation(many.mean(weights=[0, 1, 0]).ndarray, many[1].ndarray, 1e-15)
+
+
+# --- random, identity, concatenate, single, scipy interop ----------------------------------------
+
+def test_random_is_scipys_random_for_the_same_seed():
+    for kwargs in ({}, {"num": 5}, {"shape": (2, 3)}, {"shape": 4}):
+        got = Rotation.random(rng=7, **kwargs)
+        want = SR.random(rng=7, **kwargs)
+        assert got.batch_shape == want.shape and got.dtype == np.float64
+        np.testing.assert_allclose(got.as_quat(), want.as_quat(), rtol=0, atol=1e-15)
+    gen = np.random.default_rng(3)
+    np.testing.assert_allclose(Rotation.random(4, gen).as_quat(),
+                               SR.random(4, np.random.default_rng(3)).as_quat(), atol=1e-15)
+
+
+def test_random_is_uniform_on_so3():
+    r = Rotation.random(100_000, rng=12345)
+    theta = r.magnitude()
+    # rotation angles of the Haar measure: density (1 - cos θ)/π, CDF (θ - sin θ)/π on [0, π]
+    edges = np.linspace(0, np.pi, 41)
+    counts, _ = np.histogram(theta, edges)
+    expected = np.diff((edges - np.sin(edges)) / np.pi) * theta.size
+    chi2 = np.sum((counts - expected) ** 2 / expected)
+    assert chi2 < stats.chi2.ppf(0.999, df=len(counts) - 1)
+    # a biased sampler (uniform axis, uniform angle) fails the same test
+    biased = Rotation.from_rotvec(Rotation.random(100_000, rng=1).as_rotvec()
+                                  / theta[:, None] * np.linspace(0, np.pi, theta.size)[:, None])
+    bc, _ = np.histogram(biased.magnitude(), edges)
+    assert np.sum((bc - expected) ** 2 / expected) > stats.chi2.ppf(0.999, df=len(counts) - 1)
+    # the mean rotation matrix of a uniform sample is zero
+    assert np.abs(r.as_matrix().mean(axis=0)).max() < 0.01
+
+
+def test_identity_matches_scipy():
+    for kwargs in ({}, {"num": 3}, {"shape": (2, 2)}):
+        np.testing.assert_array_equal(Rotation.identity(**kwargs).as_quat(), SR.identity(**kwargs).as_quat())
+
+
+def test_concatenate_matches_scipy(rng):
+    parts = [Rotation.random(rng=1), Rotation.random(3, rng=2), Rotation.random(2, rng=3)]
+    sparts = [SR.random(rng=1), SR.random(3, rng=2), SR.random(2, rng=3)]
+    got, want = Rotation.concatenate(parts), SR.concatenate(sparts)
+    assert got.batch_shape == want.shape == (6,)
+    np.testing.assert_allclose(got.as_quat(), want.as_quat(), atol=1e-15)
+    one = Rotation.concatenate(parts[1])
+    np.testing.assert_array_equal(one.ndarray, parts[1].ndarray)
+    assert not np.shares_memory(one, parts[1])
+    mixed = Rotation.concatenate([parts[0].astype(np.float32), parts[1].astype(np.float32)])
+    assert mixed.dtype == np.float32
+
+
+def test_single_len_shape_and_iteration():
+    one, many = Rotation.random(rng=0), Rotation.random(3, rng=0)
+    assert one.single and not many.single and not Rotation.random(1, rng=0).single
+    assert SR.random(rng=0).single and not SR.random(1, rng=0).single
+    with pytest.raises(TypeError):
+        len(one)
+    with pytest.raises(TypeError, match="Single rotation has no len"):
+        len(SR.random(rng=0))
+    assert len(many) == 3
+    # documented difference: `shape` is the ndarray shape; scipy's shape is `batch_shape`
+    assert many.shape == (3, 4) and many.batch_shape == SR.random(3, rng=0).shape == (3,)
+    assert [q.single for q in many] == [True] * 3
+
+
+def test_scipy_round_trip(rng, dtype, batch_shape):
+    r, s = pair(rng, batch_shape, dtype)
+    back = QuatArray.from_scipy(r.to_scipy())
+    assert isinstance(r.to_scipy(), SR)
+    assert r.to_scipy().shape == s.shape
+    assert_same_rotation(back.ndarray, r.ndarray, tol(dtype))
+    assert_same_rotation(QuatArray.from_scipy(s).ndarray, s.as_quat(scalar_first=True), 0)
+    assert QuatArray.from_scipy(s).batch_shape == s.shape
+
+
+# --- align_vectors ------------------------------------------------------------------------------------
+
+def test_align_vectors_matches_scipy(rng):
+    b = rng.standard_normal((10, 3))
+    true = SR.random(rng=rng)
+    a = true.apply(b) + 0.01 * rng.standard_normal((10, 3))
+    w = rng.uniform(0.5, 2, 10)
+    for kwargs in ({}, {"weights": w}):
+        r, rssd, sens = Rotation.align_vectors(a, b, return_sensitivity=True, **kwargs)
+        s, srssd, ssens = SR.align_vectors(a, b, return_sensitivity=True, **kwargs)
+        assert r.single
+        assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), 1e-13)
+        np.testing.assert_allclose(rssd, srssd, rtol=1e-10)
+        np.testing.assert_allclose(sens, ssens, rtol=1e-10)
+        assert len(Rotation.align_vectors(a, b, **kwargs)) == 2
+
+
+@pytest.mark.parametrize("case", ["single", "inf", "antiparallel", "parallel", "near_antiparallel"])
+def test_align_vectors_primary_cases_match_scipy(rng, case):
+    b = rng.standard_normal((4, 3))
+    a = SR.random(rng=rng).apply(b)
+    w = np.ones(4)
+    if case == "single":
+        a, b, w = a[:1], b[:1], None
+    elif case == "inf":
+        w[2] = np.inf
+    elif case == "antiparallel":
+        a, b, w = np.array([[1.0, 0, 0]]), np.array([[-2.0, 0, 0]]), None
+    elif case == "parallel":
+        a, b, w = np.array([[0.0, 3, 0]]), np.array([[0.0, 1, 0]]), None
+    else:
+        a, b, w = np.array([[1.0, 0, 0]]), np.array([[-1.0, 1e-5, 0]]), None
+    r, rssd = Rotation.align_vectors(a, b, weights=w)
+    s, srssd = SR.align_vectors(a, b, weights=w)
+    assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), 1e-12)
+    np.testing.assert_allclose(rssd, srssd, atol=1e-12)
+    np.testing.assert_allclose(r.apply(b[0] / np.linalg.norm(b[0])), a[0] / np.linalg.norm(a[0]), atol=1e-12)
+
+
+def test_align_vectors_degenerate_warns_like_scipy():
+    a = np.array([[1.0, 0, 0], [2.0, 0, 0]])
+    with pytest.warns(UserWarning, match="not uniquely or poorly defined"):
+        Rotation.align_vectors(a, a)
+
+
+# --- inputs: layouts, empties, read-only -------------------------------------------------------------
+
+@pytest.mark.parametrize("make", [
+    lambda x: Rotation.from_quat(x["q"]), lambda x: Rotation.from_rotvec(x["v"]),
+    lambda x: Rotation.from_mrp(x["v"]), lambda x: Rotation.from_euler("xyz", x["v"]),
+    lambda x: Rotation.from_matrix(x["m"]), lambda x: Rotation.from_davenport(np.eye(3), "e", x["v"]),
+])
+def test_constructors_accept_unusual_layouts_and_do_not_modify_input(rng, make):
+    base = {"q": random_quats(rng, (20,)), "v": rng.uniform(-1, 1, (20, 3)),
+            "m": SR.random(20, rng=1).as_matrix()}
+    want = make(base).ndarray
+    odd = {k: np.asfortranarray(np.repeat(a, 2, axis=0)[::2]) for k, a in base.items()}
+    for a in odd.values():
+        a.flags.writeable = False
+    before = {k: a.copy() for k, a in odd.items()}
+    got = make(odd)
+    np.testing.assert_allclose(got.ndarray, want, atol=1e-15)
+    for k in odd:
+        np.testing.assert_array_equal(odd[k], before[k])
+    empty = make({"q": np.zeros((0, 4)), "v": np.zeros((0, 3)), "m": np.zeros((0, 3, 3))})
+    assert empty.batch_shape == (0,)
+    assert empty.as_matrix().shape == (0, 3, 3) and empty.as_rotvec().shape == (0, 3)
+    assert empty.apply(np.zeros((0, 3))).shape == (0, 3)
+
+
+# --- bad input table ------------------------------------------------------------------------------------
+
+R3 = Rotation.random(3, rng=0)
+
+BAD = [
+    (lambda: Rotation.from_quat([0, 0, 0, 0]), ValueError, "zero norm quaternions .* got a zero quaternion"),
+    (lambda: Rotation.from_quat([[1, 0, 0, 0], [0, 0, 0, 0]]), ValueError, r"at index \(1,\)"),
+    (lambda: Rotation.from_quat([np.nan, 0, 0, 1]), ValueError, "expected finite quat"),
+    (lambda: Rotation.from_quat([np.inf, 0, 0, 1]), ValueError, "expected finite quat"),
+    (lambda: Rotation.from_quat([1, 2, 3]), ValueError, r"expected quat of shape \(\.\.\., 4\), got \(3,\)"),
+    (lambda: Rotation.from_quat(1.0), ValueError, r"shape \(\.\.\., 4\)"),
+    (lambda: Rotation.from_quat(["a", "b", "c", "d"]), TypeError, "real numbers"),
+    (lambda: Rotation.from_quat([1j, 0, 0, 1]), TypeError, "real numbers"),
+    (lambda: Rotation.from_matrix(-np.eye(3)), ValueError, "Non-positive determinant"),
+    (lambda: Rotation.from_matrix(np.zeros((3, 3))), ValueError, "Non-positive determinant"),
+    (lambda: Rotation.from_matrix(np.full((3, 3), np.nan)), ValueError, "expected finite values in matrix"),
+    (lambda: Rotation.from_matrix(np.eye(4)), ValueError, r"shape \(\.\.\., 3, 3\)"),
+    (lambda: Rotation.from_rotvec([1, 2]), ValueError, r"expected rotvec of shape \(\.\.\., 3\)"),
+    (lambda: Rotation.from_mrp(np.ones((2, 4))), ValueError, r"expected mrp of shape \(\.\.\., 3\)"),
+    (lambda: Rotation.from_euler("xxy", [1, 2, 3]), ValueError, "consecutive axes"),
+    (lambda: Rotation.from_euler("xYz", [1, 2, 3]), ValueError, "not mixed"),
+    (lambda: Rotation.from_euler("xyzx", [1, 2, 3, 4]), ValueError, "1 to 3 axes"),
+    (lambda: Rotation.from_euler("xyz", [1, 2]), ValueError, r"expected angles of shape \(\.\.\., 3\)"),
+    (lambda: Rotation.from_euler("x", [1, 2, 3]), ValueError, r"expected angles of shape \(\.\.\., 1\)"),
+    (lambda: R3.as_euler("xy"), ValueError, "3 axes"),
+    (lambda: R3.as_euler("xxz"), ValueError, "consecutive axes"),
+    (lambda: Rotation.from_davenport(np.eye(3), "x", [1, 2, 3]), ValueError, "order"),
+    (lambda: Rotation.from_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), ValueError, "orthogonal"),
+    (lambda: R3.as_davenport(np.eye(3)[:2], "e"), ValueError, "expected 3 axes"),
+    (lambda: R3.apply(np.ones((3, 2))), ValueError, r"expected vectors of shape \(\.\.\., 3\)"),
+    (lambda: R3.apply(np.ones((2, 3))), ValueError, r"Cannot broadcast \(3,\) rotations to \(2,\) vectors"),
+    (lambda: R3.apply(np.ones((3, 3), complex)), TypeError, "real numbers"),
+    (lambda: R3.approx_equal(Rotation.random(2, rng=0)), ValueError, "broadcastable shapes"),
+    (lambda: R3.approx_equal(np.ones(4)), TypeError, "expected other to be a Rotation"),
+    (lambda: R3.mean(weights=[1, -1, 1]), ValueError, "`weights` must be non-negative"),
+    (lambda: R3.mean(weights=[1, np.nan, 1]), ValueError, "expected finite weights"),
+    (lambda: R3.mean(weights=[1, 1]), ValueError, "broadcastable to rotation shape"),
+    (lambda: R3.mean(weights=np.ones((2, 3))), ValueError, "broadcastable to rotation shape"),
+    (lambda: R3.mean(axis=1), ValueError, r"axis 1 is out of bounds for rotation with shape \(3,\)"),
+    (lambda: R3.mean(axis=[0]), ValueError, "`axis` must be None, int, or tuple of ints"),
+    (lambda: Rotation.from_quat(np.zeros((0, 4))).mean(), ValueError, "Mean of an empty rotation set"),
+    (lambda: Rotation.random(3, shape=(3,)), ValueError, "Only one of `num` or `shape`"),
+    (lambda: Rotation.random(shape=[3]), ValueError, "`shape` must be an int or a tuple of ints"),
+    (lambda: Rotation.random(-1), ValueError, "non-negative int"),
+    (lambda: Rotation.concatenate([R3, 1]), TypeError, "Rotation objects only.*int at position 1"),
+    (lambda: Rotation.concatenate([]), ValueError, "at least one rotation"),
+    (lambda: Rotation.align_vectors(np.zeros((0, 3)), np.zeros((0, 3))), ValueError, "at least one pair"),
+    (lambda: Rotation.align_vectors([[1, 0, 0]], [[1, 0, 0], [0, 1, 0]]), ValueError, "same shapes"),
+    (lambda: Rotation.align_vectors([1, 0], [1, 0]), ValueError, r"`a` to have shape \(3,\) or \(N, 3\)"),
+    (lambda: Rotation.align_vectors(np.ones((2, 2, 3)), np.ones((2, 2, 3))), ValueError, r"\(3,\) or \(N, 3\)"),
+    (lambda: Rotation.align_vectors(np.eye(3), np.eye(3), weights=[1, -1, 1]), ValueError, "negative"),
+    (lambda: Rotation.align_vectors(np.eye(3), np.eye(3), weights=[1, 1]), ValueError, "number of values"),
+    (lambda: Rotation.align_vectors(np.eye(3), np.eye(3), weights=np.ones((3, 1))), ValueError, "1 dimensional"),
+    (lambda: Rotation.align_vectors(np.eye(3), np.eye(3), weights=[np.inf, np.inf, 1]), ValueError, "Only one infinite"),
+    (lambda: Rotation.align_vectors([[1, 0, 0]], [[1, 0, 0]], return_sensitivity=True), ValueError, "sensitivity"),
+    (lambda: Rotation.align_vectors([[0, 0, 0]], [[1, 0, 0]]), ValueError, "zero length primary"),
+    (lambda: Rotation.align_vectors([[np.nan, 0, 0]], [[1, 0, 0]]), ValueError, "finite"),
+    (lambda: QuatArray.from_scipy(np.array([0, 0, 0, 1.0])), TypeError, "scipy.spatial.transform.Rotation"),
+]
+
+
+@pytest.mark.parametrize("call, exc, match", BAD, ids=[str(i) for i in range(len(BAD))])
+def test_bad_input(call, exc, match):
+    with pytest.raises(exc, match=match):
+        call()
+
+
+@pytest.mark.parametrize("call, exc", [
+    (lambda R: R.from_quat([0, 0, 0, 0]), ValueError),
+    (lambda R: R.from_quat([1, 2, 3]), ValueError),
+    (lambda R: R.from_matrix(-np.eye(3)), ValueError),
+    (lambda R: R.from_euler("xxy", [1, 2, 3]), ValueError),
+    (lambda R: R.from_euler("xyz", [1, 2]), ValueError),
+    (lambda R: R.random(3, rng=0).mean(weights=[1, -1, 1]), ValueError),
+    (lambda R: R.random(3, rng=0).apply(np.ones((2, 3))), ValueError),
+    (lambda R: R.align_vectors([[1, 0, 0]], [[1, 0, 0], [0, 1, 0]]), ValueError),
+    (lambda R: R.concatenate([R.identity(), 1]), TypeError),
+])
+def test_same_error_types_as_scipy(call, exc):
+    for cls in (SR, Rotation):
+        with pytest.raises(exc):
+            call(cls)
+
+
+# --- migration: one workflow, two imports ----------------------------------------------------------
+
+def workflow(R):
+    """A realistic scipy-style pipeline, written once for either `Rotation` class."""
+    rng = np.random.default_rng(2024)
+    # body orientations from a log of intrinsic yaw-pitch-roll angles, in degrees
+    ypr = np.column_stack([rng.uniform(-180, 180, 500), rng.uniform(-80, 80, 500), rng.uniform(-180, 180, 500)])
+    body = R.from_euler("ZYX", ypr, degrees=True)
+    mount = R.from_rotvec([0.0, 0.1, -0.05])            # sensor mounting offset
+    sensor = body * mount                                # compose
+    cloud = rng.standard_normal((500, 3))                # one point per pose
+    world = sensor.apply(cloud)
+    back = sensor.apply(world, inverse=True)
+    shared = mount.apply(rng.standard_normal((1000, 3)))  # one rotation, many points
+    relative = sensor.inv() * body
+    noisy = R.from_rotvec(rng.normal(scale=0.05, size=(200, 3))) * mount
+    average = noisy.mean(weights=rng.uniform(0.5, 1.5, 200))
+    fitted, rssd = R.align_vectors(world[:20], cloud[:20])
+    randoms = R.random(50, rng=11)
+    return {
+        "euler": sensor.as_euler("ZYX", degrees=True),
+        "euler_ext": sensor.as_euler("xyz"),
+        "rotvec": relative.as_rotvec(),
+        "matrix": sensor.as_matrix(),
+        "quat": sensor.as_quat(canonical=True),
+        "mrp": sensor.as_mrp(),
+        "world": world,
+        "back": back,
+        "shared": shared,
+        "mean_matrix": average.as_matrix(),
+        "mean_euler": average.as_euler("zyx"),
+        "magnitude": relative.magnitude(),
+        "close": relative.approx_equal(R.from_rotvec(relative.as_rotvec()), atol=1e-9),
+        "fitted": fitted.as_matrix(),
+        "rssd": np.asarray(rssd),
+        "randoms": randoms.as_quat(),
+        "from_matrix": R.from_matrix(sensor.as_matrix()).as_quat(canonical=True),
+        "from_quat": R.from_quat(sensor.as_quat()).as_rotvec(),
+        "concat": R.concatenate([mount, sensor[:3]]).as_rotvec(),
+    }
+
+
+def test_migration_workflow_gives_scipys_numbers():
+    ours, theirs = workflow(Rotation), workflow(SR)
+    assert ours.keys() == theirs.keys()
+    for key in ours:
+        got, want = np.asarray(ours[key]), np.asarray(theirs[key])
+        assert got.shape == want.shape, key
+        if got.dtype == bool:
+            np.testing.assert_array_equal(got, want, err_msg=key)
+        else:
+            np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-11, err_msg=key)
