@@ -106,11 +106,14 @@ def _atomic(path, binary=False):
 
 
 def _write_rows(f, rows, sep):
-    """Write a 2-D float array as text, one line per row, digits that round-trip."""
-    fmt = repr if rows.dtype == np.float64 else "%.9g".__mod__
+    """Write a 2-D float array as text, one line per row, digits that round-trip.
+
+    float64 is written as ``repr`` writes it (the shortest text that reads back
+    to the same number), float32 with 9 significant digits.
+    """
+    line = sep.join(["%r" if rows.dtype == np.float64 else "%.9g"] * rows.shape[1]) + "\n"
     for start in range(0, len(rows), _ROWS):
-        block = rows[start:start + _ROWS].tolist()
-        f.write("".join(sep.join(map(fmt, r)) + "\n" for r in block))
+        f.write("".join(line % tuple(r) for r in rows[start:start + _ROWS].tolist()))
 
 
 # --------------------------------------------------------------------------- checks
