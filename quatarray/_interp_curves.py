@@ -18,7 +18,7 @@ uniform-spacing tangents are scaled by 2 Δ_out / (Δ_in + Δ_out) and
 
 import numpy as np
 
-from ._interp_kernels import Work, slerp_core, soa
+from ._interp_kernels import Work, slerp_core, soa, vdot
 from ._kernels import conjugate as _conj
 from ._kernels import multiply as _qmul
 
@@ -30,7 +30,7 @@ __all__ = ["squad_controls", "bezier_controls", "slerp_deriv", "frame_deriv", "o
 # --------------------------------------------------------------------------
 
 def _dot(p, q):
-    return np.einsum("...i,...i->...", p, q)
+    return vdot(p, q)
 
 
 def _log_vec(q):
@@ -38,16 +38,14 @@ def _log_vec(q):
     v = q[..., 1:]
     vn = np.sqrt(_dot(v, v))
     theta = np.arctan2(vn, q[..., 0])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(vn > 0, theta / vn, 1.0)
+    scale = np.divide(theta, vn, out=np.ones_like(vn), where=vn > 0)
     return v * scale[..., None]
 
 
 def _exp_vec(x):
     """exp of the pure quaternion (0, x): (cos|x|, sin|x| x/|x|)."""
     n = np.sqrt(_dot(x, x))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sinc = np.where(n > 0, np.sin(n) / n, 1.0)
+    sinc = np.divide(np.sin(n), n, out=np.ones_like(n), where=n > 0)
     out = np.empty(x.shape[:-1] + (4,))
     out[..., 0] = np.cos(n)
     np.multiply(x, sinc[..., None], out=out[..., 1:])
@@ -62,10 +60,8 @@ def _double(p, q):
 def _bisect(p, q):
     """Shoemake's Bisect(p, q) = (p + q) / |p + q|; p = -q (no midpoint) gives p."""
     s = p + q
-    n = np.sqrt(_dot(s, s))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        res = s / n[..., None]
-    return np.where((n > 0)[..., None], res, p)
+    n = np.sqrt(_dot(s, s))[..., None]
+    return np.divide(s, n, out=p.copy(), where=n > 0)
 
 
 def _interval_weights(times, K, batch_ndim):
@@ -173,8 +169,8 @@ def slerp_deriv(A, dA, B, dB, h, dh):
     """
     D = B - A
     S = B + A
-    a2 = np.einsum("i...,i...->...", D, D)
-    b2 = np.einsum("i...,i...->...", S, S)
+    a2 = vdot(D, D, axis=0)
+    b2 = vdot(S, S, axis=0)
     a = np.sqrt(a2)
     b = np.sqrt(b2)
     om = 2 * np.arctan2(a, b)
@@ -191,8 +187,8 @@ def slerp_deriv(A, dA, B, dB, h, dh):
         w0h = np.where(ok, -om * np.cos((1 - h) * om) * inv, -1)
         w1o = np.where(ok, _n_weight(h, om) * inv * inv, 0)
         w0o = np.where(ok, _n_weight(1 - h, om) * inv * inv, 0)
-        da = np.where(a > 0, np.einsum("i...,i...->...", D, dB - dA) / a, 0)
-        db = np.where(b > 0, np.einsum("i...,i...->...", S, dB + dA) / b, 0)
+        da = np.where(a > 0, vdot(D, dB - dA, axis=0) / a, 0)
+        db = np.where(b > 0, vdot(S, dB + dA, axis=0) / b, 0)
         dom = np.where(n2 > 0, 2 * (b * da - a * db) / n2, 0)
     q = w0 * A + w1 * B
     dq = w0 * dA + w1 * dB + (w0h * dh + w0o * dom) * A + (w1h * dh + w1o * dom) * B
@@ -222,5 +218,5 @@ def omega_from(q, dq, frame):
     ])
     lin = qw * pv - pw * qv
     vec = lin - cross if frame == "world" else lin + cross
-    n2 = np.einsum("i...,i...->...", q, q)
+    n2 = vdot(q, q, axis=0)
     return vec * (2 / n2)

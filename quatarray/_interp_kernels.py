@@ -31,7 +31,7 @@ from ._kernels import _sub, blocks
 from ._validate import CHUNK
 
 __all__ = [
-    "BLOCK", "Work", "soa", "sqsum", "slerp_core", "frame_core", "frames",
+    "BLOCK", "Work", "soa", "sqsum", "vdot", "slerp_core", "frame_core", "frames",
     "slerp", "lerp", "nlerp", "squad", "bezier", "unflip", "SegmentIndex",
 ]
 
@@ -44,6 +44,16 @@ BLOCK = 2 * CHUNK
 def _tiny(dtype):
     """Smallest rho = tan(Omega/2) kept as is: its square is still a normal number."""
     return np.sqrt(np.finfo(dtype).tiny)
+
+
+if hasattr(np, "vecdot"):   # NumPy >= 2: a gufunc, much cheaper than einsum on small arrays
+    def vdot(p, q, axis=-1):
+        """Dot products of real vectors along `axis` (-1: (..., n); 0: components first)."""
+        return np.vecdot(p, q, axis=axis)
+else:  # pragma: no cover - NumPy 1.x
+    def vdot(p, q, axis=-1):
+        """Dot products of real vectors along `axis` (-1: (..., n); 0: components first)."""
+        return np.einsum("i...,i...->..." if axis == 0 else "...i,...i->...", p, q)
 
 
 class Work:
@@ -106,42 +116,44 @@ def slerp_core(A, B, h, O, shortest, work):
     ab += Tv[:, 2]
     ab += Tv[:, 3]
     antipodal = None
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if shortest:
-            sgn = T[0]  # scratch row: T is free again
-            np.subtract(b2, a2, out=sgn)  # sign of the dot product (b² - a² = 4 A·B)
-            np.minimum(a2, b2, out=r2)
-            np.maximum(a2, b2, out=b2)
-            np.divide(r2, b2, out=r2)
-        else:
-            sgn = None
-            np.divide(a2, b2, out=r2)
-            zero_b = b2 == 0
-            if zero_b.any():
-                antipodal = zero_b & (a2 > 0)
-        np.sqrt(r2, out=rho)
-        np.maximum(rho, _tiny(dtype), out=rho)
-        np.arctan(rho, out=tau)
-        np.multiply(tau, h, out=tau, casting="unsafe")
-        np.tan(tau, out=tau)
-        np.multiply(tau, tau, out=t2)
-        v = tau
-        np.divide(tau, rho, out=v)           # tau / rho  (-> h for tiny angles)
-        g = rho
-        np.add(t2, 1, out=g)
-        np.divide(1, g, out=g)               # 1 / (1 + tau²)
-        np.subtract(1, r2, out=w0)
-        w0 *= v
-        np.add(t2, w0, out=w0)               # tau² + (1 - rho²) v
-        np.subtract(1, w0, out=w0)
-        w0 *= g
-        w1 = a2
-        np.add(r2, 1, out=w1)
-        w1 *= v
-        w1 *= g
-        if sgn is not None:
-            np.copysign(1, sgn, out=sgn)     # +1, or -1 to follow -B (x - x is +0: ties keep B)
-            w1 *= sgn
+    if shortest:
+        sgn = T[0]  # scratch row: T is free again
+        np.subtract(b2, a2, out=sgn)  # sign of the dot product (b² - a² = 4 A·B)
+        np.minimum(a2, b2, out=r2)
+        np.maximum(a2, b2, out=b2)
+    else:
+        sgn = None
+        np.copyto(r2, a2)
+        zero_b = b2 == 0
+        if zero_b.any():
+            antipodal = zero_b & (a2 > 0)
+    # b² = 0 only for zero input (or B = -A followed as given, fixed below):
+    # a floor keeps the division finite and quiet (no errstate needed)
+    np.maximum(b2, 4 * np.finfo(dtype).tiny, out=b2)
+    np.divide(r2, b2, out=r2)
+    np.sqrt(r2, out=rho)
+    np.maximum(rho, _tiny(dtype), out=rho)
+    np.arctan(rho, out=tau)
+    np.multiply(tau, h, out=tau, casting="unsafe")
+    np.tan(tau, out=tau)
+    np.multiply(tau, tau, out=t2)
+    v = tau
+    np.divide(tau, rho, out=v)           # tau / rho  (-> h for tiny angles)
+    g = rho
+    np.add(t2, 1, out=g)
+    np.divide(1, g, out=g)               # 1 / (1 + tau²)
+    np.subtract(1, r2, out=w0)
+    w0 *= v
+    np.add(t2, w0, out=w0)               # tau² + (1 - rho²) v
+    np.subtract(1, w0, out=w0)
+    w0 *= g
+    w1 = a2
+    np.add(r2, 1, out=w1)
+    w1 *= v
+    w1 *= g
+    if sgn is not None:
+        np.copysign(1, sgn, out=sgn)     # +1, or -1 to follow -B (x - x is +0: ties keep B)
+        w1 *= sgn
     if antipodal is not None and antipodal.any():
         # B = -A followed "as given": no unique arc; keep the rotation constant
         # (A before the midpoint, B from it on), a deterministic choice.
@@ -167,18 +179,19 @@ def frames(k0, k1):
     + sin(2 u phi) p``.  No sign flip is applied.  p is computed without
     cancellation as ``(2 D + a² k0) / (a b)`` with D = k1 - k0 (a = |D|,
     b = |k1 + k0|); coincident pairs get p = 0 and antipodal pairs p = 0,
-    phi = pi/2 (a constant rotation: the arc is not unique).
+    phi = 0 (a constant rotation: the arc is not unique).
     """
     D = k1 - k0
     S = k1 + k0
-    a2 = np.einsum("i...,i...->...", D, D)
-    b2 = np.einsum("i...,i...->...", S, S)
+    a2 = vdot(D, D, axis=0)
+    b2 = vdot(S, S, axis=0)
     a = np.sqrt(a2)
     b = np.sqrt(b2)
     phi = np.arctan2(a, b)
+    phi[b == 0] = 0            # antipodal: the arc is not unique; stay at k0 (same rotation as k1)
     n2 = a2 + b2  # 4 for unit quaternions
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where((a > 0) & (b > 0), 1 / (a * b), 0)
+    ab = a * b
+    scale = np.divide(1, ab, out=np.zeros_like(ab), where=ab > 0)
     p = (D * (n2 / 2) + a2 * k0) * scale
     F = np.concatenate([k0, p]).astype(k0.dtype, copy=False)
     return F, phi.astype(k0.dtype, copy=False)
@@ -354,7 +367,7 @@ def unflip(q, axis):
     n = qa.shape[0]
     if n < 2:
         return q.astype(dtype, copy=True)
-    d = np.einsum("...i,...i->...", qa[1:], qa[:-1])
+    d = vdot(qa[1:], qa[:-1])
     step = np.ones(qa.shape[:-1], np.int8)
     step[1:][d < 0] = -1
     c = np.cumprod(step, axis=0, dtype=np.int8)           # sign with no restarts
