@@ -696,6 +696,13 @@ def test_track_query_shapes(rng):
     assert a.shape == b.shape == (4, 2, 4)
 
 
+@pytest.mark.parametrize("method", METHODS)
+def test_empty_batch_of_tracks(method):
+    track = Track([0, 1, 2], np.zeros((3, 2, 0, 4)), method=method)
+    assert track([0.5, 1.5]).shape == (2, 2, 0, 4)
+    assert track.angular_velocity(0.5).shape == (2, 0, 3)
+
+
 def test_many_tracks_and_many_queries_are_blocked(rng):
     """More tracks than a block (split across tracks), and more queries than a block."""
     times, keys = random_track(rng, 3, (IK.BLOCK + 7,), step=0.5)
@@ -743,6 +750,7 @@ def test_extrapolation_modes(rng):
     ext = Track(times, keys, extrapolate="extend")
     u = (out_t[1] - times[-2]) / (times[-1] - times[-2])
     assert_allclose(ext(out_t[1]), slerp(k[-2], k[-1], u), atol=tol(np.float64, 20))
+    np.testing.assert_allclose(ext.angular_velocity(out_t[1]), ext.angular_velocity(times[-1]), atol=1e-14)
     u = (out_t[0] - times[0]) / (times[1] - times[0])
     assert_allclose(ext(out_t[0]), slerp(k[0], k[1], u), atol=tol(np.float64, 20))
 
