@@ -620,6 +620,14 @@ class Track:
         Returns
         -------
         QuatArray, shape ``t.shape + batch_shape + (4,)``
+
+        Examples
+        --------
+        >>> from quatarray.interpolate import Track
+        >>> track = Track([0, 1], [[1, 0, 0, 0], [0, 1, 0, 0]])     # 180° about x
+        >>> track([0.5, 1.0])
+        QuatArray([[0.70710678, 0.70710678, 0.        , 0.        ],
+                   [0.        , 1.        , 0.        , 0.        ]])
         """
         return self._evaluate(t, "t")
 
@@ -794,6 +802,10 @@ class Slerp(Track):
         """Interpolated rotations at `times` (scalar or 1-D), as a `QuatArray`.
 
         Returns shape ``(M, ..., 4)`` for M times, ``(..., 4)`` for a scalar.
+
+        >>> from quatarray.interpolate import Slerp
+        >>> Slerp([0, 1], [[1, 0, 0, 0], [0, 0, 1, 0]])(0.5)
+        QuatArray([0.70710678, 0.        , 0.70710678, 0.        ])
         """
         t = float_array(times, "times")
         if t.ndim > 1:
