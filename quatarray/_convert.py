@@ -32,9 +32,9 @@ import numpy as np
 from ._validate import CHUNK, float_array
 
 __all__ = [
-    "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler",
+    "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler",
     "as_mrp", "from_mrp", "as_davenport", "from_davenport", "canonical", "inv",
-    "magnitude", "apply", "check_seq", "check_order",
+    "magnitude", "apply", "apply_one", "check_seq", "check_order",
 ]
 
 _TINY = {np.dtype(np.float32): 1e-30, np.dtype(np.float64): 1e-300}
@@ -102,6 +102,68 @@ def _half_angle(angle, scale):
     d *= 2.0
     d *= t
     return c, d
+
+
+# --- quaternions ---------------------------------------------------------------------
+
+def _k_from_quat(q, o, order):
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    bad = not ((n > 0) & (n < np.inf)).all()
+    np.divide(1.0, n, out=n)
+    for dst, src in enumerate(order):
+        np.multiply(q[src], n, out=o[dst])
+    return bad
+
+
+def from_quat(quat, scalar_first=False):
+    """Unit scalar-first quaternions from quaternions in either order (scipy's `from_quat`).
+
+    Parameters
+    ----------
+    quat : array_like, shape (..., 4)
+        ``(x, y, z, w)``, or ``(w, x, y, z)`` with ``scalar_first=True``.
+    scalar_first : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``quat / |quat|``, scalar-first (a new array).
+
+    Raises
+    ------
+    ValueError
+        For a zero quaternion, NaN or infinite components.
+
+    Examples
+    --------
+    >>> from_quat([0, 0, 3, 4])
+    array([0.8, 0. , 0. , 0.6])
+    """
+    q = _quat(quat)
+    out = np.empty(q.shape, q.dtype)
+    flat, oflat = q.reshape(-1, 4), out.reshape(-1, 4)
+    order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
+    if _blockwise(_k_from_quat, [flat], [oflat], order=order):
+        finite = np.isfinite(flat).all(axis=1)
+        if not finite.all():
+            first = int(np.argmin(finite))
+            raise ValueError(f"expected finite quat, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
+        scale = np.abs(flat).max(axis=1)
+        if not (scale > 0).all():
+            first = int(np.argmin(scale > 0))
+            raise ValueError(f"Found zero norm quaternions in `quat`: expected non-zero quaternions, "
+                             f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
+        # norms that over- or underflow: normalise after scaling by the largest component
+        redo = ~(np.linalg.norm(flat, axis=1) > 0) | ~np.isfinite(np.linalg.norm(flat, axis=1))
+        scaled = flat[redo] / scale[redo, None]
+        scaled /= np.linalg.norm(scaled, axis=1, keepdims=True)
+        oflat[redo] = scaled[:, list(order)]
+    return out
+
+
+def _index(flat_index, batch):
+    """A flat index as a batch index tuple (for messages)."""
+    return tuple(int(i) for i in np.unravel_index(flat_index, batch)) if batch else ()
 
 
 # --- matrices -----------------------------------------------------------------------
@@ -295,7 +357,7 @@ def from_matrix(matrix, assume_valid=False):
     status = status[:, 0]
     if n and status.max() == 2:
         first = int(np.argmax(status == 2))
-        where = tuple(int(i) for i in np.unravel_index(first, batch)) if batch else ()
+        where = _index(first, batch)
         bad = flat[first].reshape(3, 3)
         if not np.isfinite(bad).all():
             raise ValueError(f"expected finite values in matrix, got nan or inf in matrix {where}")
@@ -955,6 +1017,23 @@ def _k_apply(q, v, o, wsign):
     o[2] += x * ty - y * tx
 
 
+def apply_one(q, v, inverse=False):
+    """`apply` for one quaternion (4,) and one vector (3,), in Python floats (a few µs).
+
+    >>> apply_one(np.array([0.0, 0, 0, 1]), np.array([1.0, 2, 3]))
+    array([-1., -2.,  3.])
+    """
+    w, x, y, z = q.tolist()
+    vx, vy, vz = v.tolist()
+    n2 = w * w + x * x + y * y + z * z
+    s = 2.0 / n2 if n2 else float("nan")
+    if inverse:
+        w = -w
+    tx, ty, tz = (y * vz - z * vy) * s, (z * vx - x * vz) * s, (x * vy - y * vx) * s
+    return np.array([vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
+                     vz + w * tz + (x * ty - y * tx)], np.result_type(q.dtype, v.dtype))
+
+
 def apply(q, v, inverse=False):
     """Rotate vectors by quaternions (q/|q|), broadcasting batch shapes.
 
@@ -973,8 +1052,9 @@ def apply(q, v, inverse=False):
 
     Notes
     -----
-    One rotation and many vectors use the 3x3 matrix and a matrix product;
-    otherwise ``v + w t + u × t`` with ``t = 2 u × v / |q|²`` per pair.
+    One rotation and many vectors use the 3x3 matrix and a matrix product
+    (the result is then F-ordered, as scipy's); otherwise ``v + w t + u × t``
+    with ``t = 2 u × v / |q|²`` per pair.
 
     Examples
     --------
@@ -985,13 +1065,16 @@ def apply(q, v, inverse=False):
     """
     q = _quat(q)
     v = _vec3(v, "vectors")
+    if q.shape == (4,) and v.shape == (3,):
+        return apply_one(q, v, inverse)
     dtype = np.result_type(q.dtype, v.dtype)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
-    out = np.empty(batch + (3,), dtype)
     if q.size == 4 and v.size > 3:
+        # one matrix for all vectors: M vᵀ written row by row (an F-ordered result, as scipy's)
         m = as_matrix(q.reshape(4).astype(dtype))
-        np.matmul(v, m if inverse else m.T, out=out.reshape(v.shape))
-        return out
+        res = np.matmul(m.T if inverse else m, v, axes=[(-2, -1), (-1, -2), (-1, -2)])
+        return res.reshape(batch + (3,))
+    out = np.empty(batch + (3,), dtype)
     if q.shape[:-1] == batch:
         qf = q.reshape(-1, 4)
     else:

@@ -54,14 +54,6 @@ def _scalar_last(q):
     return out
 
 
-def _scalar_first(q):
-    """(..., 4) scalar-last -> a new scalar-first array."""
-    out = np.empty(q.shape, q.dtype)
-    out[..., 0] = q[..., 3]
-    out[..., 1:] = q[..., :3]
-    return out
-
-
 def _default_atol(*dtypes):
     """1e-8 rad (scipy's default) in float64; 1e-5 rad (about 80 eps) if float32 is involved."""
     return 1e-8 if all(np.dtype(d) == np.float64 for d in dtypes) else 1e-5
@@ -99,17 +91,7 @@ class RotationMixin:
         >>> Rotation.from_quat([0, 0, 1, 1])  # (x, y, z, w): 90° about z
         QuatArray([0.70710678, 0.        , 0.        , 0.70710678])
         """
-        q = float_array(quat, "quat", last=4)
-        if not np.isfinite(q).all():
-            raise ValueError("expected finite quat, got nan or inf")
-        out = q.copy() if scalar_first else _scalar_first(q)
-        n = np.sqrt(np.einsum("...i,...i->...", out, out))
-        if not (n > 0).all():
-            where = np.argwhere(n == 0)[0] if n.ndim else ()
-            raise ValueError(f"Found zero norm quaternions in `quat`: expected non-zero "
-                             f"quaternions, got a zero quaternion at index {tuple(int(i) for i in where)}")
-        out /= n[..., None]
-        return cls._wrap(out)
+        return cls._wrap(C.from_quat(quat, scalar_first=scalar_first))
 
     def as_quat(self, canonical=False, *, scalar_first=False):
         """The quaternions as a plain array (scipy's scalar-last default).
@@ -364,9 +346,11 @@ class RotationMixin:
                [0., 1., 0.]])
         """
         v = float_array(vectors, "vectors")
+        q = _raw(self)
+        if v.shape == (3,) and q.shape == (4,):
+            return C.apply_one(q, v, inverse)
         if v.ndim == 0 or v.shape[-1] != 3:
             raise ValueError(f"Expected input of shape (..., 3): expected vectors of shape (..., 3), got {v.shape}")
-        q = _raw(self)
         try:
             np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
         except ValueError:
@@ -492,11 +476,10 @@ class RotationMixin:
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")
-        q64 = q.astype(np.float64)
-        q64 = q64 / np.sqrt(np.einsum("...i,...i->...", q64, q64))[..., None]
-        if weights is None:
-            wq = q64
-        else:
+        q64 = q.astype(np.float64, copy=False)
+        # Σ w q qᵀ / |q|²: the rotations q/|q|, with the normalisation folded into the weights
+        scale = 1.0 / np.einsum("...i,...i->...", q64, q64)
+        if weights is not None:
             w = float_array(weights, "weights").astype(np.float64)
             if not np.isfinite(w).all():
                 raise ValueError("expected finite weights, got nan or inf")
@@ -508,12 +491,13 @@ class RotationMixin:
             except ValueError:
                 raise ValueError(f"Expected `weights` to be broadcastable to rotation shape: "
                                  f"got weights of shape {w.shape} for rotations of shape {batch}") from None
-            wq = q64 * w[..., None]
+            scale = scale * w
+        wq = q64 * scale[..., None]
         keep = tuple(a for a in range(nb) if a not in axes)
         order = keep + axes + (nb,)
         kshape = tuple(batch[a] for a in keep)
         qm = q64.transpose(order).reshape(kshape + (-1, 4))
-        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))
+        wm = wq.transpose(order).reshape(kshape + (-1, 4))
         k = np.matmul(np.swapaxes(wm, -1, -2), qm)
         _, vectors = np.linalg.eigh(k)
         return self._wrap(C.canonical(vectors[..., -1]).astype(q.dtype))
