@@ -154,7 +154,9 @@ def from_quat(quat, scalar_first=False):
             raise ValueError(f"Found zero norm quaternions in `quat`: expected non-zero quaternions, "
                              f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
         # norms that over- or underflow: normalise after scaling by the largest component
-        redo = ~(np.linalg.norm(flat, axis=1) > 0) | ~np.isfinite(np.linalg.norm(flat, axis=1))
+        with np.errstate(over="ignore", under="ignore"):
+            n2 = np.einsum("ij,ij->i", flat, flat)
+        redo = ~((n2 > 0) & (n2 < np.inf))
         scaled = flat[redo] / scale[redo, None]
         scaled /= np.linalg.norm(scaled, axis=1, keepdims=True)
         oflat[redo] = scaled[:, list(order)]

@@ -47,6 +47,35 @@ def unit(rng, shape, dtype):
     return random_quats(rng, shape, dtype)
 
 
+# --- quaternions -------------------------------------------------------------------------
+
+def test_from_quat_normalises_in_either_order(rng, dtype, batch_shape):
+    q = (5 * random_quats(rng, batch_shape, np.float64, unit=False)).astype(dtype)
+    want = R.from_quat(q.astype(float)).as_quat(scalar_first=True)
+    got = C.from_quat(q)
+    assert got.dtype == dtype and got.shape == q.shape
+    np.testing.assert_allclose(got, want, rtol=0, atol=tol(dtype))
+    np.testing.assert_allclose(C.from_quat(q, scalar_first=True),
+                               R.from_quat(q.astype(float), scalar_first=True).as_quat(scalar_first=True),
+                               rtol=0, atol=tol(dtype))
+
+
+def test_from_quat_with_norms_that_over_or_underflow():
+    q = np.array([[1e200, 0, 0, 1e200], [0, 3e-200, 0, 4e-200], [0, 0, 0, 1]])
+    np.testing.assert_allclose(C.from_quat(q), [[2 ** -0.5, 2 ** -0.5, 0, 0], [0.8, 0, 0.6, 0], [1, 0, 0, 0]],
+                               rtol=1e-15)
+
+
+@pytest.mark.parametrize("q, match", [
+    ([[0, 0, 0, 1], [0, 0, 0, 0]], r"zero quaternion at index \(1,\)"),
+    ([[[0, 0, 0, 1]], [[np.nan, 0, 0, 1]]], r"nan or inf in quaternion \(1, 0\)"),
+    ([np.inf, 0, 0, 1], r"nan or inf in quaternion \(\)"),
+])
+def test_from_quat_bad_values(q, match):
+    with pytest.raises(ValueError, match=match):
+        C.from_quat(q)
+
+
 # --- matrices ---------------------------------------------------------------------------
 
 @pytest.mark.parametrize("shape", SHAPES)
@@ -454,6 +483,18 @@ def test_apply_broadcasts_and_matches_scipy(rng, dtype, qshape, vshape, inverse)
     vb = np.array(np.broadcast_to(v.astype(float), got.shape).reshape(-1, 3))
     want = R.from_quat(qb, scalar_first=True).apply(vb, inverse=inverse).reshape(got.shape)
     np.testing.assert_allclose(got, want, rtol=0, atol=tol(dtype) * 4)
+
+
+def test_apply_one_rotation_to_many_vectors_and_zero_quaternion(rng):
+    q = unit(rng, (), np.float64)
+    v = rng.standard_normal((4, 5, 3))
+    got = C.apply(q[None, None], v, inverse=True)
+    assert got.shape == (4, 5, 3)
+    np.testing.assert_allclose(got, sp(q).apply(v.reshape(-1, 3), inverse=True).reshape(4, 5, 3), atol=1e-14)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isnan(C.apply(np.zeros(4), np.ones(3))).all()
+        assert np.isnan(C.apply(np.zeros((2, 4)), np.ones(3))).all()
 
 
 def test_apply_mixed_dtypes_promote(rng):
