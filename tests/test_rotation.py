@@ -488,8 +488,8 @@ def test_same_error_types_as_scipy(call, exc):
 
 # --- migration: one workflow, two imports ----------------------------------------------------------
 
-def workflow(R):
-    """A realistic scipy-style pipeline, written once for either `Rotation` class."""
+def workflow(R, Slerp):
+    """A realistic scipy-style pipeline, written once for either import."""
     rng = np.random.default_rng(2024)
     # body orientations from a log of intrinsic yaw-pitch-roll angles, in degrees
     ypr = np.column_stack([rng.uniform(-180, 180, 500), rng.uniform(-80, 80, 500), rng.uniform(-180, 180, 500)])
@@ -505,6 +505,8 @@ def workflow(R):
     average = noisy.mean(weights=rng.uniform(0.5, 1.5, 200))
     fitted, rssd = R.align_vectors(world[:20], cloud[:20])
     randoms = R.random(50, rng=11)
+    keys = R.from_euler("xyz", rng.uniform(-1, 1, (12, 3)))
+    smooth = Slerp(np.linspace(0, 10, 12), keys)(np.linspace(0, 10, 101))
     return {
         "euler": sensor.as_euler("ZYX", degrees=True),
         "euler_ext": sensor.as_euler("xyz"),
@@ -525,11 +527,15 @@ def workflow(R):
         "from_matrix": R.from_matrix(sensor.as_matrix()).as_quat(canonical=True),
         "from_quat": R.from_quat(sensor.as_quat()).as_rotvec(),
         "concat": R.concatenate([mount, sensor[:3]]).as_rotvec(),
+        "slerp": smooth.as_euler("xyz"),
     }
 
 
 def test_migration_workflow_gives_scipys_numbers():
-    ours, theirs = workflow(Rotation), workflow(SR)
+    from scipy.spatial.transform import Slerp as ScipySlerp
+
+    from quatarray.interpolate import Slerp
+    ours, theirs = workflow(Rotation, Slerp), workflow(SR, ScipySlerp)
     assert ours.keys() == theirs.keys()
     for key in ours:
         got, want = np.asarray(ours[key]), np.asarray(theirs[key])
