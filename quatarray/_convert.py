@@ -713,7 +713,7 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
         if sign < 0:
             np.negative(o[third], out=o[third])
         middle -= lamb
-    for row in o:  # into [-π, π]
+    for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
         np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
         np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
     return gimbal
