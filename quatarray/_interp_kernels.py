@@ -170,7 +170,7 @@ def slerp_core(A, B, h, O, shortest, work):
 # SLERP along a precomputed frame (fixed endpoints, used by Track)
 # --------------------------------------------------------------------------
 
-def frames(k0, k1):
+def frames(k0, k1, F=None, phi=None):
     """Great-circle frames for fixed pairs, components first.
 
     For unit k0, k1 (shape (4, *s)) returns ``(F, phi)``: F (8, *s) stacks k0
@@ -179,7 +179,8 @@ def frames(k0, k1):
     + sin(2 u phi) p``.  No sign flip is applied.  p is computed without
     cancellation as ``(2 D + a² k0) / (a b)`` with D = k1 - k0 (a = |D|,
     b = |k1 + k0|); coincident pairs get p = 0 and antipodal pairs p = 0,
-    phi = 0 (a constant rotation: the arc is not unique).
+    phi = 0 (a constant rotation: the arc is not unique).  `F` and `phi`
+    may be given as output arrays (views into a table).
     """
     D = k1 - k0
     S = k1 + k0
@@ -187,14 +188,21 @@ def frames(k0, k1):
     b2 = vdot(S, S, axis=0)
     a = np.sqrt(a2)
     b = np.sqrt(b2)
-    phi = np.arctan2(a, b)
+    if F is None:
+        F = np.empty((8,) + a.shape, np.result_type(k0, k1))
+        phi = np.empty(a.shape, F.dtype)
+    np.arctan2(a, b, out=phi)
     phi[b == 0] = 0            # antipodal: the arc is not unique; stay at k0 (same rotation as k1)
     n2 = a2 + b2  # 4 for unit quaternions
     ab = a * b
     scale = np.divide(1, ab, out=np.zeros_like(ab), where=ab > 0)
-    p = (D * (n2 / 2) + a2 * k0) * scale
-    F = np.concatenate([k0, p]).astype(k0.dtype, copy=False)
-    return F, phi.astype(k0.dtype, copy=False)
+    n2 *= 0.5
+    D *= n2
+    k0a = a2 * k0
+    D += k0a
+    np.multiply(D, scale, out=F[4:])
+    F[:4] = k0
+    return F, phi
 
 
 def frame_core(F, phi, u, O, work, key="fr"):

@@ -528,14 +528,15 @@ class Track:
         """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B) for the n
         great-circle pieces k0[:, j] -> k1[:, j] ((4, n, K-1, B) each) of every segment,
         plus a phantom segment K-1 that stays at `last` (4, B) (so t = t_end is exact)."""
-        F, phi = IK.frames(k0, k1)                       # (8, n, K-1, B), (n, K-1, B)
-        n, B = F.shape[1], F.shape[3]
-        hold = np.zeros((8, n, 1, B))
-        hold[:4] = last[:, None, None]
-        F = np.concatenate([F, hold], axis=2)
-        phi = np.concatenate([phi, np.zeros((n, 1, B))], axis=1)
-        K = F.shape[2]
-        return np.concatenate([F.transpose(1, 0, 2, 3).reshape(8 * n, K, B), phi])
+        n, K1, B = k0.shape[1:]
+        table = np.empty((9 * n, K1 + 1, B))
+        Fv = table[:8 * n].reshape(n, 8, K1 + 1, B)
+        phi = table[8 * n:]
+        IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), phi[:, :K1])
+        Fv[:, :4, K1] = last[None]
+        Fv[:, 4:, K1] = 0
+        phi[:, K1] = 0
+        return table
 
     # --- properties ---------------------------------------------------------
     @property
