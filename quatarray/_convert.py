@@ -24,6 +24,7 @@ float64 ``tan`` is SIMD-vectorised (about 1.4 ns per element on AVX2) while
 through ``arctan2`` (accurate at 0 and at π), never ``arccos``.
 """
 
+import math
 import re
 import warnings
 
@@ -140,9 +141,14 @@ def from_quat(quat, scalar_first=False):
     array([0.8, 0. , 0. , 0.6])
     """
     q = _quat(quat)
+    order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
+    if q.ndim == 1:  # one quaternion: Python floats (a few µs instead of a block run)
+        c = q.tolist()
+        n = math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])
+        if 0 < n < math.inf:
+            return np.array([c[i] / n for i in order], q.dtype)
     out = np.empty(q.shape, q.dtype)
     flat, oflat = q.reshape(-1, 4), out.reshape(-1, 4)
-    order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
     if _blockwise(_k_from_quat, [flat], [oflat], order=order):
         finite = np.isfinite(flat).all(axis=1)
         if not finite.all():
