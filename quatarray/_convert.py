@@ -1,8 +1,9 @@
 """Conversions between scalar-first quaternions and other rotation representations.
 
 Rotation matrices, rotation vectors, Euler and Davenport angles and modified
-Rodrigues parameters, both ways, plus the rotation kernels behind
-`Rotation.apply`, `inv` and `magnitude`.  Everything works on raw ndarrays:
+Rodrigues parameters, both ways, and the rotation angle behind
+`Rotation.magnitude` (rotating vectors and inverting are `_kernels.rotate` and
+`_kernels.conjugate`).  Everything works on raw ndarrays:
 quaternions are ``(..., 4)`` scalar-first ``(w, x, y, z)``, any batch shape,
 float32 stays float32, inputs are never modified.  A quaternion ``q`` is read
 as the rotation by ``q / |q|``, so the ``as_*`` functions accept non-unit
@@ -34,8 +35,8 @@ from ._validate import CHUNK, float_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler",
-    "as_mrp", "from_mrp", "as_davenport", "from_davenport", "canonical", "inv",
-    "magnitude", "apply", "apply_one", "check_seq", "check_order",
+    "as_mrp", "from_mrp", "as_davenport", "from_davenport", "canonical",
+    "magnitude", "check_seq", "check_order",
 ]
 
 _TINY = {np.dtype(np.float32): 1e-30, np.dtype(np.float64): 1e-300}
@@ -944,7 +945,7 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     return np.rad2deg(out, out=out) if degrees else out
 
 
-# --- canonical form, inverse, applying ---------------------------------------------------------
+# --- canonical form ---------------------------------------------------------------------------
 
 def canonical(q):
     """The representative with w > 0 (for w = 0: first non-zero of x, y, z positive).
@@ -969,128 +970,3 @@ def canonical(q):
     return np.where(flip[..., None], -q, q)
 
 
-_SIGNS = {}
-
-
-def _conj_signs(dtype):
-    key = np.dtype(dtype)
-    if key not in _SIGNS:
-        _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], key), CHUNK)
-    return _SIGNS[key]
-
-
-def inv(q):
-    """Inverse rotations: the conjugates (w, -x, -y, -z), norms kept.
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-
-    Examples
-    --------
-    >>> inv(np.array([0.5, 0.5, -0.5, 0.5]))
-    array([ 0.5, -0.5,  0.5, -0.5])
-    """
-    q = _quat(q)
-    out = np.empty(q.shape, q.dtype)
-    src = q.reshape(-1)
-    dst = out.reshape(-1)
-    signs = _conj_signs(q.dtype)
-    step = signs.size
-    for start in range(0, src.size, step):
-        stop = min(start + step, src.size)
-        np.multiply(src[start:stop], signs[:stop - start], out=dst[start:stop])
-    return out
-
-
-def _k_apply(q, v, o, wsign):
-    w, x, y, z = q
-    vx, vy, vz = v
-    s = 2.0 / (w * w + x * x + y * y + z * z)
-    if wsign < 0:
-        w = -w  # the conjugate (w, -u) gives t -> -t, u -> -u: v' = v - w t + u × t
-    # t = s (u × v);  v' = v + w t + u × t   (u = (x, y, z))
-    tx = (y * vz - z * vy) * s
-    ty = (z * vx - x * vz) * s
-    tz = (x * vy - y * vx) * s
-    np.add(vx, w * tx, out=o[0])
-    o[0] += y * tz - z * ty
-    np.add(vy, w * ty, out=o[1])
-    o[1] += z * tx - x * tz
-    np.add(vz, w * tz, out=o[2])
-    o[2] += x * ty - y * tx
-
-
-def apply_one(q, v, inverse=False):
-    """`apply` for one quaternion (4,) and one vector (3,), in Python floats (a few µs).
-
-    >>> apply_one(np.array([0.0, 0, 0, 1]), np.array([1.0, 2, 3]))
-    array([-1., -2.,  3.])
-    """
-    w, x, y, z = q.tolist()
-    vx, vy, vz = v.tolist()
-    n2 = w * w + x * x + y * y + z * z
-    s = 2.0 / n2 if n2 else float("nan")
-    if inverse:
-        w = -w
-    tx, ty, tz = (y * vz - z * vy) * s, (z * vx - x * vz) * s, (x * vy - y * vx) * s
-    return np.array([vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
-                     vz + w * tz + (x * ty - y * tx)], np.result_type(q.dtype, v.dtype))
-
-
-def apply(q, v, inverse=False):
-    """Rotate vectors by quaternions (q/|q|), broadcasting batch shapes.
-
-    Parameters
-    ----------
-    q : ndarray, shape (..., 4)
-    v : ndarray, shape (..., 3)
-        Batch shapes broadcast against each other the NumPy way.
-    inverse : bool, default False
-        Rotate by the inverse rotations.
-
-    Returns
-    -------
-    ndarray, shape (broadcast batch, 3)
-        float32 only if both inputs are float32.
-
-    Notes
-    -----
-    One rotation and many vectors use the 3x3 matrix and a matrix product
-    (the result is then F-ordered, as scipy's); otherwise ``v + w t + u × t``
-    with ``t = 2 u × v / |q|²`` per pair.
-
-    Examples
-    --------
-    >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
-    >>> np.round(apply(q, np.array([[1.0, 0, 0], [0, 1, 0]])), 12) + 0.0
-    array([[ 0.,  1.,  0.],
-           [-1.,  0.,  0.]])
-    """
-    q = _quat(q)
-    v = _vec3(v, "vectors")
-    if q.shape == (4,) and v.shape == (3,):
-        return apply_one(q, v, inverse)
-    dtype = np.result_type(q.dtype, v.dtype)
-    batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
-    if q.size == 4 and v.size > 3:
-        # one matrix for all vectors: M vᵀ written row by row (an F-ordered result, as scipy's)
-        m = as_matrix(q.reshape(4).astype(dtype))
-        res = np.matmul(m.T if inverse else m, v, axes=[(-2, -1), (-1, -2), (-1, -2)])
-        return res.reshape(batch + (3,))
-    out = np.empty(batch + (3,), dtype)
-    if q.shape[:-1] == batch:
-        qf = q.reshape(-1, 4)
-    else:
-        qf = np.broadcast_to(q, batch + (4,)).reshape(-1, 4)
-    if v.shape[:-1] == batch:
-        vf = v.reshape(-1, 3)
-    else:
-        vf = np.broadcast_to(v, batch + (3,)).reshape(-1, 3)
-    _blockwise(_k_apply, [qf.astype(dtype, copy=False), vf.astype(dtype, copy=False)],
-               [out.reshape(-1, 3)], wsign=-1 if inverse else 1)
-    return out

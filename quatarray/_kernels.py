@@ -184,16 +184,37 @@ def multiply(p, q, out=None):
     return res
 
 
+_SIGNS = {}
+
+
+def _conj_signs(dtype):
+    """(1, -1, -1, -1) tiled over one block, per dtype (built once)."""
+    dtype = np.dtype(dtype)
+    if dtype not in _SIGNS:
+        _SIGNS[dtype] = np.tile(np.array([1, -1, -1, -1], dtype), CHUNK)
+    return _SIGNS[dtype]
+
+
 def conjugate(q, out=None):
     """Quaternion conjugate (w, -x, -y, -z).
+
+    A flat multiply by a tiled sign pattern, block by block: long inner loops
+    instead of a length-3 one per quaternion.
 
     >>> conjugate(np.array([1., 2, 3, 4]))
     array([ 1., -2., -3., -4.])
     """
-    res = _out(out, q.shape, result_dtype(q))
-    if not np.may_share_memory(res, q):
-        res[..., 0] = q[..., 0]
-    np.negative(q[..., 1:], out=res[..., 1:])
+    dtype = result_dtype(q)
+    res = _out(out, q.shape, dtype)
+    if not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
+        np.multiply(q, _conj_signs(dtype)[:4], out=res)
+        return res
+    src, dst = q.reshape(-1), res.reshape(-1)
+    signs = _conj_signs(dtype)
+    step = signs.size
+    for start in range(0, src.size, step):
+        stop = min(start + step, src.size)
+        np.multiply(src[start:stop], signs[:stop - start], out=dst[start:stop])
     return res
 
 
@@ -348,31 +369,54 @@ def power(q, t):
     return res
 
 
-def rotate(q, v):
+def rotate(q, v, inverse=False):
     """Rotate vectors `v` (..., 3) by q/|q|: the vector part of q v q⁻¹.
 
     Uses the expanded form u' = u + w t + vec × t with t = 2 vec × u / |q|²,
     which is the game-developer formula u + 2w(v×u) + 2 v×(v×u) for unit q.
+    One quaternion and many vectors use its 3x3 matrix and one matrix product
+    (the result is then F-ordered).  With `inverse`, rotate by conj(q).
+    Zero quaternions give nan.
 
     >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])  # 90° about z
     >>> np.allclose(rotate(q, np.array([1., 0, 0])), [0, 1, 0])
     True
+    >>> np.allclose(rotate(q, np.array([[1., 0, 0]]), inverse=True), [[0, -1, 0]])
+    True
     """
     dtype = result_dtype(q, v)
     if q.shape == (4,) and v.shape == (3,):
-        return _rotate_scalar(q, v, dtype)
+        return _rotate_scalar(q, v, dtype, inverse)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    if q.size == 4 and v.size > 3:
+        m = _matrix_one(q, dtype)
+        res = np.matmul(m.T if inverse else m, v.astype(dtype, copy=False), axes=[(-2, -1), (-1, -2), (-1, -2)])
+        return res.reshape(batch + (3,))
     res = np.empty(batch + (3,), dtype)
     nb = len(batch)
     with np.errstate(divide="ignore", invalid="ignore"):  # zero quaternions give nan
         for idx in blocks(batch):
-            _rotate_block(_sub(q, idx, nb), _sub(v, idx, nb), res[idx])
+            _rotate_block(_sub(q, idx, nb), _sub(v, idx, nb), res[idx], -1.0 if inverse else 1.0)
     return res
 
 
-def _rotate_scalar(q, u, dtype):
-    """`rotate` for one quaternion and one vector, with Python floats."""
+def _matrix_one(q, dtype):
+    """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero)."""
+    w, x, y, z = q.reshape(4).tolist()
+    n2 = w * w + x * x + y * y + z * z
+    s = 2.0 / n2 if n2 else float("nan")
+    return np.array([
+        [1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w)],
+        [s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w)],
+        [s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y)],
+    ], dtype)
+
+
+def _rotate_scalar(q, u, dtype, inverse=False):
+    """`rotate` for one quaternion and one vector, with Python floats (a few µs)."""
     w, x, y, z = q.tolist()
+    if inverse:
+        w = -w  # conj(q) = (w, -vec): t -> -t, and vec × t keeps its sign
     ux, uy, uz = u.tolist()
     n2 = w * w + x * x + y * y + z * z
     s = 2.0 / n2 if n2 else float("nan")  # zero quaternions give nan, as the array path
@@ -381,8 +425,8 @@ def _rotate_scalar(q, u, dtype):
                      uz + w * tz + (x * ty - y * tx)], dtype)
 
 
-def _rotate_block(q, u, o):
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+def _rotate_block(q, u, o, wsign):
+    w, x, y, z = q[..., 0] * wsign, q[..., 1], q[..., 2], q[..., 3]
     ux, uy, uz = u[..., 0], u[..., 1], u[..., 2]
     s = 2.0 / (w * w + x * x + y * y + z * z)
     tx = (y * uz - z * uy) * s

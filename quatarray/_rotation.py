@@ -348,7 +348,7 @@ class RotationMixin:
         v = float_array(vectors, "vectors")
         q = _raw(self)
         if v.shape == (3,) and q.shape == (4,):
-            return C.apply_one(q, v, inverse)
+            return K.rotate(q, v, inverse)
         if v.ndim == 0 or v.shape[-1] != 3:
             raise ValueError(f"Expected input of shape (..., 3): expected vectors of shape (..., 3), got {v.shape}")
         try:
@@ -356,7 +356,7 @@ class RotationMixin:
         except ValueError:
             raise ValueError(f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape[:-1]} vectors: "
                              f"expected batch shapes that broadcast") from None
-        return C.apply(q, v, inverse=inverse)
+        return K.rotate(q, v, inverse=inverse)
 
     def inv(self):
         """Inverse rotations (the conjugates; norms are kept).
@@ -368,7 +368,7 @@ class RotationMixin:
         >>> r.inv().as_rotvec() + 0.0
         array([ 0.,  0., -1.])
         """
-        return self._wrap(C.inv(_raw(self)))
+        return self._wrap(K.conjugate(_raw(self)))
 
     def magnitude(self):
         """Rotation angles in [0, π] (a NumPy scalar for a single rotation).
@@ -714,7 +714,7 @@ def _align_primary(a, b, w, inf):
     if a.shape[0] > 1:
         sec = ~inf
         a_sec, b_sec, w_sec = a[sec], b[sec], w[sec]
-        c_sec = C.apply(q_pri, b_sec)
+        c_sec = K.rotate(q_pri, b_sec)
         sin_term = np.einsum("ij,j->i", np.cross(c_sec, a_sec), a_pri)
         cos_term = np.einsum("ij,ij->i", c_sec, a_sec) - (c_sec @ a_pri) * (a_sec @ a_pri)
         phi = np.arctan2(np.sum(w_sec * sin_term), np.sum(w_sec * cos_term))
@@ -722,6 +722,6 @@ def _align_primary(a, b, w, inf):
     w_zero = w.copy()
     if a.shape[0] > 1 or np.isposinf(w[0]):
         w_zero[inf] = 0
-    est = C.apply(q, b)
+    est = K.rotate(q, b)
     rssd = np.sqrt(np.sum(w_zero @ (a - est) ** 2))
     return q, rssd

@@ -1,6 +1,8 @@
 """Raw-array quaternion algebra: values against independent formulas and scipy,
 algebraic identities (hypothesis), dtypes, layouts and broadcasting."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -10,6 +12,7 @@ from hypothesis.extra.numpy import arrays
 from quatarray import _kernels as K
 
 from .conftest import random_quats, tol
+from .test_convert import R, assert_same_rotation, sp, sp_quat, unit
 
 
 def hamilton_reference(p, q):
@@ -238,3 +241,56 @@ def test_rotate_broadcasts_and_keeps_dtype(rng, dtype):
     assert got.shape == (4, 3, 3) and got.dtype == dtype
     want = cross_rotate_reference(q.astype(float), v.astype(float))
     np.testing.assert_allclose(got, want, atol=tol(dtype) * 10)
+
+
+# --- rotating vectors and the conjugate, against scipy ----------------------------------
+
+def test_conjugate_is_scipy_inverse(rng, dtype, batch_shape):
+    q = unit(rng, batch_shape, dtype)
+    got = K.conjugate(q)
+    assert got.dtype == dtype and got.shape == q.shape
+    np.testing.assert_array_equal(got[..., 0], q[..., 0])
+    np.testing.assert_array_equal(got[..., 1:], -q[..., 1:])
+    assert_same_rotation(got, sp_quat(sp(q).inv()), tol(dtype))
+
+
+@pytest.mark.parametrize("qshape, vshape", [((), ()), ((), (9,)), ((9,), ()), ((9,), (9,)), ((9,), (1,)),
+                                            ((5, 1, 4), (3, 4)), ((2, 3), (3,)), ((1,), (4, 1))])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_rotate_broadcasts_and_matches_scipy(rng, dtype, qshape, vshape, inverse):
+    q = unit(rng, qshape, dtype)
+    v = rng.standard_normal(vshape + (3,)).astype(dtype)
+    got = K.rotate(q, v, inverse=inverse)
+    assert got.dtype == dtype
+    assert got.shape == np.broadcast_shapes(qshape, vshape) + (3,)
+    qb = np.array(np.broadcast_to(q.astype(float), got.shape[:-1] + (4,)).reshape(-1, 4))
+    vb = np.array(np.broadcast_to(v.astype(float), got.shape).reshape(-1, 3))
+    want = R.from_quat(qb, scalar_first=True).apply(vb, inverse=inverse).reshape(got.shape)
+    np.testing.assert_allclose(got, want, rtol=0, atol=tol(dtype) * 4)
+
+
+def test_rotate_one_rotation_to_many_vectors_and_zero_quaternion(rng):
+    q = unit(rng, (), np.float64)
+    v = rng.standard_normal((4, 5, 3))
+    got = K.rotate(q[None, None], v, inverse=True)
+    assert got.shape == (4, 5, 3)
+    np.testing.assert_allclose(got, sp(q).apply(v.reshape(-1, 3), inverse=True).reshape(4, 5, 3), atol=1e-14)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.isnan(K.rotate(np.zeros(4), np.ones(3))).all()
+        assert np.isnan(K.rotate(np.zeros((2, 4)), np.ones(3))).all()
+
+
+def test_rotate_mixed_dtypes_promote(rng):
+    q = unit(rng, (4,), np.float32)
+    v = rng.standard_normal((4, 3))
+    assert K.rotate(q, v).dtype == np.float64
+    assert K.rotate(q[0], v).dtype == np.float64
+    assert K.rotate(q.astype(float), v.astype(np.float32)).dtype == np.float64
+
+
+def test_rotate_by_non_unit_quaternion_is_a_rotation(rng):
+    q = unit(rng, (30,), np.float64) * 3.0
+    v = rng.standard_normal((30, 3))
+    np.testing.assert_allclose(K.rotate(q, v), K.rotate(q / 3.0, v), atol=1e-14)
+    np.testing.assert_allclose(K.rotate(q[0], v), K.rotate(q[0] / 3.0, v), atol=1e-14)
