@@ -1,8 +1,17 @@
-"""quatarray: vectorised NumPy arrays of quaternions."""
+"""quatarray: vectorised NumPy arrays of quaternions.
+
+`QuatArray` (alias `Rotation`, a drop-in for `scipy.spatial.transform.Rotation`),
+keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`, `bezier`, `Track`,
+and scipy's `Slerp`), and `quatarray.testing` for assertions.
+"""
 
 from ._array import QuatArray
+from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
 
 Rotation = QuatArray
 
-__all__ = ["QuatArray", "Rotation"]
+__all__ = [
+    "QuatArray", "Rotation", "Slerp", "Track",
+    "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
+]
 __version__ = "0.1.0"
