@@ -6,7 +6,7 @@ result.  Three policies keep it from surprising a NumPy user:
 * **Indexing** is decided from the index, not from the result's shape: an index
   that leaves the last axis whole returns a `QuatArray`, one that touches it
   returns a plain `ndarray`.
-* **Ufuncs** go through `_UFUNCS`: each has a quaternion meaning (the Hamilton
+* **Ufuncs** go through `_BINARY` and `_UNARY`: each has a quaternion meaning (the Hamilton
   product for `multiply`, ...).  Any other ufunc raises `TypeError` instead of
   applying componentwise maths.
 * **NumPy functions** go through `BATCH_FUNCTIONS` (keep the class; axes and
