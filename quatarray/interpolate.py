@@ -4,7 +4,9 @@ spherical Bézier curves, and keyframe tracks (`Track`, scipy-style `Slerp`).
 Every function accepts `QuatArray` or array_like input of shape (..., 4)
 (scalar-first w, x, y, z), broadcasts batch shapes the NumPy way, keeps
 float32 as float32, never modifies its inputs and returns a `QuatArray`.
-The maths lives in `quatarray._interp_kernels`; this module validates and wraps.
+The maths lives in `quatarray._interp_kernels` (blocked SLERP kernels, segment
+lookup) and `quatarray._interp_curves` (control points, analytic derivatives);
+this module validates and wraps.
 
 Conventions
 -----------
@@ -551,10 +553,12 @@ class Track:
 
     @property
     def method(self):
+        """The interpolation method: 'linear', 'slerp', 'squad' or 'bezier'."""
         return self._method
 
     @property
     def extrapolate(self):
+        """Behaviour outside the key times: 'raise', 'clamp' or 'extend'."""
         return self._extrapolate
 
     @property
@@ -564,6 +568,7 @@ class Track:
 
     @property
     def dtype(self):
+        """float32 or float64: the dtype of the keys, and of every output."""
         return self._dtype
 
     @property
@@ -572,6 +577,7 @@ class Track:
         return self._controls
 
     def __len__(self):
+        """Number of keys K."""
         return len(self._times)
 
     def __repr__(self):
