@@ -110,17 +110,27 @@ def _number(fn, min_time):
         number *= 2 if dt == 0 else max(2, min(10, int(1.5 * min_time / dt)))
 
 
-def measure(calls, repeat, min_time, warm=None):
+def measure(calls, repeat, min_time, warm=None, budget=3.0):
     """Best seconds per call of each callable in `calls` (dict), timed interleaved.
 
     `warm` maps a key to the duration of a call already made: one that took
-    at least `min_time` is timed one call per sample without calibration.
+    at least `min_time` is timed one call per sample without calibration,
+    and slow calls get only as many samples as fit in `budget` seconds (at
+    least one; a call slower than `budget` counts its warm-up as its sample).
     """
     warm = warm or {}
-    numbers = {k: 1 if warm.get(k, 0) >= min_time else _number(f, min_time) for k, f in calls.items()}
+    numbers, samples = {}, {}
     best = dict.fromkeys(calls, float("inf"))
-    for _ in range(repeat):
+    for k, f in calls.items():
+        w = warm.get(k, 0.0)
+        numbers[k] = 1 if w >= min_time else _number(f, min_time)
+        samples[k] = repeat if w * repeat <= budget else max(int(budget / w), 0)
+        if samples[k] == 0:
+            best[k] = w
+    for r in range(repeat):
         for k, f in calls.items():
+            if r >= samples[k]:
+                continue
             n = numbers[k]
             gc.disable()
             t0 = time.perf_counter()
