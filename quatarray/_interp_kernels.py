@@ -23,6 +23,7 @@ element, tan and arctan ~1.4 ns), and no 1 - cos cancellation appears:
 for tiny angles tau / rho -> h with full relative accuracy.
 """
 
+import threading
 from math import prod
 
 import numpy as np
@@ -41,19 +42,39 @@ __all__ = [
 BLOCK = 2 * CHUNK
 
 
+_TINY = {np.dtype(d): (np.sqrt(np.finfo(d).tiny), 4 * np.finfo(d).tiny) for d in (np.float32, np.float64)}
+
+
 def _tiny(dtype):
     """Smallest rho = tan(Omega/2) kept as is: its square is still a normal number."""
-    return np.sqrt(np.finfo(dtype).tiny)
+    return _TINY[np.dtype(dtype)][0]
 
 
-if hasattr(np, "vecdot"):   # NumPy >= 2: a gufunc, much cheaper than einsum on small arrays
-    def vdot(p, q, axis=-1):
-        """Dot products of real vectors along `axis` (-1: (..., n); 0: components first)."""
-        return np.vecdot(p, q, axis=axis)
-else:  # pragma: no cover - NumPy 1.x
-    def vdot(p, q, axis=-1):
-        """Dot products of real vectors along `axis` (-1: (..., n); 0: components first)."""
-        return np.einsum("i...,i...->..." if axis == 0 else "...i,...i->...", p, q)
+def _floor(dtype):
+    """Floor for b² = |B + A|² (4 · smallest normal): keeps a²/b² finite and quiet."""
+    return _TINY[np.dtype(dtype)][1]
+
+
+def vdot(p, q, axis=-1):
+    """Dot products of real vectors along `axis` (-1: (..., n); 0: components first).
+
+    Summed component by component in a fixed order, so that every element's
+    result is the same whatever the size or layout of the batch (a batch of
+    tracks gives bit for bit the tracks built one by one; einsum's and
+    vecdot's summation order depends on the batch size).
+    """
+    n = p.shape[axis]
+    if axis == 0:
+        pc, qc = p, q
+    else:
+        pc, qc = np.moveaxis(p, -1, 0), np.moveaxis(q, -1, 0)
+    out = pc[0] * qc[0]
+    for k in range(1, n):
+        out += pc[k] * qc[k]
+    return out
+
+
+_POOL = threading.local()
 
 
 class Work:
@@ -66,6 +87,30 @@ class Work:
     def __init__(self, dtype):
         self.dtype = np.dtype(dtype)
         self._bufs = {}
+        self.busy = False
+
+    @classmethod
+    def acquire(cls, dtype):
+        """This thread's pooled scratch for `dtype` (a fresh one if it is in use).
+
+        Fresh scratch costs page faults on first touch: for a call on ~10⁴
+        quaternions that is several times the arithmetic, so the buffers are
+        kept between calls (a few MB per thread and dtype, bounded by BLOCK).
+        Pair with `release`.
+        """
+        pool = getattr(_POOL, "pool", None)
+        if pool is None:
+            pool = _POOL.pool = {}
+        dtype = np.dtype(dtype)
+        work = pool.get(dtype)
+        if work is None or work.busy:
+            work = cls(dtype)
+            pool.setdefault(dtype, work)
+        work.busy = True
+        return work
+
+    def release(self):
+        self.busy = False
 
     def rows(self, key, n, shape):
         shape = tuple(shape)
@@ -129,7 +174,7 @@ def slerp_core(A, B, h, O, shortest, work):
             antipodal = zero_b & (a2 > 0)
     # b² = 0 only for zero input (or B = -A followed as given, fixed below):
     # a floor keeps the division finite and quiet (no errstate needed)
-    np.maximum(b2, 4 * np.finfo(dtype).tiny, out=b2)
+    np.maximum(b2, _floor(dtype), out=b2)
     np.divide(r2, b2, out=r2)
     np.sqrt(r2, out=rho)
     np.maximum(rho, _tiny(dtype), out=rho)
@@ -251,19 +296,48 @@ def _drive(fn, quats, t, dtype, extra=()):
         return _drive(fn, [q[None] for q in quats], t[None], dtype, extra)[0]
     out = np.empty(batch + (4,), dtype)
     nb = len(batch)
-    work = Work(dtype)
-    for idx in blocks(batch, BLOCK):
-        ob = out[idx]
-        s = ob.shape[:-1]
-        ins = []
-        for j, q in enumerate(quats):
-            buf = work.rows(("in", j), 4, s)
-            qb = _sub(q, idx, nb)
-            qb = qb.reshape((1,) * (len(s) + 1 - qb.ndim) + qb.shape)
-            np.copyto(buf, soa(qb), casting="unsafe")
-            ins.append(buf)
-        fn(*ins, _sub(t, idx, nb, lead=0), soa(ob), work, *extra)
+    work = Work.acquire(dtype)
+    try:
+        for idx in blocks(batch, BLOCK):
+            ob = out[idx]
+            s = ob.shape[:-1]
+            ins = []
+            for j, q in enumerate(quats):
+                buf = work.rows(("in", j), 4, s)
+                qb = _sub(q, idx, nb)
+                qb = qb.reshape((1,) * (len(s) + 1 - qb.ndim) + qb.shape)
+                np.copyto(buf, soa(qb), casting="unsafe")
+                ins.append(buf)
+            fn(*ins, _sub(t, idx, nb, lead=0), soa(ob), work, *extra)
+    finally:
+        work.release()
     return out
+
+
+#: Up to this many quaternions the pairwise functions use direct (..., 4)
+#: expressions: fewer NumPy calls than the blocked kernels, whose per-call
+#: overhead dominates below ~10³ quaternions.  Same formulas; the last bit may
+#: differ from the blocked path.
+SMALL = 512
+
+_VECDOT = getattr(np, "vecdot", None)
+
+
+def _small(quats, t):
+    """The broadcast batch size when it is small enough for the direct path, else None."""
+    shape = t.shape
+    if any(q.shape[:-1] != shape for q in quats):
+        shape = np.broadcast_shapes(*(q.shape[:-1] for q in quats), shape)
+    size = prod(shape)
+    return size if size <= SMALL else None
+
+
+def _dot_last(x, y):
+    return _VECDOT(x, y) if _VECDOT is not None else np.einsum("...i,...i->...", x, y)
+
+
+def _sq_last(x):
+    return _dot_last(x, x)
 
 
 def slerp(q0, q1, t, shortest=True):
@@ -271,6 +345,8 @@ def slerp(q0, q1, t, shortest=True):
     dtype = _dtype_of(q0, q1)
     if q0.shape == q1.shape == (4,) and t.ndim == 0:
         return _slerp_one(q0, q1, float(t), shortest, dtype)
+    if _small((q0, q1), t) is not None:
+        return _slerp_small(q0, q1, t, shortest, dtype)
 
     def fn(A, B, h, O, work):
         slerp_core(A, B, h, O, shortest, work)
@@ -278,11 +354,44 @@ def slerp(q0, q1, t, shortest=True):
     return _drive(fn, (q0, q1), t, dtype)
 
 
+def _slerp_small(q0, q1, t, shortest, dtype):
+    """`slerp_core`'s weights as direct expressions on (..., 4) arrays (small batches)."""
+    A = q0.astype(dtype, copy=False)
+    B = q1.astype(dtype, copy=False)
+    h = t.astype(dtype, copy=False)
+    a2 = _sq_last(B - A)
+    b2 = _sq_last(B + A)
+    floor = _floor(dtype)
+    if shortest:
+        sgn = np.copysign(1, b2 - a2)
+        r2 = np.minimum(a2, b2) / np.maximum(np.maximum(a2, b2), floor)
+    else:
+        r2 = a2 / np.maximum(b2, floor)
+    rho = np.maximum(np.sqrt(r2), _tiny(dtype))
+    tau = np.tan(np.arctan(rho) * h)
+    t2 = tau * tau
+    g = 1 / (1 + t2)
+    v = tau / rho
+    w0 = (1 - (t2 + (1 - r2) * v)) * g
+    w1 = (1 + r2) * v * g
+    if shortest:
+        w1 *= sgn
+    else:
+        anti = (b2 == 0) & (a2 > 0)
+        if anti.any():   # B = -A followed as given: constant rotation (as slerp_core)
+            hb = np.broadcast_to(h, anti.shape)
+            w0 = np.where(anti, hb < 0.5, w0)
+            w1 = np.where(anti, hb >= 0.5, w1)
+    out = A * w0[..., None].astype(dtype, copy=False)
+    out += B * w1[..., None].astype(dtype, copy=False)
+    return out
+
+
 def _slerp_one(q0, q1, h, shortest, dtype):
     """One pair with Python floats (a few µs instead of ~30 NumPy calls)."""
     import math
-    a = [float(x) for x in q0]
-    b = [float(x) for x in q1]
+    a = q0.tolist()
+    b = q1.tolist()
     a2 = sum((y - x) ** 2 for x, y in zip(a, b))
     b2 = sum((y + x) ** 2 for x, y in zip(a, b))
     sign = 1.0
@@ -310,52 +419,86 @@ def _slerp_one(q0, q1, h, shortest, dtype):
 def lerp(q0, q1, t):
     """(1 - t) q0 + t q1, broadcasting (raw arrays)."""
     dtype = _dtype_of(q0, q1)
+    if q0.shape == q1.shape == (4,) and t.ndim == 0:
+        h = float(t)
+        return np.array([(1 - h) * x + h * y for x, y in zip(q0.tolist(), q1.tolist())], dtype)
+
+    if _small((q0, q1), t) is not None:
+        h = t.astype(dtype, copy=False)[..., None]
+        return ((1 - h) * q0 + h * q1).astype(dtype, copy=False)
 
     def fn(A, B, h, O, work):
         s = O.shape[1:]
         w = work.rows("lerp_w", 1, s)[0]
         np.subtract(1, h, out=w, casting="unsafe")
-        T = work.rows("lerp_T", 4, s)
-        np.multiply(A, w, out=T)
-        np.multiply(B, h, out=O, casting="unsafe")
-        O += T
+        T = work.rows("lerp_T", 8, s)
+        np.multiply(A, w, out=T[:4])
+        np.multiply(B, h, out=T[4:], casting="unsafe")
+        np.add(T[:4], T[4:], out=O)
 
     return _drive(fn, (q0, q1), t, dtype)
 
 
+_ZERO_BLEND = ("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
+               "got a zero quaternion (q1 = -q0 with shortest=False, or zero input)")
+
+
 def nlerp(q0, q1, t, shortest=True):
-    """Normalised lerp with an optional shortest-path flip (raw arrays).
+    """Normalised lerp with an optional shortest-path flip (q0·q1 < 0 flips q1) (raw arrays).
 
     Raises ValueError where the blend is the zero quaternion (only possible
     for q1 = -q0 followed as given, or zero input)."""
     dtype = _dtype_of(q0, q1)
+    if q0.shape == q1.shape == (4,) and t.ndim == 0:
+        a, b, h = q0.tolist(), q1.tolist(), float(t)
+        w1 = -h if shortest and sum(x * y for x, y in zip(a, b)) < 0 else h
+        n = [(1 - h) * x + w1 * y for x, y in zip(a, b)]
+        norm = sum(x * x for x in n) ** 0.5
+        if not norm > 0:
+            raise ValueError(_ZERO_BLEND)
+        return np.array([x / norm for x in n], dtype)
+
+    if _small((q0, q1), t) is not None:
+        A = q0.astype(dtype, copy=False)
+        B = q1.astype(dtype, copy=False)
+        h = t.astype(dtype, copy=False)
+        w1 = h
+        if shortest:
+            w1 = np.where(_dot_last(A, B) < 0, -h, h)
+        n = (1 - h)[..., None] * A + w1[..., None].astype(dtype, copy=False) * B
+        norm = np.sqrt(_sq_last(n))
+        if not (norm > 0).all():
+            raise ValueError(_ZERO_BLEND)
+        n /= norm[..., None]
+        return n.astype(dtype, copy=False)
 
     def fn(A, B, h, O, work):
         s = O.shape[1:]
-        R = work.rows("nl_R", 3, s)
-        w0, w1, n = R
+        w0, w1, n = work.rows("nl_R", 3, s)
+        T = work.rows("nl_T", 8, s)
         np.subtract(1, h, out=w0, casting="unsafe")
         np.copyto(w1, h, casting="unsafe")
         if shortest:
-            T = work.rows("nl_T", 4, s)
-            np.subtract(B, A, out=T)
-            a2 = sqsum(T, n)
-            np.add(B, A, out=T)
-            b2 = sqsum(T, O[0])  # O[0] as scratch (it is overwritten below)
-            np.subtract(b2, a2, out=n)
+            np.multiply(A, B, out=T[:4])
+            np.add(T[0], T[1], out=n)
+            n += T[2]
+            n += T[3]
+            n += 0.0                          # -0.0 -> +0.0: a zero dot product keeps q1
             np.copysign(1, n, out=n)
             w1 *= n
-        T = work.rows("nl_T", 4, s)
-        np.multiply(A, w0, out=T)
-        np.multiply(B, w1, out=O)
-        O += T
-        np.copyto(T, O)
-        sqsum(T, n)
+        N = T[:4]
+        np.multiply(A, w0, out=N)
+        np.multiply(B, w1, out=T[4:])
+        N += T[4:]
+        np.multiply(N, N, out=T[4:])
+        np.add(T[4], T[5], out=n)
+        n += T[6]
+        n += T[7]
         if not (n > 0).all():
-            raise ValueError("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
-                             "got a zero quaternion (q1 = -q0 with shortest=False, or zero input)")
+            raise ValueError(_ZERO_BLEND)
         np.sqrt(n, out=n)
-        O /= n
+        np.divide(1, n, out=n)
+        np.multiply(N, n, out=O)
 
     return _drive(fn, (q0, q1), t, dtype)
 
@@ -473,19 +616,20 @@ class SegmentIndex:
             if not np.isfinite(kc).all():
                 break
             cmax = kc[-1]
-            ids = np.arange(int(cmax) + 1)
-            lo = np.searchsorted(kc, ids, side="left") - 1
-            hi = np.searchsorted(kc, ids, side="right") - 1
-            steps = int((hi - lo).max()).bit_length()
-            if best is None or steps < best[4]:
-                best = (float(times[0]), scale, float(cmax), lo, steps)
+            counts = np.bincount(kc.astype(np.intp), minlength=int(cmax) + 1)   # keys per cell
+            steps = int(counts.max()).bit_length()
+            if best is None or steps < best[3]:
+                best = (scale, float(cmax), counts, steps)
             if steps <= 2:
                 break
-        if best is not None and best[4] <= self.MAX_STEPS:
-            steps = best[4]
+        if best is not None and best[3] <= self.MAX_STEPS:
+            scale, cmax, counts, steps = best
+            # lo[c] = (number of keys in cells before c) - 1: the segment of the
+            # cell's left edge; the answer lies in [lo[c], lo[c] + counts[c]]
+            lo = np.cumsum(counts) - counts - 1
             pad = np.full(K + (1 << steps) + 1, np.inf)
             pad[:K] = times
-            self.grid = best + (pad,)
+            self.grid = (float(times[0]), scale, cmax, lo.astype(np.intp), steps, pad)
 
     def find(self, t, out=None):
         if self.grid is None or t.size <= 64:

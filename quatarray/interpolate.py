@@ -28,7 +28,7 @@ import numpy as np
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
 from ._array import QuatArray
-from ._validate import finite, float_array, real_array
+from ._validate import finite, float_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -50,7 +50,7 @@ def _quat(x, name):
 
 
 def _param(t):
-    return real_array(t, "t")
+    return float_array(t, "t")
 
 
 def _broadcast(names, shapes):
@@ -62,6 +62,8 @@ def _broadcast(names, shapes):
 
 
 def _pairwise(names, quats, t):
+    if t.ndim == 0 and all(q.shape == quats[0].shape for q in quats):
+        return  # nothing to broadcast (the common single-pair call: keep it cheap)
     _broadcast(names + ("t",), [q.shape[:-1] for q in quats] + [t.shape])
 
 
@@ -416,6 +418,14 @@ def bezier_control_points(keys, times=None):
 # keyframe tracks
 # ---------------------------------------------------------------------------
 
+def _components_first(q, K, B):
+    """(K, ..., 4) -> C-contiguous float64 (4, K, B): long contiguous rows for the
+    construction-time maths (strided views make every NumPy call several times slower)."""
+    out = np.empty((4, K, B))
+    out[...] = IK.soa(q.reshape(K, B, 4))
+    return out
+
+
 def _qt_blocks(M, B):
     """(query slice, track slice) blocks of about BLOCK quaternions each."""
     if B <= IK.BLOCK:
@@ -502,7 +512,7 @@ class Track:
         self._index = IK.SegmentIndex(times)
         dt = np.diff(times)
         self._dt = np.append(dt, np.inf)     # phantom segment after the last key: u = 0
-        Q = IK.soa(keys.reshape(K, B, 4).astype(np.float64))    # (4, K, B)
+        Q = _components_first(keys, K, B)        # (4, K, B), C-contiguous float64
         self._controls = None
         if self._method == "linear":
             table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
@@ -511,13 +521,13 @@ class Track:
         elif self._method == "squad":
             s = IC.squad_controls(keys, times)
             self._controls = QuatArray._wrap(s)
-            S = IK.soa(s.reshape(K, B, 4).astype(np.float64))
+            S = _components_first(s, K, B)
             table = self._frame_rows(np.stack([Q[:, :-1], S[:, :-1]], 1), np.stack([Q[:, 1:], S[:, 1:]], 1), Q[:, -1])
         else:
             a, b = IC.bezier_controls(keys, times)
             self._controls = (QuatArray._wrap(a), QuatArray._wrap(b))
-            A = IK.soa(a.reshape(K, B, 4).astype(np.float64))
-            Bc = IK.soa(b.reshape(K, B, 4).astype(np.float64))
+            A = _components_first(a, K, B)
+            Bc = _components_first(b, K, B)
             table = self._frame_rows(np.stack([Q[:, :-1], A[:, :-1], Bc[:, 1:]], 1),
                                      np.stack([A[:, :-1], Bc[:, 1:], Q[:, 1:]], 1), Q[:, -1])
         self._table = np.ascontiguousarray(table, dtype=self._dtype)
@@ -642,12 +652,15 @@ class Track:
         tshape, flat, _ = self._queries(t, name)
         M, B = flat.size, self._B
         out = np.empty((M, B, 4), self._dtype)
-        work = IK.Work(self._dtype)
-        for sm, sb in _qt_blocks(M, B):
-            i, u = self._segments(flat[sm], False)
-            G = self._gather(i, sb, work)
-            uu = u.astype(self._dtype)[:, None]
-            self._eval_block(G, uu, IK.soa(out[sm, sb]), work)
+        work = IK.Work.acquire(self._dtype)
+        try:
+            for sm, sb in _qt_blocks(M, B):
+                i, u = self._segments(flat[sm], False)
+                G = self._gather(i, sb, work)
+                uu = u.astype(self._dtype)[:, None]
+                self._eval_block(G, uu, IK.soa(out[sm, sb]), work)
+        finally:
+            work.release()
         return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
 
     def _gather(self, i, sb, work):
@@ -732,7 +745,8 @@ class Track:
         for sm, sb in _qt_blocks(M, B):
             tb = flat[sm]
             i, u = self._segments(tb, True)
-            G = self._gather(i, sb, IK.Work(self._dtype)).astype(np.float64)
+            tab = self._table[:, :, sb]
+            G = np.take(tab, i, axis=1, mode="clip").astype(np.float64, copy=False)
             uu = u[:, None]
             q, dq = self._deriv_block(G, uu)
             w = IC.omega_from(q, dq, frame) / np.take(self._dt, i)[:, None]

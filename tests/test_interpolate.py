@@ -187,7 +187,16 @@ def rotation_angle(q):
 # pairwise slerp
 # ---------------------------------------------------------------------------
 
-def test_slerp_matches_closed_form(rng, dtype, batch_shape):
+@pytest.fixture(params=["direct", "blocked"])
+def path(request, monkeypatch):
+    """Run a pairwise test on both code paths: direct (..., 4) expressions for
+    small batches, and the blocked components-first kernels (forced here)."""
+    if request.param == "blocked":
+        monkeypatch.setattr(IK, "SMALL", 0)
+    return request.param
+
+
+def test_slerp_matches_closed_form(rng, dtype, batch_shape, path):
     q0 = random_quats(rng, batch_shape, dtype)
     q1 = random_quats(rng, batch_shape, dtype)
     t = rng.uniform(-0.5, 1.5, batch_shape).astype(dtype)
@@ -199,7 +208,7 @@ def test_slerp_matches_closed_form(rng, dtype, batch_shape):
     assert_allclose(got, ref, atol=tol(dtype, 20))
 
 
-def test_slerp_endpoints_and_shortest_flag(rng):
+def test_slerp_endpoints_and_shortest_flag(rng, path):
     q0 = random_quats(rng, (50,))
     q1 = random_quats(rng, (50,))
     flip = np.sum(q0 * q1, -1) < 0
@@ -214,7 +223,7 @@ def test_slerp_endpoints_and_shortest_flag(rng):
     assert not np.allclose(plain(long)[flip], plain(slerp(q0, q1, 0.5))[flip])
 
 
-def test_slerp_extrapolates_along_the_great_circle(rng):
+def test_slerp_extrapolates_along_the_great_circle(rng, path):
     q0, q1 = random_quats(rng, (20,)), random_quats(rng, (20,))
     q1 = q1 * np.where(np.sum(q0 * q1, -1) < 0, -1, 1)[:, None]
     for t in (-1.25, 2.0, 3.7):
@@ -222,7 +231,7 @@ def test_slerp_extrapolates_along_the_great_circle(rng):
         assert_allclose(slerp(q0, q1, t), ref, atol=tol(np.float64, 50))
 
 
-def test_slerp_antipodal_is_constant(dtype):
+def test_slerp_antipodal_is_constant(dtype, path):
     q = random_quats(np.random.default_rng(1), (6,), dtype)
     t = np.linspace(-0.5, 1.5, 6).astype(dtype)
     got = slerp(q, -q, t)
@@ -232,7 +241,7 @@ def test_slerp_antipodal_is_constant(dtype):
     assert_allclose(got, q * np.where(t < 0.5, 1, -1)[:, None], atol=0)
 
 
-def test_slerp_orthogonal_pair_is_deterministic(dtype):
+def test_slerp_orthogonal_pair_is_deterministic(dtype, path):
     """q0·q1 = 0 exactly (180° apart as rotations): no flip, the arc to q1 as given."""
     q0 = np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0.6, 0.8, 0, 0]], dtype)
     q1 = np.array([[0, 0, 1, 0], [0, 0, 0, -1], [-0.8, 0.6, 0, 0]], dtype)
@@ -244,7 +253,7 @@ def test_slerp_orthogonal_pair_is_deterministic(dtype):
     assert_allclose(a, ref, atol=tol(dtype, 8))
 
 
-def test_slerp_near_identity_closed_form():
+def test_slerp_near_identity_closed_form(path):
     """Identity -> 1e-10 rad about an axis, at t = 0.3: 3e-11 rad to 1e-14 relative."""
     axis = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
     theta = 1e-10
@@ -257,7 +266,7 @@ def test_slerp_near_identity_closed_form():
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
-def test_slerp_small_angles_keep_relative_accuracy(dtype):
+def test_slerp_small_angles_keep_relative_accuracy(dtype, path):
     """The angle of slerp(identity, q, t) is t times the angle of q to a few ulp, for
     angles from 1e-12 rad (1e-5 in float32) up to 2 rad: no arccos cancellation."""
     eps = np.finfo(dtype).eps
@@ -275,7 +284,7 @@ def test_slerp_small_angles_keep_relative_accuracy(dtype):
         assert rel.max() < 8 * eps, (t, rel.max())
 
 
-def test_slerp_broadcasting_and_scalar_parameter(rng):
+def test_slerp_broadcasting_and_scalar_parameter(rng, path):
     q0 = random_quats(rng, ())
     q1 = random_quats(rng, (5,))
     t = rng.uniform(0, 1, (3, 1))
@@ -302,7 +311,7 @@ def test_slerp_large_batches_are_blocked(rng):
         assert_allclose(got[i, :50], slerp(q0[i, :50], q1[:50], t[i, 0]), atol=tol(np.float64, 4))
 
 
-def test_dtypes_kept_and_promoted(rng):
+def test_dtypes_kept_and_promoted(rng, path):
     q32 = random_quats(rng, (4,), np.float32)
     q64 = random_quats(rng, (4,), np.float64)
     for f in (slerp, nlerp, lerp):
@@ -327,7 +336,7 @@ def test_slerp_symmetry_and_unit_norm(seed, t):
 # lerp, nlerp, unflip
 # ---------------------------------------------------------------------------
 
-def test_lerp_and_nlerp(rng, dtype, batch_shape):
+def test_lerp_and_nlerp(rng, dtype, batch_shape, path):
     q0 = random_quats(rng, batch_shape, dtype)
     q1 = random_quats(rng, batch_shape, dtype)
     t = rng.uniform(-0.5, 1.5, batch_shape).astype(dtype)
@@ -342,7 +351,7 @@ def test_lerp_and_nlerp(rng, dtype, batch_shape):
     assert_allclose(nlerp(q0, q1, 1.0), q1 * sign, atol=tol(dtype, 8))
 
 
-def test_nlerp_is_not_constant_speed_but_on_the_slerp_circle(rng):
+def test_nlerp_is_not_constant_speed_but_on_the_slerp_circle(rng, path):
     q0, q1 = random_quats(rng, (10,)), random_quats(rng, (10,))
     t = np.full(10, 0.25)
     a, s = nlerp(q0, q1, t), slerp(q0, q1, t)
@@ -351,7 +360,7 @@ def test_nlerp_is_not_constant_speed_but_on_the_slerp_circle(rng):
     assert_allclose(nlerp(q0, q1, 0.5), slerp(q0, q1, 0.5), atol=tol(np.float64, 20))
 
 
-def test_nlerp_zero_blend_raises():
+def test_nlerp_zero_blend_raises(path):
     with pytest.raises(ValueError, match="expected a non-zero blend"):
         nlerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5, shortest=False)
     assert_allclose(nlerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5), [1, 0, 0, 0], atol=0)
@@ -403,7 +412,7 @@ def test_unflip_bad_axis():
 # inputs: read-only, non-contiguous, empty, never modified; bad input
 # ---------------------------------------------------------------------------
 
-def test_inputs_untouched_readonly_noncontiguous_and_empty(rng):
+def test_inputs_untouched_readonly_noncontiguous_and_empty(rng, path):
     q0 = random_quats(rng, (6, 5))[:, ::2]    # non-contiguous
     q1 = random_quats(rng, (6, 3))
     t = rng.uniform(0, 1, (6, 3))
@@ -425,7 +434,7 @@ def test_inputs_untouched_readonly_noncontiguous_and_empty(rng):
 
 
 @pytest.mark.parametrize("f", [lerp, nlerp, slerp])
-def test_pairwise_bad_input(f):
+def test_pairwise_bad_input(f, path):
     with pytest.raises(ValueError, match=r"expected q0 of shape \(\.\.\., 4\), got \(5, 3\)"):
         f(np.zeros((5, 3)), [1, 0, 0, 0], 0.5)
     with pytest.raises(ValueError, match=r"expected q1 of shape \(\.\.\., 4\), got \(\)"):
