@@ -19,7 +19,7 @@ import numpy as np
 
 from . import _kernels as K
 from ._rotation import RotationMixin
-from ._validate import float_array
+from ._validate import batch_shape, float_array
 
 __all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS"]
 
@@ -332,7 +332,7 @@ class QuatArray(RotationMixin, np.ndarray):
         QuatArray([[1., 0., 0., 0.],
                    [1., 0., 0., 0.]])
         """
-        out = np.zeros(_batch_shape(num, shape) + (4,), dtype)
+        out = np.zeros(batch_shape(num, shape) + (4,), dtype)
         out[..., 0] = 1
         return cls._wrap(out)
 
@@ -432,22 +432,6 @@ def _finish_plain(res, out):
         return res
     out[...] = res
     return out
-
-
-def _batch_shape(num, shape):
-    """Batch shape from scipy-style `num` (-> (num,)) or `shape`; () for neither."""
-    if num is not None and shape is not None:
-        raise ValueError("expected at most one of num and shape, got both")
-    if num is not None:
-        if not isinstance(num, (int, np.integer)) or num < 0:
-            raise ValueError(f"expected num to be a non-negative int, got {num!r}")
-        return (int(num),)
-    if shape is None:
-        return ()
-    shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-    if any(not isinstance(n, (int, np.integer)) or n < 0 for n in shape):
-        raise ValueError(f"expected shape to be a tuple of non-negative ints, got {shape!r}")
-    return tuple(int(n) for n in shape)
 
 
 def _lift(s, dtype_like):

@@ -19,31 +19,13 @@ import numpy as np
 
 from . import _convert as C
 from . import _kernels as K
-from ._validate import float_array
+from ._validate import batch_shape, float_array
 
 __all__ = ["RotationMixin"]
 
 
 def _raw(x):
     return x.view(np.ndarray)
-
-
-def _batch(num, shape):
-    """scipy's `num` / `shape` arguments as a batch shape."""
-    if num is not None and shape is not None:
-        raise ValueError("Only one of `num` or `shape` can be specified: expected num or shape, got both")
-    if num is not None:
-        if not isinstance(num, (int, np.integer)) or num < 0:
-            raise ValueError(f"expected num to be a non-negative int, got {num!r}")
-        return (int(num),)
-    if shape is None:
-        return ()
-    if isinstance(shape, (int, np.integer)):
-        shape = (shape,)
-    if not isinstance(shape, tuple) or any(not isinstance(n, (int, np.integer)) or n < 0 for n in shape):
-        raise ValueError(f"`shape` must be an int or a tuple of ints or None: expected a tuple of "
-                         f"non-negative ints, got {shape!r}")
-    return tuple(int(n) for n in shape)
 
 
 def _scalar_last(q):
@@ -529,7 +511,7 @@ class RotationMixin:
         >>> Rotation.random(shape=(2, 5), rng=1).batch_shape
         (2, 5)
         """
-        size = _batch(num, shape)
+        size = batch_shape(num, shape)
         if not isinstance(rng, (np.random.Generator, np.random.RandomState)):
             rng = np.random.default_rng(rng)
         return cls.from_quat(rng.normal(size=size + (4,)))

@@ -6,7 +6,7 @@ Messages name the argument, what was expected and what came, e.g.
 
 import numpy as np
 
-__all__ = ["float_array", "real_array", "finite", "CHUNK"]
+__all__ = ["float_array", "real_array", "finite", "batch_shape", "CHUNK"]
 
 #: Number of quaternions processed per block by the chunked kernels: a few
 #: arrays of this many quaternions stay inside the L2 cache.
@@ -56,10 +56,9 @@ def float_array(x, name, last=None, dtype=None):
 
 
 def real_array(x, name):
-    """Return `x` as a real ndarray (any float width kept, ints/bools as float64).
+    """Return `x` as a real ndarray (float32/float64 kept, ints and bools as float64).
 
-    Used for interpolation parameters and exponents, which must not promote
-    float32 quaternions: a Python float or a float32 array keeps float32 maths.
+    Used for interpolation parameters and exponents.
 
     >>> real_array(0.5, "t").dtype
     dtype('float64')
@@ -78,3 +77,25 @@ def finite(a, name):
     if not np.isfinite(a).all():
         raise ValueError(f"expected finite values in {name}, got nan or inf")
     return a
+
+
+def batch_shape(num, shape):
+    """scipy's `num` / `shape` arguments as a batch shape: ``(num,)``, `shape`, or ``()``.
+
+    >>> batch_shape(3, None), batch_shape(None, (2, 5)), batch_shape(None, None)
+    ((3,), (2, 5), ())
+    """
+    if num is not None and shape is not None:
+        raise ValueError("Only one of `num` or `shape` can be specified: expected num or shape, got both")
+    if num is not None:
+        if not isinstance(num, (int, np.integer)) or num < 0:
+            raise ValueError(f"expected num to be a non-negative int, got {num!r}")
+        return (int(num),)
+    if shape is None:
+        return ()
+    if isinstance(shape, (int, np.integer)):
+        shape = (shape,)
+    if not isinstance(shape, tuple) or any(not isinstance(n, (int, np.integer)) or n < 0 for n in shape):
+        raise ValueError(f"`shape` must be an int or a tuple of ints or None: expected a tuple of "
+                         f"non-negative ints, got {shape!r}")
+    return tuple(int(n) for n in shape)

@@ -16,6 +16,7 @@ from quatarray import QuatArray
 from quatarray import _convert as C
 from quatarray import _kernels as K
 from quatarray._validate import CHUNK
+from quatarray.testing import assert_allclose
 
 from .conftest import random_quats, tol
 
@@ -35,10 +36,7 @@ def sp_quat(r):
 
 def assert_same_rotation(got, want, atol):
     """Quaternions equal up to the double cover (q and -q)."""
-    got, want = np.broadcast_arrays(np.asarray(got, np.float64), np.asarray(want, np.float64))
-    sign = np.where(np.sum(got * want, axis=-1, keepdims=True) < 0, -1.0, 1.0)
-    np.testing.assert_allclose(got * sign, want, rtol=0, atol=atol)
-
+    assert_allclose(got, want, rtol=0, atol=atol, double_cover=True)
 
 def angle_diff(a, b):
     """Differences of angles modulo 2π, in [0, π]."""

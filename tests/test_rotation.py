@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation as SR
 
 import quatarray
 from quatarray import QuatArray, Rotation
+from quatarray.testing import assert_allclose
 
 from .conftest import random_quats, tol
 
@@ -31,10 +32,8 @@ def pair(rng, shape, dtype):
 
 
 def assert_same_rotation(got, want, atol):
-    got, want = np.broadcast_arrays(np.asarray(got, np.float64), np.asarray(want, np.float64))
-    sign = np.where(np.sum(got * want, axis=-1, keepdims=True) < 0, -1.0, 1.0)
-    np.testing.assert_allclose(got * sign, want, rtol=0, atol=atol)
-
+    """Quaternions equal up to the double cover (q and -q)."""
+    assert_allclose(got, want, rtol=0, atol=atol, double_cover=True)
 
 def angle_diff(a, b):
     return np.abs(np.angle(np.exp(1j * (np.asarray(a, np.float64) - np.asarray(b, np.float64)))))
