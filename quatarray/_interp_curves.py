@@ -18,7 +18,7 @@ uniform-spacing tangents are scaled by 2 Δ_out / (Δ_in + Δ_out) and
 
 import numpy as np
 
-from ._interp_kernels import Work, slerp_core, soa, vdot
+from ._interp_kernels import drive, slerp_core, vdot
 from ._kernels import conjugate as _conj
 from ._kernels import multiply as _qmul
 
@@ -80,12 +80,14 @@ def _interval_weights(times, K, batch_ndim):
 
 
 def _slerp_noflip(p, q, h):
-    """SLERP (no flip) of (..., 4) arrays; h broadcastable to the batch."""
-    A, B = soa(p), soa(q)
-    s = np.broadcast_shapes(A.shape[1:], B.shape[1:], np.shape(h))
-    O = np.empty((4,) + s)
-    slerp_core(np.broadcast_to(A, O.shape), np.broadcast_to(B, O.shape), h, O, False, Work(O.dtype))
-    return np.moveaxis(O, 0, -1)
+    """SLERP (no flip) of (..., 4) float64 arrays; h broadcastable to the batch.
+
+    Always the blocked kernel (pooled scratch, no full-size temporaries), so
+    that a batch of tracks gets bit for bit the control points of its tracks."""
+    def fn(A, B, hb, O, work):
+        slerp_core(A, B, hb, O, False, work)
+
+    return drive(fn, (p, q), np.asarray(h, np.float64), np.dtype(np.float64))
 
 
 # --------------------------------------------------------------------------

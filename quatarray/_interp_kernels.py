@@ -32,7 +32,7 @@ from ._kernels import _sub, blocks
 from ._validate import CHUNK
 
 __all__ = [
-    "BLOCK", "Work", "soa", "sqsum", "vdot", "slerp_core", "frame_core", "frames",
+    "BLOCK", "Work", "drive", "soa", "sqsum", "vdot", "slerp_core", "frame_core", "frames",
     "slerp", "lerp", "nlerp", "squad", "bezier", "unflip", "SegmentIndex",
 ]
 
@@ -226,28 +226,67 @@ def frames(k0, k1, F=None, phi=None):
     b = |k1 + k0|); coincident pairs get p = 0 and antipodal pairs p = 0,
     phi = 0 (a constant rotation: the arc is not unique).  `F` and `phi`
     may be given as output arrays (views into a table).
+
+    Runs in blocks along the second axis with pooled scratch: fresh
+    temporaries of the full size would cost more in page faults than the
+    arithmetic.
     """
-    D = k1 - k0
-    S = k1 + k0
-    a2 = vdot(D, D, axis=0)
-    b2 = vdot(S, S, axis=0)
-    a = np.sqrt(a2)
-    b = np.sqrt(b2)
+    s = np.broadcast_shapes(k0.shape, k1.shape)[1:]
     if F is None:
-        F = np.empty((8,) + a.shape, np.result_type(k0, k1))
-        phi = np.empty(a.shape, F.dtype)
-    np.arctan2(a, b, out=phi)
-    phi[b == 0] = 0            # antipodal: the arc is not unique; stay at k0 (same rotation as k1)
-    n2 = a2 + b2  # 4 for unit quaternions
-    ab = a * b
-    scale = np.divide(1, ab, out=np.zeros_like(ab), where=ab > 0)
-    n2 *= 0.5
-    D *= n2
-    k0a = a2 * k0
-    D += k0a
-    np.multiply(D, scale, out=F[4:])
-    F[:4] = k0
+        F = np.empty((8,) + s, np.result_type(k0, k1))
+        phi = np.empty(s, F.dtype)
+    k0 = np.broadcast_to(k0, (4,) + s)
+    k1 = np.broadcast_to(k1, (4,) + s)
+    if not s or 0 in s:
+        _frames_block(k0, k1, F, phi, Work(F.dtype))
+        return F, phi
+    # flatten all but the last axis of s into blocks of about BLOCK frames
+    lead = s[:-1]
+    per = max(1, BLOCK // max(s[-1], 1))
+    work = Work.acquire(F.dtype)
+    try:
+        for idx in np.ndindex(*lead[:-1]) if len(lead) > 1 else [()]:
+            n = lead[-1] if lead else 1
+            for start in range(0, n, per):
+                sl = idx + ((slice(start, start + per),) if lead else ())
+                full = (slice(None),) + sl
+                _frames_block(k0[full], k1[full], F[full], phi[sl], work)
+    finally:
+        work.release()
     return F, phi
+
+
+def _frames_block(k0, k1, F, phi, work):
+    s = phi.shape
+    D = F[4:]
+    np.subtract(k1, k0, out=D)
+    T = work.rows("frT", 4, s)
+    R = work.rows("frR", 4, s)
+    a2, b2, n2, sc = R
+    np.multiply(D, D, out=T)
+    np.add(T[0], T[1], out=a2)
+    a2 += T[2]
+    a2 += T[3]
+    np.add(k1, k0, out=T)
+    sqsum(T, b2)
+    np.add(a2, b2, out=n2)
+    n2 *= 0.5                                # 2 for unit quaternions
+    a, b = T[0], T[1]
+    np.sqrt(a2, out=a)
+    np.sqrt(b2, out=b)
+    np.arctan2(a, b, out=phi)
+    np.multiply(a, b, out=sc)
+    zero = sc == 0                           # coincident (a = 0) or antipodal (b = 0)
+    np.maximum(sc, _TINY[np.dtype(F.dtype)][1], out=sc)
+    np.divide(1, sc, out=sc)
+    if zero.any():
+        sc[zero] = 0
+        phi[b == 0] = 0                      # antipodal: no unique arc; stay at k0
+    D *= n2
+    np.multiply(k0, a2, out=T)
+    D += T
+    D *= sc
+    F[:4] = k0
 
 
 def frame_core(F, phi, u, O, work, key="fr"):
@@ -285,7 +324,7 @@ def _dtype_of(*qs):
     return np.result_type(*qs, np.float32)
 
 
-def _drive(fn, quats, t, dtype, extra=()):
+def drive(fn, quats, t, dtype, extra=()):
     """Run `fn(blocks_of_quats_soa, t_block, O, work, *extra)` over cache-sized blocks.
 
     quats: raw (..., 4) arrays broadcasting against each other and t.
@@ -293,7 +332,7 @@ def _drive(fn, quats, t, dtype, extra=()):
     """
     batch = _batch(*(q.shape[:-1] for q in quats), t.shape)
     if not batch:  # kernels index scratch rows: give them at least one batch axis
-        return _drive(fn, [q[None] for q in quats], t[None], dtype, extra)[0]
+        return drive(fn, [q[None] for q in quats], t[None], dtype, extra)[0]
     out = np.empty(batch + (4,), dtype)
     nb = len(batch)
     work = Work.acquire(dtype)
@@ -351,7 +390,7 @@ def slerp(q0, q1, t, shortest=True):
     def fn(A, B, h, O, work):
         slerp_core(A, B, h, O, shortest, work)
 
-    return _drive(fn, (q0, q1), t, dtype)
+    return drive(fn, (q0, q1), t, dtype)
 
 
 def _slerp_small(q0, q1, t, shortest, dtype):
@@ -436,7 +475,7 @@ def lerp(q0, q1, t):
         np.multiply(B, h, out=T[4:], casting="unsafe")
         np.add(T[:4], T[4:], out=O)
 
-    return _drive(fn, (q0, q1), t, dtype)
+    return drive(fn, (q0, q1), t, dtype)
 
 
 _ZERO_BLEND = ("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
@@ -500,7 +539,7 @@ def nlerp(q0, q1, t, shortest=True):
         np.divide(1, n, out=n)
         np.multiply(N, n, out=O)
 
-    return _drive(fn, (q0, q1), t, dtype)
+    return drive(fn, (q0, q1), t, dtype)
 
 
 def unflip(q, axis):
@@ -551,7 +590,7 @@ def _squad_block(Q0, A, B, Q1, h, O, work):
 
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
-    return _drive(_squad_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
+    return drive(_squad_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
 
 
 def _bezier_levels(L, h, O, work):
@@ -574,7 +613,7 @@ def _bezier_block(Q0, A, B, Q1, h, O, work):
 
 def bezier(q0, a, b, q1, t):
     """Pairwise spherical cubic Bézier (raw arrays), de Casteljau with SLERP."""
-    return _drive(_bezier_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
+    return drive(_bezier_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
 
 
 # --------------------------------------------------------------------------

@@ -517,37 +517,37 @@ class Track:
         if self._method == "linear":
             table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
         elif self._method == "slerp":
-            table = self._frame_rows(Q[:, None, :-1], Q[:, None, 1:], Q[:, -1])
+            table = self._frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
         elif self._method == "squad":
             s = IC.squad_controls(keys, times)
             self._controls = QuatArray._wrap(s)
             S = _components_first(s, K, B)
-            table = self._frame_rows(np.stack([Q[:, :-1], S[:, :-1]], 1), np.stack([Q[:, 1:], S[:, 1:]], 1), Q[:, -1])
+            table = self._frame_rows([(Q[:, :-1], Q[:, 1:]), (S[:, :-1], S[:, 1:])], Q[:, -1])
         else:
             a, b = IC.bezier_controls(keys, times)
             self._controls = (QuatArray._wrap(a), QuatArray._wrap(b))
             A = _components_first(a, K, B)
             Bc = _components_first(b, K, B)
-            table = self._frame_rows(np.stack([Q[:, :-1], A[:, :-1], Bc[:, 1:]], 1),
-                                     np.stack([A[:, :-1], Bc[:, 1:], Q[:, 1:]], 1), Q[:, -1])
+            table = self._frame_rows([(Q[:, :-1], A[:, :-1]), (A[:, :-1], Bc[:, 1:]), (Bc[:, 1:], Q[:, 1:])], Q[:, -1])
         self._table = np.ascontiguousarray(table, dtype=self._dtype)
         for c in (self._controls if isinstance(self._controls, tuple) else (self._controls,)):
             if c is not None:
                 c.flags.writeable = False
 
     @staticmethod
-    def _frame_rows(k0, k1, last):
+    def _frame_rows(pieces, last):
         """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B) for the n
-        great-circle pieces k0[:, j] -> k1[:, j] ((4, n, K-1, B) each) of every segment,
-        plus a phantom segment K-1 that stays at `last` (4, B) (so t = t_end is exact)."""
-        n, K1, B = k0.shape[1:]
+        great-circle pieces (k0, k1) ((4, K-1, B) each) of every segment, plus a
+        phantom segment K-1 that stays at `last` (4, B) (so t = t_end is exact)."""
+        n = len(pieces)
+        K1, B = pieces[0][0].shape[1:]
         table = np.empty((9 * n, K1 + 1, B))
-        Fv = table[:8 * n].reshape(n, 8, K1 + 1, B)
-        phi = table[8 * n:]
-        IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), phi[:, :K1])
-        Fv[:, :4, K1] = last[None]
-        Fv[:, 4:, K1] = 0
-        phi[:, K1] = 0
+        for j, (k0, k1) in enumerate(pieces):
+            F = table[8 * j:8 * j + 8]
+            IK.frames(k0, k1, F[:, :K1], table[8 * n + j, :K1])
+            F[:4, K1] = last
+            F[4:, K1] = 0
+        table[8 * n:, K1] = 0
         return table
 
     # --- properties ---------------------------------------------------------
