@@ -65,12 +65,13 @@ def vdot(p, q, axis=-1):
     """
     n = p.shape[axis]
     if axis == 0:
-        pc, qc = p, q
+        out = p[0] * q[0]
+        for k in range(1, n):
+            out += p[k] * q[k]
     else:
-        pc, qc = np.moveaxis(p, -1, 0), np.moveaxis(q, -1, 0)
-    out = pc[0] * qc[0]
-    for k in range(1, n):
-        out += pc[k] * qc[k]
+        out = p[..., 0] * q[..., 0]
+        for k in range(1, n):
+            out += p[..., k] * q[..., k]
     return out
 
 

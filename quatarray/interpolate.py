@@ -542,11 +542,16 @@ class Track:
         n = len(pieces)
         K1, B = pieces[0][0].shape[1:]
         table = np.empty((9 * n, K1 + 1, B))
-        for j, (k0, k1) in enumerate(pieces):
-            F = table[8 * j:8 * j + 8]
-            IK.frames(k0, k1, F[:, :K1], table[8 * n + j, :K1])
-            F[:4, K1] = last
-            F[4:, K1] = 0
+        Fv = table[:8 * n].reshape(n, 8, K1 + 1, B)
+        if n > 1 and n * K1 * B <= IK.BLOCK:   # small: one call on the stacked pieces
+            k0 = np.stack([p[0] for p in pieces], 1)
+            k1 = np.stack([p[1] for p in pieces], 1)
+            IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), table[8 * n:, :K1])
+        else:                                   # large: piece by piece, no stacked copies
+            for j, (k0, k1) in enumerate(pieces):
+                IK.frames(k0, k1, Fv[j, :, :K1], table[8 * n + j, :K1])
+        Fv[:, :4, K1] = last[None]
+        Fv[:, 4:, K1] = 0
         table[8 * n:, K1] = 0
         return table
 
