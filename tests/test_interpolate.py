@@ -510,6 +510,20 @@ def test_track_matches_reference(rng, method, unequal):
 # Track and Slerp vs scipy
 # ---------------------------------------------------------------------------
 
+@given(st.integers(0, 2 ** 32 - 1), st.integers(2, 12), st.floats(0, 1))
+def test_slerp_track_is_pairwise_slerp_between_unflipped_keys(seed, k, frac):
+    rng = np.random.default_rng(seed)
+    times = np.cumsum(rng.uniform(1e-3, 3.0, k)) + rng.uniform(-1e3, 1e3)
+    keys = random_quats(rng, (k,)) * rng.uniform(0.5, 2.0, (k, 1))     # not unit: normalised
+    t = times[0] + frac * (times[-1] - times[0])
+    i = min(np.searchsorted(times, t, side="right") - 1, k - 2)
+    u = (t - times[i]) / (times[i + 1] - times[i])
+    ku = np.array(r_unflip(keys))
+    got = Track(times, keys)(t)
+    assert_allclose(got, r_slerp(ku[i], ku[i + 1], u), atol=tol(np.float64, 100))
+    np.testing.assert_allclose(np.linalg.norm(plain(got)), 1, atol=tol(np.float64, 10))
+
+
 @pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
 def test_slerp_tracks_equal_scipy(rng, unequal):
     times, keys = random_track(rng, 30, unequal=unequal, step=2.0)   # big steps, random signs
