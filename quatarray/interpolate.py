@@ -4,9 +4,9 @@ spherical Bézier curves, and keyframe tracks (`Track`, scipy-style `Slerp`).
 Every function accepts `QuatArray` or array_like input of shape (..., 4)
 (scalar-first w, x, y, z), broadcasts batch shapes the NumPy way, keeps
 float32 as float32, never modifies its inputs and returns a `QuatArray`.
-The maths lives in `quatarray._interp_kernels` (blocked SLERP kernels, segment
-lookup) and `quatarray._interp_curves` (control points, analytic derivatives);
-this module validates and wraps.
+The maths lives in `quatarray._interp_kernels` (blocked SLERP kernels),
+`quatarray._interp_curves` (control points, analytic derivatives) and
+`quatarray._interp_lookup` (segment lookup); this module validates and wraps.
 
 Conventions
 -----------
@@ -28,6 +28,7 @@ import numpy as np
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
 from ._array import QuatArray
+from ._interp_lookup import SegmentIndex
 from ._validate import finite, float_array
 
 __all__ = [
@@ -509,7 +510,7 @@ class Track:
         B = prod(self._batch)
         self._B = B
         self._dtype = keys.dtype
-        self._index = IK.SegmentIndex(times)
+        self._index = SegmentIndex(times)
         dt = np.diff(times)
         self._dt = np.append(dt, np.inf)     # phantom segment after the last key: u = 0
         Q = _components_first(keys, K, B)        # (4, K, B), C-contiguous float64

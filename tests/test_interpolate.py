@@ -17,6 +17,7 @@ from scipy.spatial.transform import Slerp as SciSlerp
 
 from quatarray import QuatArray
 from quatarray import _interp_kernels as IK
+from quatarray._interp_lookup import SegmentIndex
 from quatarray._kernels import multiply as qmul
 from quatarray.interpolate import (
     Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad,
@@ -793,14 +794,14 @@ def test_segment_index_equals_searchsorted(rng, kind):
         "two": np.array([3.0, 3.5]),
         "tiny_span": np.array([1.0, np.nextafter(1.0, 2), np.nextafter(np.nextafter(1.0, 2), 2)]),
     }[kind]
-    index = IK.SegmentIndex(times, min_keys=2)   # the grid also for few keys
+    index = SegmentIndex(times, min_keys=2)   # the grid also for few keys
     if kind in ("uniform", "random", "two"):
         assert index.grid is not None
     t = np.concatenate([times, np.nextafter(times, -np.inf), np.nextafter(times, np.inf),
                         rng.uniform(times[0] - 1, times[-1] + 1, 500), [times[0] - 1e300, times[-1] + 1e300]])
     expected = np.searchsorted(times, t, side="right") - 1
     np.testing.assert_array_equal(index.find(t), expected)
-    np.testing.assert_array_equal(IK.SegmentIndex(times).find(t), expected)
+    np.testing.assert_array_equal(SegmentIndex(times).find(t), expected)
 
 
 # ---------------------------------------------------------------------------
