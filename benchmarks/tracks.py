@@ -8,7 +8,7 @@ KEYS = [10, 10_000]
 QUERIES = [10, 1_000_000]
 
 
-def track_data(k, m, dtype, salt=41):
+def make_track(k, m, dtype, salt=41):
     """(times (K,), keys (K, 4) unflipped, queries (M,)) -- seeded, keys unit."""
     times = np.cumsum(rng(salt).uniform(0.5, 1.5, k)) - 1.0
     times[0] = 0.0
@@ -48,7 +48,7 @@ class Tracks:
 
     def setup(self, k, m, dtype, lib):
         self.lib = L = adapter(lib)
-        times, keys, t = track_data(k, m, dtype)
+        times, keys, t = make_track(k, m, dtype)
         self.times, self.keys = times, L.wrap(keys)
         self.t = t if lib in ("quatarray", "scipy") else t.astype(np.float64)
 
@@ -85,7 +85,7 @@ class OneQuery:
 
     def setup(self, dtype, lib):
         L = adapter(lib)
-        times, keys, _ = track_data(2, 1, dtype)
+        times, keys, _ = make_track(2, 1, dtype)
         self.slerp = L.slerp_class(times, L.wrap(keys))
         self.t = 0.3 * times[-1]
 

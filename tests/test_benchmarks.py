@@ -91,3 +91,14 @@ def test_missing_operation_skips():
     with pytest.raises(NotImplementedError, match="no frobnicate"):
         lib.frobnicate(1)
     assert os.path.basename(_common.__file__) == "_common.py"
+
+
+def test_no_accidental_benchmarks():
+    """asv treats every module-level function named time_*, track_*, mem_*, peakmem_* or
+    timeraw_* in benchmarks/ as a benchmark (a helper named track_data once failed asv)."""
+    prefixes = ("time_", "timeraw_", "track_", "mem_", "peakmem_")
+    for name in MODULES + ["_common", "compare"]:
+        mod = importlib.import_module(f"benchmarks.{name}")
+        for fname, obj in vars(mod).items():
+            if inspect.isfunction(obj) and obj.__module__ == mod.__name__:
+                assert not fname.startswith(prefixes), f"benchmarks.{name}.{fname} looks like an asv benchmark"
