@@ -83,40 +83,42 @@ def _contig_last(a, dtype):
     return a
 
 
-def _mul_block(p, q, o, t=None):
-    """o = p q (Hamilton) on one block, via pairs of complex numbers.
+def _mul_parts(a, b, c, d, o0, o1, t):
+    """(o0, o1) = (a c - b conj(d), a d + b conj(c)): the product of p = a + b j
+    and q = c + d j as pairs of complex numbers (a = w + x i, b = y + z i).
 
-    With q = a + b j, a = w + x i, b = y + z i:
-    (a + b j)(c + d j) = (a c - b conj(d)) + (a d + b conj(c)) j.
-    `o` must not overlap `p` or `q`; `t` is an optional scratch buffer.
+    Eight ufunc passes with `out` given positionally; `t` is scratch; the
+    outputs must not overlap the inputs.
     """
+    np.multiply(a, c, o0)
+    np.conjugate(d, t)
+    np.multiply(b, t, t)
+    np.subtract(o0, t, o0)
+    np.multiply(a, d, o1)
+    np.conjugate(c, t)
+    np.multiply(b, t, t)
+    np.add(o1, t, o1)
+
+
+def _mul_block(p, q, o):
+    """o = p q (Hamilton) on one block of broadcasting float arrays."""
     ct = _COMPLEX[o.dtype]
     P, Q, O = p.view(ct), q.view(ct), o.view(ct)
-    a, b = P[..., 0], P[..., 1]
-    c, d = Q[..., 0], Q[..., 1]
-    o0, o1 = O[..., 0], O[..., 1]
-    if t is None:
-        t = np.empty(o0.shape, ct)
-    np.multiply(a, c, out=o0)
-    np.conjugate(d, out=t)
-    np.multiply(b, t, out=t)
-    np.subtract(o0, t, out=o0)
-    np.multiply(a, d, out=o1)
-    np.conjugate(c, out=t)
-    np.multiply(b, t, out=t)
-    np.add(o1, t, out=o1)
+    _mul_parts(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], np.empty(O.shape[:-1], ct))
 
 
 def _mul_flat(p, q, o):
-    """Chunked product of C-contiguous (N, 4) arrays of one shape."""
+    """Chunked product of C-contiguous (N, 4) arrays of one shape.
+
+    The complex views are made once; each block is a basic slice of them.
+    """
     n = len(o)
-    if n <= CHUNK:
-        _mul_block(p, q, o)
-        return
-    t = np.empty(CHUNK, _COMPLEX[o.dtype])
+    ct = _COMPLEX[o.dtype]
+    P, Q, O = p.view(ct), q.view(ct), o.view(ct)
+    t = np.empty(min(n, CHUNK), ct)
     for s in range(0, n, CHUNK):
         e = min(s + CHUNK, n)
-        _mul_block(p[s:e], q[s:e], o[s:e], t[: e - s])
+        _mul_parts(P[s:e, 0], P[s:e, 1], Q[s:e, 0], Q[s:e, 1], O[s:e, 0], O[s:e, 1], t[: e - s])
 
 
 def _mul_scalar(p, q, dtype):
@@ -252,12 +254,34 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
+    res = _out(out, q.shape, result_dtype(q))
+    if res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype and not np.may_share_memory(q, res):
+        _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
+        return res
     n = norm(q)
     if not np.all(n > 0):
-        raise ValueError("expected non-zero quaternions to normalize, got a zero (or nan) quaternion")
-    res = _out(out, q.shape, result_dtype(q))
+        raise ValueError(_ZERO_NORMALIZE)
     np.divide(q, n[..., None], out=res)
     return res
+
+
+_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero (or nan) quaternion"
+
+
+def _normalize_flat(q, out):
+    """Blocked q / |q| on (N, 4) C-contiguous arrays: one einsum for the squared
+    norms, then one division per component column (long inner loops)."""
+    n = len(q)
+    s = np.empty(min(n, CHUNK), q.dtype)
+    for i in range(0, n, CHUNK):
+        j = min(i + CHUNK, n)
+        blk, o, t = q[i:j], out[i:j], s[: j - i]
+        np.einsum("ij,ij->i", blk, blk, out=t)
+        np.sqrt(t, t)
+        if not (t > 0).all():
+            raise ValueError(_ZERO_NORMALIZE)
+        for c in range(4):
+            np.divide(blk[:, c], t, o[:, c])
 
 
 def inverse(q):
