@@ -36,7 +36,7 @@ def _benchmarks(cls):
     return [n for n in dir(cls) if n.startswith(("time_", "peakmem_"))]
 
 
-@pytest.mark.parametrize("cls", _classes())
+@pytest.mark.parametrize("cls", list(_classes()))
 def test_benchmarks_run(cls, tmp_path, monkeypatch):
     if cls.__name__ == "Resample":
         monkeypatch.setattr("benchmarks.resample.SCALE", {"npz": (40, 3), "bvh": (30, 4)})
@@ -61,7 +61,7 @@ def test_benchmarks_run(cls, tmp_path, monkeypatch):
         assert ran > 0, f"no benchmark of {cls.__name__} ran"
 
 
-@pytest.mark.parametrize("cls", _classes())
+@pytest.mark.parametrize("cls", list(_classes()))
 def test_benchmarks_documented(cls):
     assert cls.__doc__
     for name in _benchmarks(cls):
