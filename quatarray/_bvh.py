@@ -13,7 +13,7 @@ import dataclasses
 
 import numpy as np
 
-from . import _convert
+from . import _euler
 from ._io import FormatError, _ROWS, _atomic, _check_query, _load_table, _row_line, _write_rows
 from .interpolate import Track
 
@@ -350,12 +350,12 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
         frame_time = spacing if len(t) > 1 else motion.frame_time
     frames = _lerp_rows(times, motion.frames, t, extrapolate)  # positions, and reference angles
     for seq, cols in motion.rotation_groups().items():
-        quats = _unflip(np.array(_convert.from_euler(seq, motion.frames[:, cols], degrees=True), np.float64))
+        quats = _unflip(np.array(_euler.from_euler(seq, motion.frames[:, cols], degrees=True), np.float64))
         track = Track(times, quats, method=method, extrapolate=extrapolate)
         rows = max(1, _BLOCK // len(cols))  # output frames per block: temporaries stay small
         for start in range(0, len(t), rows):
             block = frames[start:start + rows]
-            angles = _convert.as_euler(np.asarray(track(t[start:start + rows])), seq, degrees=True,
+            angles = _euler.as_euler(np.asarray(track(t[start:start + rows])), seq, degrees=True,
                                        suppress_warnings=True)
             block[:, cols] = _nearest_euler(angles, block[:, cols], seq[0] == seq[2])
     return Motion(motion.hierarchy, motion.joints, frame_time, frames)

@@ -18,6 +18,7 @@ import warnings
 import numpy as np
 
 from . import _convert as C
+from . import _euler as E
 from . import _kernels as K
 from ._validate import batch_shape, float_array
 
@@ -230,7 +231,7 @@ class RotationMixin:
         array([[ 0.,  0., 90.],
                [ 0., 45.,  0.]])
         """
-        return cls._wrap(C.from_euler(seq, angles, degrees=degrees))
+        return cls._wrap(E.from_euler(seq, angles, degrees=degrees))
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles, shape (..., 3), in scipy's ranges and with its gimbal-lock warning.
@@ -255,7 +256,7 @@ class RotationMixin:
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
         array([30., 20., 10.])
         """
-        return C.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        return E.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -275,7 +276,7 @@ class RotationMixin:
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        return cls._wrap(C.from_davenport(axes, order, angles, degrees=degrees))
+        return cls._wrap(E.from_davenport(axes, order, angles, degrees=degrees))
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the middle one orthogonal to the others).
@@ -299,7 +300,7 @@ class RotationMixin:
         >>> np.round(r.as_davenport([ez, ex, ey], "e", degrees=True), 9)
         array([90., 30., 10.])
         """
-        return C.as_davenport(_raw(self), axes, order, degrees=degrees,
+        return E.as_davenport(_raw(self), axes, order, degrees=degrees,
                               suppress_warnings=suppress_warnings)
 
     # --- acting on vectors, inverting, measuring -------------------------------------------

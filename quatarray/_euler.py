@@ -1,0 +1,386 @@
+"""Euler and Davenport angles <-> scalar-first quaternions, on raw ndarrays.
+
+All 12 Euler sequences (lower case extrinsic, upper case intrinsic) and
+Davenport angles about arbitrary axes, following scipy 1.17's conventions,
+angle ranges and gimbal-lock `UserWarning`.  ``from_*`` multiplies the
+elementary rotations in closed form; ``as_*`` is the quaternion method of
+Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
+`_convert`.
+"""
+
+import re
+import warnings
+
+import numpy as np
+
+from ._convert import _blockwise, _half_angle, _quat
+from ._validate import float_array
+
+__all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
+
+_GIMBAL_EPS = 1e-7
+_GIMBAL_MESSAGE = ("Gimbal lock detected. Setting third angle to zero since it is not "
+                   "possible to uniquely determine all angles.")
+
+
+# --- Euler angles ----------------------------------------------------------------------------
+
+def check_seq(seq, n=None):
+    """Validate an Euler sequence; return (axis indices, intrinsic).
+
+    Lower case is extrinsic, upper case intrinsic; 1 to 3 axes (exactly `n` if
+    given), no axis repeated consecutively.
+
+    >>> check_seq("ZXY")
+    ([2, 0, 1], True)
+    """
+    if not isinstance(seq, str):
+        raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    if n is not None and len(seq) != n:
+        raise ValueError(f"expected seq of {n} axes, got {seq!r} ({len(seq)} axes)")
+    if not 1 <= len(seq) <= 3:
+        raise ValueError(f"expected seq of 1 to 3 axes, got {seq!r} ({len(seq)} axes)")
+    intrinsic = re.fullmatch("[XYZ]+", seq) is not None
+    if not intrinsic and re.fullmatch("[xyz]+", seq) is None:
+        raise ValueError(f"expected seq of axes from 'xyz' (extrinsic) or from 'XYZ' "
+                         f"(intrinsic), not mixed, got {seq!r}")
+    if any(a == b for a, b in zip(seq, seq[1:])):
+        raise ValueError(f"expected consecutive axes of seq to be different, got {seq!r}")
+    return ["xyz".index(a) for a in seq.lower()], intrinsic
+
+
+def _lin(c, a, sign, s, b, out=None):
+    """c*a + sign*s*b for rows or None (a zero row); None if both are zero."""
+    if a is None and b is None:
+        return None
+    if b is None:
+        return np.multiply(c, a, out=out)
+    sb = np.multiply(s, b, out=out if a is None else None)
+    if a is None:
+        return sb if sign > 0 else np.negative(sb, out=sb)
+    ca = np.multiply(c, a, out=out)
+    return np.add(ca, sb, out=ca) if sign > 0 else np.subtract(ca, sb, out=ca)
+
+
+def _times_axis(p, c, s, k, right, out=None):
+    """p (c + s e_k) if `right` else (c + s e_k) p, on rows [w, x, y, z] (None = 0)."""
+    i, j = (k + 1) % 3, (k + 2) % 3
+    w, pk, pi, pj = p[0], p[k + 1], p[i + 1], p[j + 1]
+    sg = 1 if right else -1
+    o = out if out is not None else [None] * 4
+    res = [None] * 4
+    res[0] = _lin(c, w, -1, s, pk, o[0])
+    res[k + 1] = _lin(c, pk, 1, s, w, o[k + 1])
+    res[i + 1] = _lin(c, pi, sg, s, pj, o[i + 1])
+    res[j + 1] = _lin(c, pj, -sg, s, pi, o[j + 1])
+    return res
+
+
+def _k_from_euler(angles, q, axes, intrinsic, scale):
+    c, s = _half_angle(angles[0], scale)
+    p = [c, None, None, None]
+    p[axes[0] + 1] = s
+    last = len(axes) - 1
+    for n in range(1, len(axes)):
+        c, s = _half_angle(angles[n], scale)
+        p = _times_axis(p, c, s, axes[n], intrinsic, out=q if n == last else None)
+    for row, value in zip(q, p):  # rows not written through `out`
+        if value is None:
+            row.fill(0)
+        elif len(axes) == 1:
+            np.copyto(row, value)
+
+
+def from_euler(seq, angles, degrees=False):
+    """Unit quaternions of Euler angles, as scipy's ``Rotation.from_euler``.
+
+    Parameters
+    ----------
+    seq : str
+        1 to 3 axes from ``'xyz'`` (extrinsic: about the fixed frame) or
+        ``'XYZ'`` (intrinsic: about the rotating frame), e.g. ``'ZXZ'``.
+    angles : array_like, shape (..., len(seq))
+        A scalar is accepted for a single axis.
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``from_euler('xyz', [a, b, c])`` is the rotation about x by a, then
+        about the fixed y by b, then the fixed z by c.
+
+    Notes
+    -----
+    The elementary quaternions are multiplied in closed form, skipping their
+    zero components: a 3-axis sequence costs 3 tangents and 16 products.
+
+    Examples
+    --------
+    >>> np.round(from_euler("z", 90, degrees=True), 6)
+    array([0.707107, 0.      , 0.      , 0.707107])
+    >>> np.round(from_euler("XY", [[90, 0], [0, 90]], degrees=True), 6)
+    array([[0.707107, 0.707107, 0.      , 0.      ],
+           [0.707107, 0.      , 0.707107, 0.      ]])
+    """
+    axes, intrinsic = check_seq(seq)
+    a = float_array(angles, "angles")
+    if a.ndim == 0:
+        a = a.reshape(1)
+    if a.shape[-1] != len(axes):
+        raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
+    scale = np.pi / 720.0 if degrees else 0.25
+    _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
+               axes=axes, intrinsic=intrinsic, scale=scale)
+    return out
+
+
+def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
+    """Bernardes & Viollet's step 2-3 on rows a, b, c, d: writes o (3, m).
+
+    Returns True if any element is in gimbal lock (middle angle within
+    1e-7 of 0 or π); its third angle is then set to 0, as in scipy.
+    """
+    first, third = (0, 2) if extrinsic else (2, 0)
+    half_sum = np.arctan2(b, a)
+    half_diff = np.arctan2(d, c)
+    middle = o[1]
+    np.arctan2(np.sqrt(c * c + d * d), np.sqrt(a * a + b * b), out=middle)
+    middle *= 2.0
+    np.subtract(half_sum, half_diff, out=o[first])
+    np.add(half_sum, half_diff, out=o[third])
+    case1 = middle <= _GIMBAL_EPS
+    case2 = np.abs(middle - np.pi) <= _GIMBAL_EPS
+    locked = case1 | case2
+    gimbal = bool(locked.any())
+    if gimbal:
+        np.copyto(o[2], 0, where=locked)
+        lock_angle = np.where(case1, 2 * half_sum, (-2 if extrinsic else 2) * half_diff)
+        np.copyto(o[0], lock_angle, where=locked)
+    if not symmetric:
+        if sign < 0:
+            np.negative(o[third], out=o[third])
+        middle -= lamb
+    for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
+        np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
+        np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
+    return gimbal
+
+
+def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
+    w = q[0]
+    qi, qj, qk = q[i + 1], q[j + 1], q[k + 1]
+    qk = qk if sign > 0 else -qk
+    if symmetric:
+        a, b, c, d = w, qi, qj, qk
+    else:
+        a, b, c, d = w - qj, qi + qk, qj + w, qk - qi
+    return _angles(a, b, c, d, o, extrinsic, symmetric, sign, np.pi / 2)
+
+
+def _warn_gimbal(gimbal, suppress_warnings):
+    if gimbal and not suppress_warnings:
+        warnings.warn(_GIMBAL_MESSAGE, UserWarning, stacklevel=4)
+
+
+def as_euler(q, seq, degrees=False, suppress_warnings=False):
+    """Euler angles of quaternions, as scipy's ``Rotation.as_euler``.
+
+    Uses the quaternion method of Bernardes & Viollet (2022) as scipy does,
+    with no rotation matrix.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+        Scalar-first quaternions, not necessarily unit.
+    seq : str
+        3 axes from ``'xyz'`` (extrinsic) or ``'XYZ'`` (intrinsic).
+    degrees : bool, default False
+    suppress_warnings : bool, default False
+        Do not warn about gimbal lock.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        First and third angles in [-π, π]; the second in [0, π] for
+        symmetric sequences (``'zxz'``) and in [-π/2, π/2] otherwise.  In
+        gimbal lock (second angle within 1e-7 of its ends) the third angle is
+        set to 0 and a `UserWarning` is issued.
+
+    Examples
+    --------
+    >>> q = from_euler("zyx", [90, 30, 10], degrees=True)
+    >>> np.round(as_euler(q, "zyx", degrees=True), 9)
+    array([90., 30., 10.])
+    """
+    axes, intrinsic = check_seq(seq, 3)
+    q = _quat(q)
+    i, j, k = axes[::-1] if intrinsic else axes
+    symmetric = i == k
+    if symmetric:
+        k = 3 - i - j
+    sign = (i - j) * (j - k) * (k - i) // 2
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
+                        symmetric=symmetric, sign=sign, extrinsic=not intrinsic)
+    _warn_gimbal(gimbal, suppress_warnings)
+    return np.rad2deg(out, out=out) if degrees else out
+
+
+# --- Davenport angles ---------------------------------------------------------------------------
+
+def check_order(order):
+    """True for extrinsic (``'e'``, ``'extrinsic'``), False for intrinsic (``'i'``, ``'intrinsic'``).
+
+    >>> check_order("e")
+    True
+    """
+    if order in ("e", "extrinsic"):
+        return True
+    if order in ("i", "intrinsic"):
+        return False
+    raise ValueError(f"expected order 'e'/'extrinsic' or 'i'/'intrinsic', got {order!r}")
+
+
+def _unit_axes(axes, n=None):
+    """Axes as unit float64 rows (k, 3); consecutive axes must be orthogonal."""
+    a = float_array(axes, "axes").astype(np.float64)
+    if a.ndim == 1:
+        a = a[None]
+    if a.ndim != 2 or a.shape[-1] != 3:
+        raise ValueError(f"expected axes of shape (3,) or (n, 3): vectors of length 3, got {np.shape(axes)}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"expected {n} axes, got {a.shape[0]}")
+    if not 1 <= a.shape[0] <= 3:
+        raise ValueError(f"expected 1 to 3 axes, got {a.shape[0]}")
+    norms = np.linalg.norm(a, axis=1, keepdims=True)
+    if not (np.isfinite(a).all() and (norms > 0).all()):
+        raise ValueError("expected finite, non-zero axes")
+    a = a / norms
+    dots = np.abs(np.sum(a[1:] * a[:-1], axis=1))
+    if (dots >= 1e-7).any():
+        raise ValueError(f"Consecutive axes must be orthogonal: got |cos| = {dots.max():.3g} between them")
+    return a
+
+
+def _k_from_davenport(angles, q, axes, extrinsic, scale):
+    c, s = _half_angle(angles[0], scale)
+    p = [c] + [s * n for n in axes[0]]
+    for n in range(1, len(axes)):
+        c, s = _half_angle(angles[n], scale)
+        e = [c] + [s * a for a in axes[n]]
+        p = _mul_rows(e, p) if extrinsic else _mul_rows(p, e)
+    for row, value in zip(q, p):
+        np.copyto(row, value)
+
+
+def _mul_rows(p, q):
+    """Hamilton product on component rows."""
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return [w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2]
+
+
+def from_davenport(axes, order, angles, degrees=False):
+    """Unit quaternions of Davenport angles (Euler angles about any axes).
+
+    Parameters
+    ----------
+    axes : array_like, shape (3,) or (n, 3), n ≤ 3
+        Rotation axes (normalised here); consecutive axes must be orthogonal.
+    order : {'e', 'extrinsic', 'i', 'intrinsic'}
+    angles : array_like, shape (..., n)
+        A scalar is accepted for a single axis.
+    degrees : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> ez, ex = [0, 0, 1], [1, 0, 0]
+    >>> q = from_davenport([ez, ex], "extrinsic", [90, 45], degrees=True)
+    >>> np.allclose(q, from_euler("zx", [90, 45], degrees=True))
+    True
+    """
+    extrinsic = check_order(order)
+    ax = _unit_axes(axes)
+    a = float_array(angles, "angles")
+    if a.ndim == 0:
+        a = a.reshape(1)
+    if a.shape[-1] != ax.shape[0]:
+        raise ValueError(f"Expected `angles` to match number of axes: expected angles of shape "
+                         f"(..., {ax.shape[0]}), got {a.shape}")
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
+    scale = np.pi / 720.0 if degrees else 0.25
+    _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
+               axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale)
+    return out
+
+
+def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
+    gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
+    if flip:
+        np.negative(o[1], out=o[1])
+    return gimbal
+
+
+def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
+    """Davenport angles (Euler angles about three given axes) of quaternions.
+
+    The generalisation of Bernardes & Viollet's method that scipy uses: the
+    quaternion is first turned by the angle λ between the first and third
+    axes, then read like Euler angles.
+
+    Parameters
+    ----------
+    q : ndarray, shape (..., 4)
+    axes : array_like, shape (3, 3)
+        Three axes; the middle one must be orthogonal to the other two.
+    order : {'e', 'extrinsic', 'i', 'intrinsic'}
+    degrees : bool, default False
+    suppress_warnings : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        First and third angles in [-π, π], the second in a range of width π
+        set by λ; gimbal lock warns and sets the third angle to 0.
+
+    Examples
+    --------
+    >>> ez, ex, ey = np.eye(3)[[2, 0, 1]]
+    >>> q = from_euler("zxy", [90, 30, 10], degrees=True)
+    >>> np.round(as_davenport(q, [ez, ex, ey], "e", degrees=True), 9)
+    array([90., 30., 10.])
+    """
+    extrinsic = check_order(order)
+    n1, n2, n3 = _unit_axes(axes, 3)
+    q = _quat(q)
+    if not extrinsic:
+        n1, n3 = n3, n1
+    ncross = np.cross(n1, n2)
+    lamb = float(np.arctan2(n3 @ ncross, n3 @ n1))
+    flip = lamb < 0
+    if flip:
+        n2, ncross, lamb = -n2, -ncross, -lamb
+    # (a, b, c, d) = P L(q_λ) q: q turned by λ about n2, read along n1, n2, n1 × n2
+    p0, pv = np.cos(lamb / 2), np.sin(lamb / 2) * n2
+    left = np.array([[p0, -pv[0], -pv[1], -pv[2]],
+                     [pv[0], p0, -pv[2], pv[1]],
+                     [pv[1], pv[2], p0, -pv[0]],
+                     [pv[2], -pv[1], pv[0], p0]])
+    proj = np.zeros((4, 4))
+    proj[0, 0] = 1
+    proj[1:, 1:] = [n1, n2, ncross]
+    lmat = (proj @ left).astype(q.dtype)
+    abcd = q.reshape(-1, 4) @ lmat.T
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
+                        extrinsic=extrinsic, lamb=lamb, flip=flip)
+    _warn_gimbal(gimbal, suppress_warnings)
+    return np.rad2deg(out, out=out) if degrees else out

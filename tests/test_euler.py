@@ -1,0 +1,198 @@
+"""Euler and Davenport angles (`quatarray._euler`) cross-checked against scipy:
+all 24 sequences both ways, ranges, gimbal lock, float32, shapes and bad input."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation as R
+
+from quatarray import _euler as E
+
+from .conftest import tol
+from .test_convert import ALL_SEQS, SHAPES, angle_diff, assert_same_rotation, sp, sp_quat, unit
+
+# --- Euler angles ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seq", ALL_SEQS)
+def test_euler_both_ways_match_scipy(rng, seq):
+    q = unit(rng, (300,), np.float64)
+    got = E.as_euler(q, seq)
+    want = sp(q).as_euler(seq)
+    assert angle_diff(got, want).max() <= tol(np.float64)
+    np.testing.assert_allclose(got, want, atol=tol(np.float64))  # same branch, not just mod 2π
+    np.testing.assert_allclose(E.as_euler(q, seq, degrees=True), sp(q).as_euler(seq, degrees=True),
+                               atol=tol(np.float64) * 180 / np.pi)
+    angles = rng.uniform(-2 * np.pi, 2 * np.pi, (300, 3))
+    assert_same_rotation(E.from_euler(seq, angles), sp_quat(R.from_euler(seq, angles)), tol(np.float64))
+    deg = np.degrees(angles)
+    assert_same_rotation(E.from_euler(seq, deg, degrees=True),
+                         sp_quat(R.from_euler(seq, deg, degrees=True)), tol(np.float64))
+
+
+@pytest.mark.parametrize("seq", ALL_SEQS)
+def test_euler_ranges_and_round_trip(rng, seq):
+    q = unit(rng, (500,), np.float64)
+    a = E.as_euler(q, seq)
+    assert (np.abs(a[:, [0, 2]]) <= np.pi).all()
+    lo, hi = (0, np.pi) if seq[0].lower() == seq[2].lower() else (-np.pi / 2, np.pi / 2)
+    assert ((a[:, 1] >= lo) & (a[:, 1] <= hi)).all()
+    assert_same_rotation(E.from_euler(seq, a), q, tol(np.float64))
+
+
+@pytest.mark.parametrize("seq", ["xyz", "ZXZ", "yxy", "XZY"])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_euler_float32_and_batch_shapes(rng, seq, shape):
+    q = unit(rng, shape, np.float32)
+    a = E.as_euler(q, seq)
+    assert a.dtype == np.float32 and a.shape == shape + (3,)
+    want = sp(q).as_euler(seq)
+    # where the middle angle is well away from gimbal lock the angles are well conditioned
+    mid = want[..., 1] if seq[0].lower() == seq[2].lower() else want[..., 1] + np.pi / 2
+    ok = np.minimum(mid, np.pi - mid) > 0.05
+    assert (angle_diff(a, want)[ok] <= 20 * tol(np.float32)).all()
+    back = E.from_euler(seq, a)
+    assert back.dtype == np.float32
+    assert_same_rotation(back, q / np.linalg.norm(q, axis=-1, keepdims=True), 4 * tol(np.float32))
+    angles = rng.uniform(-np.pi, np.pi, shape + (3,)).astype(np.float32)
+    assert_same_rotation(E.from_euler(seq, angles), sp_quat(R.from_euler(seq, angles.astype(float))),
+                         tol(np.float32))
+
+
+@pytest.mark.parametrize("seq", ALL_SEQS)
+def test_gimbal_lock_for_every_sequence(seq):
+    symmetric = seq[0].lower() == seq[2].lower()
+    locks = [0.0, np.pi] if symmetric else [-np.pi / 2, np.pi / 2]
+    angles = np.array([[0.3, m, -0.7] for m in locks] + [[1.2, m, 0.4] for m in locks])
+    q = sp_quat(R.from_euler(seq, angles))
+    with pytest.warns(UserWarning, match="Gimbal lock detected"):
+        got = E.as_euler(q, seq)
+    with pytest.warns(UserWarning, match="Gimbal lock detected"):
+        want = R.from_quat(q, scalar_first=True).as_euler(seq)
+    assert angle_diff(got, want).max() <= 1e-12
+    assert (got[:, 2] == 0).all()  # the third angle is set to zero
+    assert_same_rotation(E.from_euler(seq, got), q, 1e-12)  # and it is still the same rotation
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(E.as_euler(q, seq, suppress_warnings=True), got)
+
+
+def test_no_gimbal_warning_away_from_lock(rng):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        E.as_euler(E.from_euler("xyz", [0.1, 0.2, 0.3]), "xyz")
+
+
+def test_euler_of_identity_and_tiny_angles():
+    with pytest.warns(UserWarning, match="Gimbal"):  # zxz: the identity is in gimbal lock
+        np.testing.assert_array_equal(E.as_euler(np.array([1.0, 0, 0, 0]), "zxz"), [0, 0, 0])
+    np.testing.assert_array_equal(E.as_euler(np.array([1.0, 0, 0, 0]), "xyz"), [0, 0, 0])
+    a = np.array([1e-9, -2e-9, 3e-9])
+    np.testing.assert_allclose(E.as_euler(E.from_euler("xyz", a), "xyz"), a, rtol=1e-6)
+    np.testing.assert_allclose(E.from_euler("x", 1e-9), [1, 5e-10, 0, 0], rtol=1e-15)
+
+
+@pytest.mark.parametrize("seq, angles", [("x", 0.5), ("x", [[0.5], [0.2]]), ("XY", [0.1, 0.2]),
+                                         ("zy", [[0.1, 0.2], [0.3, 0.4]]), ("ZYX", [[[0.1, 0.2, 0.3]]])])
+def test_from_euler_shapes_like_scipy(seq, angles):
+    got = E.from_euler(seq, angles)
+    want = sp_quat(R.from_euler(seq, np.reshape(angles, (-1, len(seq))))).reshape(got.shape)
+    assert got.shape == np.shape(angles)[:-1] + (4,) if np.ndim(angles) else got.shape == (4,)
+    assert_same_rotation(got, want, 1e-15)
+
+
+@pytest.mark.parametrize("seq, exc, match", [
+    ("xxy", ValueError, "consecutive axes of seq to be different, got 'xxy'"),
+    ("XYY", ValueError, "consecutive axes"),
+    ("xYz", ValueError, "from 'xyz' .* or from 'XYZ' .*not mixed, got 'xYz'"),
+    ("abc", ValueError, "from 'xyz'"),
+    ("xyzx", ValueError, r"1 to 3 axes, got 'xyzx' \(4 axes\)"),
+    ("", ValueError, "1 to 3 axes"),
+    (3, TypeError, "expected seq to be a str"),
+])
+def test_from_euler_bad_sequences(seq, exc, match):
+    with pytest.raises(exc, match=match):
+        E.from_euler(seq, [0.1, 0.2, 0.3])
+
+
+@pytest.mark.parametrize("seq, match", [("xy", r"3 axes, got 'xy'"), ("xyzx", "3 axes"),
+                                        ("xyy", "consecutive"), ("Xyz", "not mixed")])
+def test_as_euler_bad_sequences(seq, match):
+    with pytest.raises(ValueError, match=match):
+        E.as_euler(np.array([1.0, 0, 0, 0]), seq)
+
+
+@pytest.mark.parametrize("seq, angles", [("xyz", [0.1, 0.2]), ("x", [0.1, 0.2, 0.3]), ("xy", 0.3),
+                                         ("xyz", np.zeros((4, 2)))])
+def test_from_euler_angles_shape_mismatch(seq, angles):
+    with pytest.raises(ValueError, match=rf"expected angles of shape \(\.\.\., {len(seq)}\)"):
+        E.from_euler(seq, angles)
+
+
+# --- Davenport angles ------------------------------------------------------------------------------
+
+def _axes_sets(rng):
+    """Axis triples whose middle axis is orthogonal to the other two (some non-unit)."""
+    sets = [np.eye(3)[[2, 0, 1]], np.eye(3)[[0, 1, 0]], [[2.0, 0, 0], [0, 1, 0], [1, 0, 1]]]
+    for _ in range(3):
+        basis = R.random(rng=rng).as_matrix()
+        n2 = basis[:, 1]
+        n1 = basis[:, 0]
+        n3 = np.cos(0.7) * basis[:, 0] + np.sin(0.7) * basis[:, 2]
+        sets.append(np.array([n1, n2, n3]))
+    return [np.asarray(s, float) for s in sets]
+
+
+@pytest.mark.parametrize("order", ["e", "extrinsic", "i", "intrinsic"])
+def test_davenport_both_ways_match_scipy(rng, order):
+    q = unit(rng, (200,), np.float64)
+    angles = rng.uniform(-np.pi, np.pi, (200, 3))
+    for axes in _axes_sets(rng):
+        assert_same_rotation(E.from_davenport(axes, order, angles),
+                             sp_quat(R.from_davenport(axes, order, angles)), tol(np.float64))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # random data may touch a lock
+            got = E.as_davenport(q, axes, order)
+            want = sp(q).as_davenport(axes, order)
+        assert angle_diff(got, want).max() <= 1e-12
+        assert_same_rotation(E.from_davenport(axes, order, got), q, 1e-12)
+
+
+def test_davenport_degrees_fewer_axes_and_float32(rng):
+    ez, ex = [0, 0, 1], [1, 0, 0]
+    a = [[90, 45], [35, 45]]
+    assert_same_rotation(E.from_davenport([ez, ex], "e", a, degrees=True),
+                         sp_quat(R.from_davenport([ez, ex], "e", a, degrees=True)), 1e-15)
+    assert_same_rotation(E.from_davenport(ez, "i", 30, degrees=True), E.from_euler("z", 30, degrees=True), 1e-15)
+    q = unit(rng, (50,), np.float32)
+    axes = np.eye(3)[[2, 0, 2]]
+    got = E.as_davenport(q, axes, "e", degrees=True)
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, E.as_euler(q, "zxz", degrees=True), atol=1e-3)
+
+
+def test_davenport_gimbal_lock_warns():
+    axes = np.eye(3)[[2, 0, 2]]
+    q = E.from_euler("zxz", [0.3, 0.0, 0.2])
+    with pytest.warns(UserWarning, match="Gimbal lock"):
+        a = E.as_davenport(q, axes, "e")
+    assert a[2] == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        E.as_davenport(q, axes, "e", suppress_warnings=True)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: E.from_davenport(np.eye(3), "x", [1, 2, 3]), "order 'e'/'extrinsic' or 'i'/'intrinsic', got 'x'"),
+    (lambda: E.from_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), "Consecutive axes must be orthogonal"),
+    (lambda: E.from_davenport(np.ones((4, 3)), "e", [1, 2, 3, 4]), "1 to 3 axes, got 4"),
+    (lambda: E.from_davenport(np.eye(3), "e", [1, 2]), r"angles of shape \(\.\.\., 3\), got \(2,\)"),
+    (lambda: E.from_davenport(np.eye(2), "e", [1, 2]), "vectors of length 3"),
+    (lambda: E.from_davenport([[0, 0, 0], [0, 1, 0]], "e", [1, 2]), "non-zero axes"),
+    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3)[:2], "e"), "expected 3 axes, got 2"),
+    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), [[1, 0, 0], [-1, 1, 0], [0, 0, 1]], "e"), "orthogonal"),
+    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3), "intrinsic-ish"), "order"),
+])
+def test_davenport_bad_input(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
