@@ -29,6 +29,7 @@ import math
 
 import numpy as np
 
+from ._kernels import _matrix_one
 from ._validate import CHUNK, float_array
 
 __all__ = [
@@ -211,6 +212,8 @@ def as_matrix(q):
            [ 0.,  0.,  1.]])
     """
     q = _quat(q)
+    if q.shape == (4,):  # one rotation: Python floats (about 2 µs instead of 20)
+        return _matrix_one(q, q.dtype)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)])
     return out
@@ -506,6 +509,10 @@ def magnitude(q):
     """
     q = _quat(q)
     out = np.empty(q.shape[:-1], q.dtype)
+    if q.shape == (4,):  # one rotation: Python floats
+        w, x, y, z = q.tolist()
+        out[()] = 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
+        return out
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
     return out
 

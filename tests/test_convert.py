@@ -91,6 +91,9 @@ def test_as_matrix_of_non_unit_quaternion_is_the_rotation_by_q_over_norm(rng, dt
     q = unit(rng, (50,), dtype)
     scale = np.geomspace(1e-3, 1e3, 50).astype(dtype)[:, None]
     np.testing.assert_allclose(C.as_matrix(q * scale), C.as_matrix(q), rtol=0, atol=tol(dtype))
+    for k in (0, -1):  # the single-quaternion path too
+        np.testing.assert_allclose(C.as_matrix(q[k] * scale[k]), C.as_matrix(q[k]), rtol=0, atol=tol(dtype))
+        np.testing.assert_allclose(C.magnitude(q[k] * scale[k]), C.magnitude(q[k]), rtol=0, atol=tol(dtype))
 
 
 def test_as_matrix_of_zero_quaternion_is_nan_without_warning():
