@@ -30,7 +30,7 @@ from math import prod
 
 import numpy as np
 
-from ._kernels import _sub, blocks
+from ._kernels import _sub, blocks, result_dtype
 from ._validate import CHUNK
 
 __all__ = [
@@ -319,21 +319,13 @@ def frame_core(F, phi, u, O, work, key="fr"):
 # Pairwise drivers: broadcasting, blocks, preallocated output
 # --------------------------------------------------------------------------
 
-def _batch(*shapes):
-    return np.broadcast_shapes(*shapes)
-
-
-def _dtype_of(*qs):
-    return np.result_type(*qs, np.float32)
-
-
 def drive(fn, quats, t, dtype, extra=()):
     """Run `fn(blocks_of_quats_soa, t_block, O, work, *extra)` over cache-sized blocks.
 
     quats: raw (..., 4) arrays broadcasting against each other and t.
     Returns the (batch, 4) output.
     """
-    batch = _batch(*(q.shape[:-1] for q in quats), t.shape)
+    batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)
     if not batch:  # kernels index scratch rows: give them at least one batch axis
         return drive(fn, [q[None] for q in quats], t[None], dtype, extra)[0]
     out = np.empty(batch + (4,), dtype)
@@ -384,7 +376,7 @@ def _sq_last(x):
 
 def slerp(q0, q1, t, shortest=True):
     """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`)."""
-    dtype = _dtype_of(q0, q1)
+    dtype = result_dtype(q0, q1)
     if q0.shape == q1.shape == (4,) and t.ndim == 0:
         return _slerp_one(q0, q1, float(t), shortest, dtype)
     if _small((q0, q1), t) is not None:
@@ -460,7 +452,7 @@ def _slerp_one(q0, q1, h, shortest, dtype):
 
 def lerp(q0, q1, t):
     """(1 - t) q0 + t q1, broadcasting (raw arrays)."""
-    dtype = _dtype_of(q0, q1)
+    dtype = result_dtype(q0, q1)
     if q0.shape == q1.shape == (4,) and t.ndim == 0:
         h = float(t)
         return np.array([(1 - h) * x + h * y for x, y in zip(q0.tolist(), q1.tolist())], dtype)
@@ -490,7 +482,7 @@ def nlerp(q0, q1, t, shortest=True):
 
     Raises ValueError where the blend is the zero quaternion (only possible
     for q1 = -q0 followed as given, or zero input)."""
-    dtype = _dtype_of(q0, q1)
+    dtype = result_dtype(q0, q1)
     if q0.shape == q1.shape == (4,) and t.ndim == 0:
         a, b, h = q0.tolist(), q1.tolist(), float(t)
         w1 = -h if shortest and sum(x * y for x, y in zip(a, b)) < 0 else h
@@ -556,7 +548,7 @@ def unflip(q, axis):
     Vectorised with a cumulative product; no loop over the axis.
     """
     qa = np.moveaxis(q, axis, 0) if axis else q
-    dtype = _dtype_of(q)
+    dtype = result_dtype(q)
     n = qa.shape[0]
     if n < 2:
         return q.astype(dtype, copy=True)
@@ -593,7 +585,7 @@ def _squad_block(Q0, A, B, Q1, h, O, work):
 
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
-    return drive(_squad_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
+    return drive(_squad_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
 
 
 def _bezier_levels(L, h, O, work):
@@ -616,4 +608,4 @@ def _bezier_block(Q0, A, B, Q1, h, O, work):
 
 def bezier(q0, a, b, q1, t):
     """Pairwise spherical cubic Bézier (raw arrays), de Casteljau with SLERP."""
-    return drive(_bezier_block, (q0, a, b, q1), t, _dtype_of(q0, a, b, q1))
+    return drive(_bezier_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
