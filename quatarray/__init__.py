@@ -3,9 +3,12 @@
 `QuatArray` (alias `Rotation`, a drop-in for `scipy.spatial.transform.Rotation`),
 keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`, `bezier`, `Track`,
 and scipy's `Slerp`), and `quatarray.testing` for assertions.
+`set_num_threads`, `get_num_threads` and `num_threads` control how many
+threads long batches use.
 """
 
 from ._array import QuatArray
+from ._blocks import get_num_threads, num_threads, set_num_threads
 from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
 
 Rotation = QuatArray
@@ -13,5 +16,6 @@ Rotation = QuatArray
 __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
+    "set_num_threads", "get_num_threads", "num_threads",
 ]
 __version__ = "0.1.0"
