@@ -85,8 +85,19 @@ def _mv(m, v):
 
 
 def angular_rate(rotvecs, rotvecs_dot):
-    """Angular rate from a rotation vector and its time derivative."""
-    return _mv(rotvec_dot_to_rate(rotvecs), rotvecs_dot)
+    """Angular rate ``A(r)^-1 dr/dt`` from a rotation vector and its time derivative.
+
+    Written with cross products rather than the 3x3 matrix of
+    `rotvec_dot_to_rate`, so long query arrays carry no (..., 3, 3) temporaries.
+    """
+    n = np.linalg.norm(rotvecs, axis=-1)
+    s = _safe(n)
+    big = n > _SMALL
+    dt = rotvecs.dtype
+    k1 = np.where(big, (1 - np.cos(s)) / s ** 2, 0.5 - n ** 2 / 24).astype(dt)[..., None]
+    k2 = np.where(big, (s - np.sin(s)) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None]
+    cp = np.cross(rotvecs, rotvecs_dot)
+    return rotvecs_dot - k1 * cp + k2 * np.cross(rotvecs, cp)
 
 
 def angular_acceleration(rotvecs, rotvecs_dot, rotvecs_ddot):

@@ -137,3 +137,14 @@ def test_call_errors(rng):
         RotationSpline(times, keys)
     with pytest.raises(ValueError, match="sequence"):
         RotationSpline([0.0], QuatArray.from_quat(keys[0], scalar_first=True))
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 3.0])
+def test_angular_rate_equals_matrix_form(rng, scale):
+    r = scale * rng.standard_normal((20, 3))
+    v = rng.standard_normal((20, 3))
+    expected = np.einsum("nij,nj->ni", S.rotvec_dot_to_rate(r), v)
+    assert np.allclose(S.angular_rate(r, v), expected, atol=1e-13)
+    # A and A^-1 are inverse matrices
+    prod = S.rate_to_rotvec_dot(r) @ S.rotvec_dot_to_rate(r)
+    assert np.allclose(prod, np.eye(3), atol=1e-12)
