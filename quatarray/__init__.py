@@ -6,6 +6,7 @@ and scipy's `Slerp`), and `quatarray.testing` for assertions.
 """
 
 from ._array import QuatArray
+from .rigid import dual_quaternion_blend, normalize_dual_quaternion, sclerp
 from .spline import RotationSpline
 from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
 
@@ -14,6 +15,6 @@ Rotation = QuatArray
 __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
-    "RotationSpline",
+    "RotationSpline", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
 ]
 __version__ = "0.1.0"
