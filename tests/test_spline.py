@@ -6,7 +6,9 @@ from scipy.spatial.transform import Rotation as SR
 from scipy.spatial.transform import RotationSpline as SRS
 
 from quatarray import QuatArray, RotationSpline
+from quatarray import Track
 from quatarray import _interp_spline as S
+from quatarray._kernels import rotate
 
 from .conftest import random_quats
 
@@ -148,3 +150,30 @@ def test_angular_rate_equals_matrix_form(rng, scale):
     # A and A^-1 are inverse matrices
     prod = S.rate_to_rotvec_dot(r) @ S.rotvec_dot_to_rate(r)
     assert np.allclose(prod, np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize("extrapolate", ["extend", "clamp"])
+def test_track_spline_matches_rotation_spline(rng, extrapolate):
+    times, keys = _track(rng, 6, (2,))
+    track = Track(times, keys, method="spline", extrapolate=extrapolate)
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    t = np.linspace(times[0], times[-1], 23)
+    q = track(t).view(np.ndarray)
+    assert np.allclose(np.abs(np.sum(q * sp(t).view(np.ndarray), axis=-1)), 1, atol=1e-14)
+    assert np.allclose(track.angular_velocity(t, frame="body"), sp(t, 1), atol=1e-13)
+    world = rotate(q, sp(t, 1))
+    assert np.allclose(track.angular_velocity(t), world, atol=1e-13)
+    outside = np.array([times[0] - 1.0, times[-1] + 1.0])
+    if extrapolate == "extend":
+        q_out = track(outside).view(np.ndarray)
+        assert np.allclose(np.abs(np.sum(q_out * sp(outside).view(np.ndarray), axis=-1)), 1, atol=1e-14)
+    else:
+        ends = track(outside).view(np.ndarray)
+        assert np.allclose(np.abs(np.sum(ends * keys[[0, -1]], axis=-1)), 1, atol=1e-14)
+        assert np.all(track.angular_velocity(outside) == 0)
+
+
+def test_track_spline_raises_outside(rng):
+    times, keys = _track(rng, 4)
+    with pytest.raises(ValueError):
+        Track(times, keys, method="spline")(times[-1] + 1)
