@@ -18,3 +18,6 @@ __all__ = [
     "RotationSpline", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
 ]
 __version__ = "0.1.0"
+from ._rigid_transform import RigidTransform  # noqa: E402
+
+__all__.append("RigidTransform")
