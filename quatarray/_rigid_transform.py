@@ -25,6 +25,19 @@ def _float(a, name, last):
     return a.astype(np.float32 if a.dtype == np.float32 else np.float64)
 
 
+def _cross(a, b):
+    return np.cross(a, b)
+
+
+def _left_jacobian_coeffs(theta):
+    """(1-cos θ)/θ² and (θ-sin θ)/θ³, by series near zero where the quotients cancel."""
+    small = theta < 1e-3
+    th = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(th)) / th**2)
+    b = np.where(small, 1 / 6 - theta**2 / 120, (th - np.sin(th)) / th**3)
+    return a, b
+
+
 class RigidTransform:
     """Rigid transforms (rotation then translation), batched, scipy 1.17 API."""
 
@@ -78,6 +91,27 @@ class RigidTransform:
         return cls._make(q, t, dq.ndim == 1)
 
     @classmethod
+    def from_exp_coords(cls, exp_coords):
+        e = _float(exp_coords, "exp_coords", (6,))
+        phi, u = e[..., :3], e[..., 3:]
+        theta = np.linalg.norm(phi, axis=-1, keepdims=True)
+        a, b = _left_jacobian_coeffs(theta)
+        pu = _cross(phi, u)
+        t = u + a * pu + b * _cross(phi, pu)
+        q = np.asarray(_rotation_cls().from_rotvec(phi).as_quat(scalar_first=True), e.dtype)
+        return cls._make(q, t.astype(e.dtype), e.ndim == 1)
+
+    @classmethod
+    def concatenate(cls, transforms):
+        if isinstance(transforms, RigidTransform):
+            return cls(transforms._quat.copy(), transforms._translation.copy(), transforms._single)
+        if not all(isinstance(x, RigidTransform) for x in transforms):
+            raise TypeError("input must contain RigidTransform objects only")
+        q = np.concatenate([np.atleast_2d(x._quat) for x in transforms])
+        t = np.concatenate([np.atleast_2d(x._translation) for x in transforms])
+        return cls(q, t, False)
+
+    @classmethod
     def identity(cls, num=None):
         shape = () if num is None else (num,)
         return cls.from_translation(np.zeros(shape + (3,)))
@@ -92,6 +126,19 @@ class RigidTransform:
         m[..., :3, 3] = self._translation
         m[..., 3, 3] = 1
         return m
+
+    def as_exp_coords(self):
+        phi = np.asarray(self.rotation.as_rotvec(), self._quat.dtype)
+        theta = np.linalg.norm(phi, axis=-1, keepdims=True)
+        small = theta < 1e-3
+        th = np.where(small, 1.0, theta)
+        # inverse left Jacobian: u = t - ½ φ×t + c φ×(φ×t)
+        c = np.where(small, 1 / 12 + theta**2 / 720,
+                     (1 - th * np.sin(th) / (2 * (1 - np.cos(th)))) / th**2)
+        t = self._translation
+        pt = _cross(phi, t)
+        u = t - 0.5 * pt + c * _cross(phi, pt)
+        return np.concatenate([phi, u.astype(phi.dtype)], axis=-1)
 
     def as_dual_quat(self, *, scalar_first=False):
         dq = DQ.from_rotation_translation(self._quat, self._translation)
@@ -121,6 +168,20 @@ class RigidTransform:
         q = np.asarray(Kn.multiply(self._quat, other._quat))
         t = np.asarray(Kn.rotate(self._quat, other._translation)) + self._translation
         return RigidTransform._make(q, t, self._single and other._single)
+
+    def __pow__(self, n):
+        if n == -1:
+            return self.inv()
+        if n == 1:
+            return type(self)(self._quat.copy(), self._translation.copy(), self._single)
+        return type(self).from_exp_coords(self.as_exp_coords() * n)
+
+    def mean(self, weights=None):
+        rot = self.rotation.mean(weights) if weights is not None else self.rotation.mean()
+        t = np.atleast_2d(self._translation).reshape(-1, 3)
+        w = None if weights is None else np.asarray(weights, dtype=float).ravel()
+        tm = np.average(t, axis=0, weights=w).astype(self._translation.dtype)
+        return RigidTransform.from_components(tm, rot)
 
     def __rmul__(self, other):
         if hasattr(other, "as_quat"):
@@ -154,6 +215,14 @@ class RigidTransform:
             raise TypeError("Single transform is not subscriptable.")
         q = self._quat[index]
         return type(self)(q.copy(), self._translation[index].copy(), q.ndim == 1)
+
+    def __setitem__(self, index, value):
+        if self._single:
+            raise TypeError("Single transform is not subscriptable.")
+        if not isinstance(value, RigidTransform):
+            raise TypeError("value must be a RigidTransform object")
+        self._quat[index] = value._quat
+        self._translation[index] = value._translation
 
     def __repr__(self):
         return f"RigidTransform.from_matrix({self.as_matrix()!r})"

@@ -46,3 +46,20 @@ def test_container_and_errors():
     with pytest.raises(ValueError, match="matrix"):
         RigidTransform.from_matrix(np.ones((4, 4)))
     np.testing.assert_allclose(RigidTransform.identity(3).as_matrix(), st.RigidTransform.identity(3).as_matrix())
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_exp_coords_pow_mean_concatenate(dtype):
+    ours, ref, _ = _pair(dtype, seed=1)
+    tol = 100 * np.finfo(dtype).eps
+    np.testing.assert_allclose(ours.as_exp_coords(), ref.as_exp_coords(), atol=tol, rtol=tol)
+    e = ref.as_exp_coords()
+    np.testing.assert_allclose(RigidTransform.from_exp_coords(e.astype(dtype)).as_matrix(),
+                               st.RigidTransform.from_exp_coords(e).as_matrix(), atol=tol)
+    np.testing.assert_allclose((ours ** 2.5).as_matrix(), (ref ** 2.5).as_matrix(), atol=tol * 10)
+    np.testing.assert_allclose(ours.mean().as_matrix(), ref.mean().as_matrix(), atol=tol * 10)
+    both = RigidTransform.concatenate([ours, ours[0]])
+    assert len(both) == 8
+    np.testing.assert_allclose(both[7].as_matrix(), ours[0].as_matrix())
+    ours[1] = ours[0]
+    np.testing.assert_array_equal(ours[1].as_matrix(), ours[0].as_matrix())
