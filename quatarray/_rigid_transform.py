@@ -112,8 +112,10 @@ class RigidTransform:
         return cls(q, t, False)
 
     @classmethod
-    def identity(cls, num=None):
-        shape = () if num is None else (num,)
+    def identity(cls, num=None, *, shape=None):
+        if num is not None and shape is not None:
+            raise ValueError("Only one of `num` or `shape` can be specified.")
+        shape = (() if num is None else (num,)) if shape is None else tuple(np.atleast_1d(shape))
         return cls.from_translation(np.zeros(shape + (3,)))
 
     # conversions
