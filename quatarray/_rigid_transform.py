@@ -87,6 +87,10 @@ class RigidTransform:
         dq = _float(dual_quat, "dual_quat", (8,))
         if not scalar_first:
             dq = dq[..., [3, 0, 1, 2, 7, 4, 5, 6]]
+        # like scipy, a zero real part (no rotation to normalise) means the identity
+        zero = ~np.any(dq[..., :4], axis=-1)
+        if np.any(zero):
+            dq = np.where(zero[..., None], np.eye(1, 8, dtype=dq.dtype), dq)
         q, t = DQ.as_rotation_translation(DQ.normalize(dq))
         return cls._make(q, t, dq.ndim == 1)
 

@@ -63,3 +63,9 @@ def test_exp_coords_pow_mean_concatenate(dtype):
     np.testing.assert_allclose(both[7].as_matrix(), ours[0].as_matrix())
     ours[1] = ours[0]
     np.testing.assert_array_equal(ours[1].as_matrix(), ours[0].as_matrix())
+
+
+def test_from_dual_quat_zero_real_part_is_identity_like_scipy():
+    dq = np.zeros((2, 8))
+    np.testing.assert_array_equal(RigidTransform.from_dual_quat(dq).as_matrix(),
+                                  st.RigidTransform.from_dual_quat(dq).as_matrix())
