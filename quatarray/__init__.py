@@ -5,7 +5,9 @@ keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`, `bezier`, `Track`,
 and scipy's `Slerp`), and `quatarray.testing` for assertions.
 """
 
+from . import testing
 from ._array import QuatArray
+from ._rigid_transform import RigidTransform
 from .rigid import dual_quaternion_blend, normalize_dual_quaternion, sclerp
 from .spline import RotationSpline
 from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
@@ -15,9 +17,7 @@ Rotation = QuatArray
 __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
-    "RotationSpline", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
+    "RotationSpline", "RigidTransform", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
+    "testing",
 ]
 __version__ = "0.1.0"
-from ._rigid_transform import RigidTransform  # noqa: E402
-
-__all__.append("RigidTransform")
