@@ -28,6 +28,8 @@ import numpy as np
 from . import _blocks
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
+from . import _interp_spline as ISp
+from . import _kernels as Kn
 from ._array import QuatArray
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
@@ -39,7 +41,7 @@ __all__ = [
     "Track", "Slerp",
 ]
 
-METHODS = ("linear", "slerp", "squad", "bezier")
+METHODS = ("linear", "slerp", "squad", "bezier", "spline")
 EXTRAPOLATE = ("raise", "clamp", "extend")
 FRAMES = ("world", "body")
 
@@ -449,7 +451,8 @@ class Track:
         K keyframes of any batch of tracks, e.g. ``(K, joints, 4)``.  They
         are normalised and unflipped along the key axis (so negating any key
         changes nothing; outputs follow the sign of the first key).
-    method : {'slerp', 'linear', 'squad', 'bezier'}, default 'slerp'
+    method : {'slerp', 'linear', 'squad', 'bezier', 'spline'}, default 'slerp'
+        ``'spline'`` is scipy's C² `RotationSpline` curve.
         ``'linear'``: NLERP between neighbouring keys (cheap, not
         constant-speed); ``'slerp'``: piecewise great circles at constant
         speed (continuous, but the angular velocity jumps at keys);
@@ -514,6 +517,11 @@ class Track:
         self._dt = np.append(dt, np.inf)     # phantom segment after the last key: u = 0
         Q = _components_first(keys, K, B)        # (4, K, B), C-contiguous float64
         self._controls = None
+        if self._method == "spline":
+            # scipy's RotationSpline: its own evaluator, no frame table
+            self._spline = ISp.coefficients(times, keys)
+            self._table = None
+            return
         if self._method == "linear":
             table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
         elif self._method == "slerp":
@@ -655,6 +663,9 @@ class Track:
 
     def _evaluate(self, t, name):
         tshape, flat, _ = self._queries(t, name)
+        if self._method == "spline":
+            out = ISp.evaluate(self._times, self._keys, self._spline, flat, 0)
+            return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
         M, B = flat.size, self._B
         out = np.empty((M, B, 4), self._dtype)
 
@@ -741,6 +752,14 @@ class Track:
         """
         frame = _choice(frame, "frame", FRAMES)
         tshape, flat, outside = self._queries(t, "t")
+        if self._method == "spline":
+            # the spline's rate (scipy's order=1) is in the body frame
+            w = ISp.evaluate(self._times, self._keys, self._spline, flat, 1)
+            if frame == "world":
+                w = Kn.rotate(ISp.evaluate(self._times, self._keys, self._spline, flat, 0), w)
+            if outside is not None:
+                w[outside] = 0
+            return w.reshape(tshape + self._batch + (3,))
         M, B = flat.size, self._B
         out = np.empty((M, B, 3), np.float64)
         for sm, sb in _qt_blocks(M, B):

@@ -832,7 +832,7 @@ BAD_TRACKS = [
      "expected finite values in keys"),
     ("complex keys", (GOOD_T, np.ones((3, 4), complex), {}), TypeError, "expected keys of real numbers"),
     ("unknown method", (GOOD_T, GOOD_K, {"method": "cubic"}), ValueError,
-     r"expected method in \('linear', 'slerp', 'squad', 'bezier'\), got 'cubic'"),
+     r"expected method in \('linear', 'slerp', 'squad', 'bezier', 'spline'\), got 'cubic'"),
     ("unknown extrapolate", (GOOD_T, GOOD_K, {"extrapolate": "wrap"}), ValueError,
      r"expected extrapolate in \('raise', 'clamp', 'extend'\), got 'wrap'"),
 ]

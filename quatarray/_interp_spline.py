@@ -1,0 +1,251 @@
+"""Raw C² rotation spline (scipy's `RotationSpline` maths) on ``(K, *batch, 4)`` keys.
+
+On segment ``i`` the rotation is ``q_i exp(r(t))`` with ``r`` (a rotation
+vector relative to the left key) a cubic in ``t - t_i``; ``r(0) = 0`` and
+``r(dt_i)`` is the rotation vector of ``q_i* q_{i+1}``.  The angular rates
+``w_i`` at the keys are continuous by construction and the angular
+accelerations are made continuous at interior keys, which is a nonlinear
+block-tridiagonal system in the interior rates (Sola, "Quaternion kinematics
+for the error-state Kalman filter", and scipy's `_rotation_spline.py`).  The
+end rates are fixed as scipy fixes them: the first equals the first segment's
+mean rate, the last the last segment's mean rate.  The nonlinear term is
+iterated (at most `MAX_ITER` times, as scipy); each linear solve is a block
+cyclic reduction, so no Python loop runs over keys: the loop is over
+``log2(K)`` reduction levels, each level vectorised over keys and tracks.
+
+All functions take the key axis first and any batch after it; the last axis
+holds components.  float32 stays float32.
+"""
+
+import numpy as np
+
+from . import _blocks
+from . import _convert as C
+from . import _kernels as Kn
+
+MAX_ITER = 10
+TOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 4 * float(np.finfo(np.float32).eps)}
+
+_SMALL = 1e-4  # below this angle the series expansions replace the closed forms (as scipy)
+
+
+def _skew(v):
+    s = np.zeros(v.shape[:-1] + (3, 3), v.dtype)
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    s[..., 0, 1], s[..., 0, 2] = -z, y
+    s[..., 1, 0], s[..., 1, 2] = z, -x
+    s[..., 2, 0], s[..., 2, 1] = -y, x
+    return s
+
+
+def _safe(n):
+    return np.where(n > _SMALL, n, 1.0)
+
+
+def rate_to_rotvec_dot(rotvecs):
+    """Matrices ``A(r)`` with ``dr/dt = A(r) w``; shape (..., 3, 3)."""
+    n = np.linalg.norm(rotvecs, axis=-1)
+    s = _safe(n)
+    k = np.where(n > _SMALL, (1 - 0.5 * s / np.tan(0.5 * s)) / s ** 2, 1 / 12 + n ** 2 / 720)
+    sk = _skew(rotvecs)
+    return np.eye(3, dtype=rotvecs.dtype) + 0.5 * sk + k[..., None, None].astype(rotvecs.dtype) * (sk @ sk)
+
+
+def rotvec_dot_to_rate(rotvecs):
+    """Matrices ``A(r)^-1`` with ``w = A(r)^-1 dr/dt``; shape (..., 3, 3)."""
+    n = np.linalg.norm(rotvecs, axis=-1)
+    s = _safe(n)
+    big = n > _SMALL
+    k1 = np.where(big, (1 - np.cos(s)) / s ** 2, 0.5 - n ** 2 / 24)
+    k2 = np.where(big, (s - np.sin(s)) / s ** 3, 1 / 6 - n ** 2 / 120)
+    sk = _skew(rotvecs)
+    dt = rotvecs.dtype
+    return np.eye(3, dtype=dt) - k1[..., None, None].astype(dt) * sk + k2[..., None, None].astype(dt) * (sk @ sk)
+
+
+def acceleration_term(rotvecs, rotvecs_dot):
+    """The part of the angular acceleration quadratic in ``dr/dt``; shape (..., 3)."""
+    n = np.linalg.norm(rotvecs, axis=-1)
+    s = _safe(n)
+    big = n > _SMALL
+    sn, cs = np.sin(s), np.cos(s)
+    k1 = np.where(big, (-s * sn - 2 * (cs - 1)) / s ** 4, 1 / 12 - n ** 2 / 180)
+    k2 = np.where(big, (-2 * s + 3 * sn - s * cs) / s ** 5, -1 / 60 + n ** 2 / 12604)
+    k3 = np.where(big, (s - sn) / s ** 3, 1 / 6 - n ** 2 / 120)
+    dp = np.sum(rotvecs * rotvecs_dot, axis=-1)
+    cp = np.cross(rotvecs, rotvecs_dot)
+    ccp = np.cross(rotvecs, cp)
+    dccp = np.cross(rotvecs_dot, cp)
+    dt = rotvecs.dtype
+    return ((dp * k1)[..., None].astype(dt) * cp + (dp * k2)[..., None].astype(dt) * ccp
+            + k3[..., None].astype(dt) * dccp)
+
+
+def _mv(m, v):
+    return np.einsum("...ij,...j->...i", m, v)
+
+
+def angular_rate(rotvecs, rotvecs_dot):
+    """Angular rate ``A(r)^-1 dr/dt`` from a rotation vector and its time derivative.
+
+    Written with cross products rather than the 3x3 matrix of
+    `rotvec_dot_to_rate`, so long query arrays carry no (..., 3, 3) temporaries.
+    """
+    n = np.linalg.norm(rotvecs, axis=-1)
+    s = _safe(n)
+    big = n > _SMALL
+    dt = rotvecs.dtype
+    k1 = np.where(big, (1 - np.cos(s)) / s ** 2, 0.5 - n ** 2 / 24).astype(dt)[..., None]
+    k2 = np.where(big, (s - np.sin(s)) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None]
+    cp = np.cross(rotvecs, rotvecs_dot)
+    return rotvecs_dot - k1 * cp + k2 * np.cross(rotvecs, cp)
+
+
+def angular_acceleration(rotvecs, rotvecs_dot, rotvecs_ddot):
+    """Angular acceleration from a rotation vector and its first two derivatives."""
+    return angular_rate(rotvecs, rotvecs_ddot) + acceleration_term(rotvecs, rotvecs_dot)
+
+
+def _pad(a):
+    z = np.zeros((1,) + a.shape[1:], a.dtype)
+    return np.concatenate([z, a, z])
+
+
+def block_tridiagonal_solve(lower, diag, upper, rhs):
+    """Solve ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i`` by cyclic reduction.
+
+    ``lower``, ``diag``, ``upper`` have shape (n, *batch, 3, 3) (``lower[0]``
+    and ``upper[-1]`` are ignored), ``rhs`` (n, *batch, 3).  Each level
+    removes the odd rows, so the recursion depth is ``log2(n)``.
+    """
+    n = len(diag)
+    if n == 1:
+        return np.linalg.solve(diag[0], rhs[0][..., None])[..., 0][None]
+    lower = lower.copy()
+    upper = upper.copy()
+    lower[0] = 0
+    upper[-1] = 0
+    odd_inv = np.linalg.inv(diag[1::2])
+    m = (n + 1) // 2
+    # padded so that index i of the padded array is odd row i - 1 of the original
+    inv_p = _pad(np.zeros_like(diag))
+    inv_p[2:-1:2] = odd_inv
+    low_p, up_p, rhs_p = _pad(lower), _pad(upper), _pad(rhs)
+    prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
+    alpha = lower[0::2] @ inv_p[prev]
+    beta = upper[0::2] @ inv_p[nxt]
+    new_diag = diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt]
+    new_low = -(alpha @ low_p[prev])
+    new_up = -(beta @ up_p[nxt])
+    new_rhs = rhs[0::2] - _mv(alpha, rhs_p[prev]) - _mv(beta, rhs_p[nxt])
+    even = block_tridiagonal_solve(new_low, new_diag, new_up, new_rhs)
+    x = np.empty_like(rhs)
+    x[0::2] = even
+    ev_p = np.concatenate([even, np.zeros((1,) + even.shape[1:], even.dtype)])
+    left = even[: n // 2]
+    right = ev_p[1 : n // 2 + 1]
+    x[1::2] = _mv(odd_inv, rhs[1::2] - _mv(lower[1::2], left) - _mv(upper[1::2], right))
+    return x
+
+
+def relative_rotvecs(keys):
+    """Rotation vectors of ``keys[i]* keys[i+1]``, shape (K - 1, *batch, 3)."""
+    rel = Kn.multiply(Kn.conjugate(keys[:-1]), keys[1:])
+    return C.as_rotvec(rel)
+
+
+def _solve_rates(dt, rates, rotvecs):
+    """Interior rates (scipy's system) by fixed-point iteration on the quadratic term."""
+    dtype = rotvecs.dtype
+    first = rates[0].copy()
+    a = rate_to_rotvec_dot(rotvecs)
+    a_inv = rotvec_dot_to_rate(rotvecs)
+    dtb = dt[..., None]
+    d = 4 * (1 / dt[:-1] + 1 / dt[1:])
+    shape = (len(d),) + rotvecs.shape[1:-1] + (3, 3)
+    diag = np.broadcast_to(d[..., None, None] * np.eye(3, dtype=dtype), shape).copy()
+    lower = np.zeros_like(diag)
+    upper = np.zeros_like(diag)
+    lower[1:] = 2 * a_inv[1:-1] / dtb[1:-1, ..., None]
+    upper[:-1] = 2 * a[1:-1] / dtb[1:-1, ..., None]
+    b0 = 6 * (rotvecs[:-1] / dtb[:-1] ** 2 + rotvecs[1:] / dtb[1:] ** 2)
+    b0[0] -= 2 / dtb[0] * _mv(a_inv[0], first)
+    b0[-1] -= 2 / dtb[-1] * _mv(a[-1], rates[-1])
+    tol = TOL[np.dtype(dtype)]
+    for _ in range(MAX_ITER):
+        rotvecs_dot = _mv(a, rates)
+        rhs = b0 - acceleration_term(rotvecs[:-1], rotvecs_dot[:-1])
+        new = block_tridiagonal_solve(lower, diag, upper, rhs)
+        delta = np.abs(new - rates[:-1])
+        rates[:-1] = new
+        if np.all(delta < tol * (1 + np.abs(new))):
+            break
+    rotvecs_dot = _mv(a, rates)
+    rates = np.concatenate([first[None], rates[:-1]])
+    return rates, rotvecs_dot
+
+
+def coefficients(times, keys):
+    """Cubic coefficients of the relative rotation vector on every segment.
+
+    Parameters
+    ----------
+    times : ndarray, shape (K,)
+        Strictly increasing key times (K >= 2), in the keys' dtype.
+    keys : ndarray, shape (K, *batch, 4)
+        Unit scalar-first quaternions.
+
+    Returns
+    -------
+    ndarray, shape (4, K - 1, *batch, 3)
+        ``c[0] s³ + c[1] s² + c[2] s + c[3]`` with ``s = t - times[i]``
+        (``c[3] = 0``), as scipy's ``PPoly`` coefficients.
+    """
+    dtype = keys.dtype
+    rotvecs = relative_rotvecs(keys)
+    dt = np.diff(times).astype(dtype).reshape((-1,) + (1,) * (keys.ndim - 2))
+    dtb = dt[..., None]
+    rates = rotvecs / dtb
+    if len(keys) == 2:
+        rotvecs_dot = rates
+    else:
+        rates, rotvecs_dot = _solve_rates(dt, rates, rotvecs)
+    coeff = np.zeros((4,) + rotvecs.shape, dtype)
+    coeff[0] = (-2 * rotvecs + dtb * rates + dtb * rotvecs_dot) / dtb ** 3
+    coeff[1] = (3 * rotvecs - 2 * dtb * rates - dtb * rotvecs_dot) / dtb ** 2
+    coeff[2] = rates
+    return coeff
+
+
+def segments(times, t):
+    """Segment index of each query as scipy's PPoly picks it (the end segments extend)."""
+    idx = np.searchsorted(times, t, side="right") - 1
+    return np.clip(idx, 0, len(times) - 2)
+
+
+def evaluate(times, keys, coeff, t, order=0):
+    """The spline at query times ``t`` (shape (M,)): quaternions, rates or accelerations.
+
+    Returns shape (M, *batch, 4) for ``order=0`` and (M, *batch, 3) otherwise;
+    queries are processed in blocks so temporaries stay cache-sized.
+    """
+    batch = keys.shape[1:-1]
+    dtype = keys.dtype
+    width = 4 if order == 0 else 3
+    out = np.empty(t.shape + batch + (width,), dtype)
+    per = max(1, _blocks.BLOCK // max(1, int(np.prod(batch, dtype=np.int64))))
+    for start in range(0, len(t), per):
+        tb = t[start:start + per]
+        idx = segments(times, tb)
+        s = (tb - times[idx]).astype(dtype).reshape((-1,) + (1,) * (len(batch) + 1))
+        c0, c1, c2 = coeff[0][idx], coeff[1][idx], coeff[2][idx]
+        r = ((c0 * s + c1) * s + c2) * s
+        if order == 0:
+            Kn.multiply(keys[idx], C.from_rotvec(r), out=out[start:start + per])
+            continue
+        r1 = (3 * c0 * s + 2 * c1) * s + c2
+        if order == 1:
+            out[start:start + per] = angular_rate(r, r1)
+        else:
+            out[start:start + per] = angular_acceleration(r, r1, 6 * c0 * s + 2 * c1)
+    return out

@@ -1,0 +1,130 @@
+"""Rigid motions as unit dual quaternions: ScLERP, blending, normalisation.
+
+The public functions take dual quaternions of shape ``(..., 8)`` in scipy's
+layout (``RigidTransform.as_dual_quat``): the real quaternion then the dual
+quaternion, each scalar-last unless ``scalar_first=True``.  They validate,
+reorder to the scalar-first raw layout of `_dualquat`, call it, and reorder
+back; float32 stays float32.
+"""
+
+import numpy as np
+
+from . import _dualquat as D
+from ._validate import finite, float_array
+
+__all__ = ["sclerp", "dual_quaternion_blend", "normalize_dual_quaternion"]
+
+_TO_FIRST = [3, 0, 1, 2, 7, 4, 5, 6]
+_TO_LAST = [1, 2, 3, 0, 5, 6, 7, 4]
+
+
+def _dual(x, name, scalar_first):
+    a = finite(float_array(x, name, last=8), name)
+    return a if scalar_first else a[..., _TO_FIRST]
+
+
+def _out(dq, scalar_first):
+    return dq if scalar_first else dq[..., _TO_LAST]
+
+
+def normalize_dual_quaternion(dual_quat, *, scalar_first=False):
+    """The nearest unit dual quaternions (scipy's private helper, made public).
+
+    The real part is scaled to unit norm (a zero real part becomes the
+    identity) and the dual part is made orthogonal to it.
+
+    Parameters
+    ----------
+    dual_quat : array_like, shape (..., 8)
+    scalar_first : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (..., 8)
+
+    Examples
+    --------
+    >>> normalize_dual_quaternion([0, 0, 0, 2, 0, 0, 0, 1])
+    array([0., 0., 0., 1., 0., 0., 0., 0.])
+    """
+    dq = _dual(dual_quat, "dual_quat", scalar_first).copy()
+    zero = np.all(dq[..., :4] == 0, axis=-1)
+    dq[..., 0] = np.where(zero, 1, dq[..., 0])
+    return _out(D.normalize(dq), scalar_first)
+
+
+def sclerp(a, b, t, *, scalar_first=False):
+    """Screw linear interpolation of rigid motions (dual-quaternion SLERP).
+
+    The motion from ``a`` to ``b`` is a rotation about one fixed axis with a
+    translation along it, traversed at constant angular and linear speed;
+    ``t = 0`` gives ``a`` and ``t = 1`` gives ``b``.  Broadcasts like
+    `quatarray.slerp`: the batches of ``a`` and ``b`` broadcast together and
+    the axes of ``t`` come after them.
+
+    Parameters
+    ----------
+    a, b : array_like, shape (..., 8)
+        Unit dual quaternions (``RigidTransform.as_dual_quat`` layout).
+    t : float or array_like
+    scalar_first : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (broadcast batch, *t.shape, 8)
+
+    Examples
+    --------
+    >>> from scipy.spatial.transform import RigidTransform
+    >>> a = RigidTransform.identity().as_dual_quat()
+    >>> b = RigidTransform.from_translation([2.0, 0, 0]).as_dual_quat()
+    >>> RigidTransform.from_dual_quat(sclerp(a, b, 0.25)).translation
+    array([0.5, 0. , 0. ])
+    """
+    a = _dual(a, "a", scalar_first)
+    b = _dual(b, "b", scalar_first)
+    t = finite(float_array(t, "t"), "t")
+    batch = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
+    a = np.broadcast_to(a, batch + (8,))
+    b = np.broadcast_to(b, batch + (8,))
+    dtype = np.result_type(a.dtype, b.dtype)
+    return _out(D.sclerp(D.normalize(a.astype(dtype)), D.normalize(b.astype(dtype)), t.astype(dtype)), scalar_first)
+
+
+def dual_quaternion_blend(dual_quats, weights, *, axis=0, scalar_first=False):
+    """Dual-quaternion linear blending (DLB), as used for skinning.
+
+    The weighted sum of the dual quaternions along ``axis`` (each first taken
+    in the hemisphere of the first one), normalised.  Close to the weighted
+    mean motion when the motions are close; never leaves the rigid motions.
+
+    Parameters
+    ----------
+    dual_quats : array_like, shape (..., 8)
+    weights : array_like
+        Shape ``(n,)`` for the ``n`` motions along ``axis``.
+    axis : int, default 0
+    scalar_first : bool, default False
+
+    Returns
+    -------
+    ndarray, shape (batch without axis, 8)
+
+    Examples
+    --------
+    >>> from scipy.spatial.transform import RigidTransform
+    >>> dq = RigidTransform.from_translation([[0.0, 0, 0], [4, 0, 0]]).as_dual_quat()
+    >>> RigidTransform.from_dual_quat(dual_quaternion_blend(dq, [0.75, 0.25])).translation
+    array([1., 0., 0.])
+    """
+    dq = _dual(dual_quats, "dual_quats", scalar_first)
+    if dq.ndim < 2:
+        raise ValueError(f"expected dual_quats of shape (n, ..., 8), got {dq.shape}")
+    axis = int(axis)
+    if not -(dq.ndim - 1) <= axis < dq.ndim - 1:
+        raise ValueError(f"expected axis in [{-(dq.ndim - 1)}, {dq.ndim - 1}), got {axis}")
+    axis %= dq.ndim - 1
+    w = finite(float_array(weights, "weights"), "weights")
+    if w.shape != (dq.shape[axis],):
+        raise ValueError(f"expected weights of shape ({dq.shape[axis]},), got {w.shape}")
+    return _out(D.blend(dq, w.astype(dq.dtype), axis=axis), scalar_first)

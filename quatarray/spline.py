@@ -1,0 +1,100 @@
+"""`RotationSpline`: scipy 1.17's C² rotation spline, batched over tracks.
+
+Validates, calls the raw maths in `_interp_spline`, and wraps quaternions
+as `Rotation`.  Beyond scipy, the keys may hold any batch of tracks
+``(K, *batch)`` sharing one time axis, and float32 keys stay float32.
+"""
+
+import numpy as np
+
+from . import _interp_spline as S
+from ._array import QuatArray
+
+__all__ = ["RotationSpline"]
+
+
+def _keys(rotations):
+    if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
+        # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
+        q = np.asarray(rotations.as_quat())
+        return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
+    if isinstance(rotations, QuatArray):
+        return rotations.view(np.ndarray)
+    raise TypeError(f"expected rotations to be a Rotation, got {type(rotations).__name__}")
+
+
+class RotationSpline:
+    """Interpolate rotations with continuous angular rate and acceleration.
+
+    Same constructor, evaluation and errors as
+    ``scipy.spatial.transform.RotationSpline``: on each segment the rotation
+    vector relative to the segment's left key is a cubic in time, and the
+    angular rate and acceleration are continuous at the keys.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+        Strictly increasing key times, K >= 2.
+    rotations : Rotation, shape (K, *batch)
+        Keys; a batch of tracks after the key axis is evaluated in one call.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray import Rotation, RotationSpline
+    >>> keys = Rotation.from_euler('z', [[0], [90], [180]], degrees=True)
+    >>> spline = RotationSpline([0, 1, 2], keys)
+    >>> np.round(spline(0.5).as_euler('zyx', degrees=True), 6)
+    array([45.,  0.,  0.])
+    >>> np.round(spline([0.5, 1.5], 1), 6)   # angular rate, rad/s
+    array([[0.      , 0.      , 1.570796],
+           [0.      , 0.      , 1.570796]])
+    """
+
+    MAX_ITER = S.MAX_ITER
+
+    def __init__(self, times, rotations):
+        keys = _keys(rotations)
+        if keys.ndim < 2:
+            raise ValueError("`rotations` must be a sequence of rotations.")
+        if len(keys) == 1:
+            raise ValueError("`rotations` must contain at least 2 rotations.")
+        times = np.asarray(times, dtype=float)
+        if times.ndim != 1:
+            raise ValueError("`times` must be 1-dimensional.")
+        if len(times) != len(keys):
+            raise ValueError("Expected number of rotations to be equal to number of timestamps given, "
+                             f"got {len(keys)} rotations and {len(times)} timestamps.")
+        if np.any(np.diff(times) <= 0):
+            raise ValueError("Values in `times` must be in a strictly increasing order.")
+        if keys.dtype not in (np.float32, np.float64):
+            keys = keys.astype(np.float64)
+        keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
+        self.times = times
+        self.rotations = QuatArray.from_quat(keys, scalar_first=True)
+        self._keys = keys
+        self._coeff = S.coefficients(times, keys)
+
+    def __call__(self, times, order=0):
+        """Interpolated rotations (order 0), angular rate (1, rad/s) or acceleration (2, rad/s²).
+
+        Parameters
+        ----------
+        times : float or array_like, shape (M,)
+        order : {0, 1, 2}, default 0
+
+        Returns
+        -------
+        Rotation of shape (M, *batch) or ndarray of shape (M, *batch, 3)
+            Without the M axis for a scalar time.
+        """
+        if order not in (0, 1, 2):
+            raise ValueError("`order` must be 0, 1 or 2.")
+        t = np.asarray(times, dtype=float)
+        if t.ndim > 1:
+            raise ValueError("`times` must be at most 1-dimensional.")
+        single = t.ndim == 0
+        res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
+        if single:
+            res = res[0]
+        return QuatArray.from_quat(res, scalar_first=True) if order == 0 else res

@@ -1,0 +1,71 @@
+"""RigidTransform against scipy 1.17's, in float64 and float32."""
+
+import numpy as np
+import pytest
+
+from quatarray import RigidTransform
+
+st = pytest.importorskip("scipy.spatial.transform")
+
+
+def _pair(dtype, n=7, seed=0):
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(n, 4))
+    t = rng.normal(size=(n, 3))
+    ours = RigidTransform.from_components(t.astype(dtype), __import__("quatarray").Rotation.from_quat(q.astype(dtype)))
+    ref = st.RigidTransform.from_components(t, st.Rotation.from_quat(q))
+    return ours, ref, rng
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_matches_scipy(dtype):
+    ours, ref, rng = _pair(dtype)
+    tol = 50 * np.finfo(dtype).eps
+    v = rng.normal(size=(7, 3))
+    np.testing.assert_allclose(ours.as_matrix(), ref.as_matrix(), atol=tol)
+    np.testing.assert_allclose(ours.apply(v.astype(dtype)), ref.apply(v), atol=tol * 10)
+    np.testing.assert_allclose(ours.apply(v.astype(dtype), inverse=True), ref.apply(v, inverse=True), atol=tol * 10)
+    np.testing.assert_allclose(ours.inv().as_matrix(), ref.inv().as_matrix(), atol=tol * 10)
+    np.testing.assert_allclose((ours * ours[::-1]).as_matrix(), (ref * ref[::-1]).as_matrix(), atol=tol * 10)
+    np.testing.assert_allclose(RigidTransform.from_matrix(ref.as_matrix()).as_matrix(), ref.as_matrix(), atol=1e-12)
+    dq = ref.as_dual_quat()
+    ours_dq = ours.as_dual_quat()
+    sign = np.sign(np.sum(ours_dq[:, :4] * dq[:, :4], axis=-1, keepdims=True))
+    np.testing.assert_allclose(ours_dq * sign, dq, atol=tol * 10)
+    np.testing.assert_allclose(RigidTransform.from_dual_quat(dq).as_matrix(), ref.as_matrix(), atol=1e-12)
+    assert ours.as_matrix().dtype == dtype
+
+
+def test_container_and_errors():
+    ours, ref, _ = _pair(np.float64)
+    assert len(ours) == len(ref) and ours.shape == (7,) and not ours.single
+    assert ours[2].single and ref[2].single
+    np.testing.assert_allclose(ours[2].translation, ref[2].translation)
+    with pytest.raises(TypeError):
+        len(ours[0])
+    with pytest.raises(ValueError, match="matrix"):
+        RigidTransform.from_matrix(np.ones((4, 4)))
+    np.testing.assert_allclose(RigidTransform.identity(3).as_matrix(), st.RigidTransform.identity(3).as_matrix())
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_exp_coords_pow_mean_concatenate(dtype):
+    ours, ref, _ = _pair(dtype, seed=1)
+    tol = 100 * np.finfo(dtype).eps
+    np.testing.assert_allclose(ours.as_exp_coords(), ref.as_exp_coords(), atol=tol, rtol=tol)
+    e = ref.as_exp_coords()
+    np.testing.assert_allclose(RigidTransform.from_exp_coords(e.astype(dtype)).as_matrix(),
+                               st.RigidTransform.from_exp_coords(e).as_matrix(), atol=tol)
+    np.testing.assert_allclose((ours ** 2.5).as_matrix(), (ref ** 2.5).as_matrix(), atol=tol * 10)
+    np.testing.assert_allclose(ours.mean().as_matrix(), ref.mean().as_matrix(), atol=tol * 10)
+    both = RigidTransform.concatenate([ours, ours[0]])
+    assert len(both) == 8
+    np.testing.assert_allclose(both[7].as_matrix(), ours[0].as_matrix())
+    ours[1] = ours[0]
+    np.testing.assert_array_equal(ours[1].as_matrix(), ours[0].as_matrix())
+
+
+def test_from_dual_quat_zero_real_part_is_identity_like_scipy():
+    dq = np.zeros((2, 8))
+    np.testing.assert_array_equal(RigidTransform.from_dual_quat(dq).as_matrix(),
+                                  st.RigidTransform.from_dual_quat(dq).as_matrix())

@@ -1,0 +1,179 @@
+"""RotationSpline and the raw spline maths against scipy's RotationSpline."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation as SR
+from scipy.spatial.transform import RotationSpline as SRS
+
+from quatarray import QuatArray, RotationSpline
+from quatarray import Track
+from quatarray import _interp_spline as S
+from quatarray._kernels import rotate
+
+from .conftest import random_quats
+
+
+def _track(rng, k, batch=(), dtype=np.float64):
+    times = np.cumsum(rng.uniform(0.2, 2.0, k)) - 1.0
+    keys = random_quats(rng, (k,) + batch, dtype)
+    return times, keys
+
+
+def _scipy(times, keys):
+    return SRS(times, SR.from_quat(keys.astype(np.float64), scalar_first=True))
+
+
+@pytest.mark.parametrize("k", [2, 3, 4, 7, 16])
+def test_matches_scipy(rng, k):
+    times, keys = _track(rng, k)
+    ours = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    ref = _scipy(times, keys)
+    t = np.linspace(times[0] - 1, times[-1] + 1, 57)
+    q = ours(t).as_quat(scalar_first=True)
+    qr = ref(t).as_quat(scalar_first=True)
+    # the solver stops within scipy's relative tolerance 1e-9 of the rates
+    assert np.allclose(np.abs(np.sum(q * qr, axis=-1)), 1, atol=1e-12)
+    scale = 1 + np.abs(ref(t, 1)).max()
+    assert np.allclose(ours(t, 1), ref(t, 1), atol=1e-8 * scale)
+    assert np.allclose(ours(t, 2), ref(t, 2), atol=1e-7 * scale / np.diff(times).min())
+    assert np.allclose(S.coefficients(times, keys), ref.interpolator.c, atol=1e-8 * scale / np.diff(times).min() ** 2)
+
+
+def test_scalar_time_drops_axis(rng):
+    times, keys = _track(rng, 5)
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    assert sp(0.3).shape == (4,)
+    assert sp(0.3, 1).shape == (3,) and sp(0.3, 2).shape == (3,)
+    assert np.allclose(sp(0.3, 1), sp([0.3], 1)[0], atol=0, rtol=0)
+
+
+@pytest.mark.parametrize("batch", [(3,), (2, 3)])
+def test_batched_equals_per_track(rng, batch):
+    times, keys = _track(rng, 6, batch)
+    t = np.linspace(times[0] - 0.5, times[-1] + 0.5, 31)
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    got = [sp(t, order) for order in (0, 1, 2)]
+    for idx in np.ndindex(batch):
+        one = RotationSpline(times, QuatArray.from_quat(keys[(slice(None),) + idx], scalar_first=True))
+        sl = (slice(None),) + idx
+        q, qr = got[0].view(np.ndarray)[sl], one(t).view(np.ndarray)
+        assert np.allclose(np.abs(np.sum(q * qr, axis=-1)), 1, atol=1e-12)
+        # the batch iterates until every track converges, a track alone may stop earlier
+        assert np.allclose(got[1][sl], one(t, 1), atol=1e-8)
+        assert np.allclose(got[2][sl], one(t, 2), atol=1e-6)
+
+
+def test_float32_in_and_out(rng):
+    times, keys = _track(rng, 8, (4,), np.float32)
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    t = np.linspace(times[0], times[-1], 25)
+    q = sp(t)
+    assert q.dtype == np.float32 and sp(t, 1).dtype == np.float32 and sp(t, 2).dtype == np.float32
+    ref = RotationSpline(times, QuatArray.from_quat(keys.astype(np.float64), scalar_first=True))
+    eps = np.finfo(np.float32).eps
+    dots = np.abs(np.sum(q.view(np.ndarray) * ref(t).view(np.ndarray), axis=-1))
+    assert np.allclose(dots, 1, atol=100 * eps)
+    assert np.allclose(sp(t, 1), ref(t, 1), atol=1e4 * eps * (1 + np.abs(ref(t, 1)).max()))
+
+
+def test_passes_through_keys_and_rate_continuous(rng):
+    times, keys = _track(rng, 6, (2,))
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    q = sp(times).view(np.ndarray)
+    assert np.allclose(np.abs(np.sum(q * keys, axis=-1)), 1, atol=1e-12)
+    h = 1e-7
+    for order in (1, 2):
+        left, right = sp(times[1:-1] - h, order), sp(times[1:-1] + h, order)
+        assert np.allclose(left, right, atol=1e-4)
+
+
+def test_inputs_not_modified_and_readonly(rng):
+    times, keys = _track(rng, 5)
+    keys.setflags(write=False)
+    times.setflags(write=False)
+    before = keys.copy()
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    t = np.linspace(0, 1, 4)
+    t.setflags(write=False)
+    sp(t, 2)
+    assert np.array_equal(keys, before)
+
+
+def test_block_tridiagonal_solve_matches_dense(rng):
+    n = 9
+    lower, upper = rng.standard_normal((2, n, 3, 3))
+    diag = rng.standard_normal((n, 3, 3)) + 8 * np.eye(3)
+    rhs = rng.standard_normal((n, 3))
+    dense = np.zeros((3 * n, 3 * n))
+    for i in range(n):
+        dense[3 * i:3 * i + 3, 3 * i:3 * i + 3] = diag[i]
+        if i:
+            dense[3 * i:3 * i + 3, 3 * i - 3:3 * i] = lower[i]
+        if i < n - 1:
+            dense[3 * i:3 * i + 3, 3 * i + 3:3 * i + 6] = upper[i]
+    x = S.block_tridiagonal_solve(lower, diag, upper, rhs)
+    assert np.allclose(x.ravel(), np.linalg.solve(dense, rhs.ravel()), atol=1e-12)
+
+
+@pytest.mark.parametrize("args, match", [
+    (([0.0], "one"), "at least 2"),
+    ((np.arange(4.0).reshape(2, 2), "four"), "1-dimensional"),
+    ((np.arange(3.0), "four"), "equal to number"),
+    (([0.0, 1.0, 1.0, 2.0], "four"), "strictly increasing"),
+])
+def test_errors(rng, args, match):
+    rot = {"one": QuatArray.from_quat(random_quats(rng, (1,)), scalar_first=True),
+           "four": QuatArray.from_quat(random_quats(rng, (4,)), scalar_first=True)}[args[1]]
+    with pytest.raises(ValueError, match=match):
+        RotationSpline(args[0], rot)
+
+
+def test_call_errors(rng):
+    times, keys = _track(rng, 4)
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    with pytest.raises(ValueError, match="order"):
+        sp(0.0, 3)
+    with pytest.raises(ValueError, match="at most 1-dimensional"):
+        sp(np.zeros((2, 2)))
+    with pytest.raises(TypeError, match="rotations"):
+        RotationSpline(times, keys)
+    with pytest.raises(ValueError, match="sequence"):
+        RotationSpline([0.0], QuatArray.from_quat(keys[0], scalar_first=True))
+
+
+@pytest.mark.parametrize("scale", [1e-6, 1.0, 3.0])
+def test_angular_rate_equals_matrix_form(rng, scale):
+    r = scale * rng.standard_normal((20, 3))
+    v = rng.standard_normal((20, 3))
+    expected = np.einsum("nij,nj->ni", S.rotvec_dot_to_rate(r), v)
+    assert np.allclose(S.angular_rate(r, v), expected, atol=1e-13)
+    # A and A^-1 are inverse matrices
+    prod = S.rate_to_rotvec_dot(r) @ S.rotvec_dot_to_rate(r)
+    assert np.allclose(prod, np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize("extrapolate", ["extend", "clamp"])
+def test_track_spline_matches_rotation_spline(rng, extrapolate):
+    times, keys = _track(rng, 6, (2,))
+    track = Track(times, keys, method="spline", extrapolate=extrapolate)
+    sp = RotationSpline(times, QuatArray.from_quat(keys, scalar_first=True))
+    t = np.linspace(times[0], times[-1], 23)
+    q = track(t).view(np.ndarray)
+    assert np.allclose(np.abs(np.sum(q * sp(t).view(np.ndarray), axis=-1)), 1, atol=1e-14)
+    assert np.allclose(track.angular_velocity(t, frame="body"), sp(t, 1), atol=1e-13)
+    world = rotate(q, sp(t, 1))
+    assert np.allclose(track.angular_velocity(t), world, atol=1e-13)
+    outside = np.array([times[0] - 1.0, times[-1] + 1.0])
+    if extrapolate == "extend":
+        q_out = track(outside).view(np.ndarray)
+        assert np.allclose(np.abs(np.sum(q_out * sp(outside).view(np.ndarray), axis=-1)), 1, atol=1e-14)
+    else:
+        ends = track(outside).view(np.ndarray)
+        assert np.allclose(np.abs(np.sum(ends * keys[[0, -1]], axis=-1)), 1, atol=1e-14)
+        assert np.all(track.angular_velocity(outside) == 0)
+
+
+def test_track_spline_raises_outside(rng):
+    times, keys = _track(rng, 4)
+    with pytest.raises(ValueError):
+        Track(times, keys, method="spline")(times[-1] + 1)
