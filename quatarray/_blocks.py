@@ -33,13 +33,14 @@ import itertools
 import os
 import threading
 import warnings
+import weakref
 from math import prod
 
 import numpy as np
 
 __all__ = [
     "BLOCK", "PARALLEL_MIN", "SCRATCH_LIMIT", "get_num_threads", "set_num_threads", "num_threads",
-    "split", "part", "soa", "scratch", "run", "blockwise",
+    "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise",
 ]
 
 #: Elements (quaternions, vectors, matrices) per block: the dozens of scratch
@@ -228,7 +229,7 @@ class Scratch:
     buffers save the page faults of fresh memory on every call.
     """
 
-    __slots__ = ("buf", "top")
+    __slots__ = ("buf", "top", "__weakref__")
 
     def __init__(self):
         self.buf = None
@@ -273,12 +274,21 @@ class _Frame:
         return False
 
 
+_every_scratch = weakref.WeakSet()   # of every live thread
+
+
 def scratch():
     """The calling thread's `Scratch`."""
     work = getattr(_local, "scratch", None)
     if work is None:
         work = _local.scratch = Scratch()
+        _every_scratch.add(work)
     return work
+
+
+def scratch_bytes():
+    """Bytes of scratch kept by all live threads (at most `SCRATCH_LIMIT` each)."""
+    return sum(w.nbytes for w in list(_every_scratch))
 
 
 # --------------------------------------------------------------------------- the pool
