@@ -12,6 +12,7 @@ that every library gets the same numbers.  Quaternions are scalar-first
 single scipy ``Rotation``), the case where per-call overhead decides.
 """
 
+import functools
 import importlib
 
 import numpy as np
@@ -60,7 +61,8 @@ def batch(n):
     return () if n == 1 else (n,)
 
 
-def unit_quats(n, dtype, salt=0):
+@functools.lru_cache(maxsize=4)
+def _unit_quats(n, dtype, salt=0):
     """Random unit quaternions, uniform on S³, batch `batch(n)`, scalar-first, w ≥ 0."""
     q = rng(salt).standard_normal(batch(n) + (4,))
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
@@ -68,25 +70,29 @@ def unit_quats(n, dtype, salt=0):
     return q.astype(dtype)
 
 
-def quats(n, dtype, salt=0):
+@functools.lru_cache(maxsize=4)
+def _quats(n, dtype, salt=0):
     """Random non-unit quaternions (norms between about 0.5 and 2)."""
     q = unit_quats(n, np.float64, salt) * rng(salt + 1).uniform(0.5, 2.0, batch(n) + (1,))
     return q.astype(dtype)
 
 
-def vectors(n, dtype, salt=0):
+@functools.lru_cache(maxsize=4)
+def _vectors(n, dtype, salt=0):
     """Random 3-vectors, batch `batch(n)`."""
     return rng(salt).standard_normal(batch(n) + (3,)).astype(dtype)
 
 
-def rotvecs(n, dtype, salt=0):
+@functools.lru_cache(maxsize=4)
+def _rotvecs(n, dtype, salt=0):
     """Random rotation vectors with angles in [0, π)."""
     v = rng(salt).standard_normal(batch(n) + (3,))
     v *= rng(salt + 1).uniform(0, np.pi, batch(n) + (1,)) / np.linalg.norm(v, axis=-1, keepdims=True)
     return v.astype(dtype)
 
 
-def euler_angles(n, dtype, salt=0):
+@functools.lru_cache(maxsize=4)
+def _euler_angles(n, dtype, salt=0):
     """Random Tait-Bryan angles (radians) in scipy's ranges: [-π, π], [-π/2, π/2], [-π, π]."""
     g = rng(salt)
     a = np.stack([g.uniform(-np.pi, np.pi, batch(n)), g.uniform(-np.pi / 2, np.pi / 2, batch(n)),
@@ -94,7 +100,8 @@ def euler_angles(n, dtype, salt=0):
     return a.astype(dtype)
 
 
-def matrices(n, dtype, salt=0):
+@functools.lru_cache(maxsize=4)
+def _matrices(n, dtype, salt=0):
     """Rotation matrices of `unit_quats` (computed in float64, then cast)."""
     w, x, y, z = np.moveaxis(unit_quats(n, np.float64, salt), -1, 0)
     m = np.stack([
@@ -103,6 +110,19 @@ def matrices(n, dtype, salt=0):
         2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
     ], axis=-1)
     return m.reshape(batch(n) + (3, 3)).astype(dtype)
+
+
+def _copying(make):
+    """Public generator: made once per arguments (the comparison sets many libraries up
+    on the same data), handed out as a fresh copy."""
+    @functools.wraps(make)
+    def fresh(*args, **kwargs):
+        return make(*args, **kwargs).copy()
+    return fresh
+
+
+unit_quats, quats, vectors = _copying(_unit_quats), _copying(_quats), _copying(_vectors)
+rotvecs, euler_angles, matrices = _copying(_rotvecs), _copying(_euler_angles), _copying(_matrices)
 
 
 # --------------------------------------------------------------------------- adapters

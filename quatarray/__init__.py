@@ -3,10 +3,13 @@
 `QuatArray` (alias `Rotation`, a drop-in for `scipy.spatial.transform.Rotation`),
 keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`, `bezier`, `Track`,
 and scipy's `Slerp`), and `quatarray.testing` for assertions.
+`set_num_threads`, `get_num_threads` and `num_threads` control how many
+threads long batches use.
 """
 
 from . import testing
 from ._array import QuatArray
+from ._blocks import get_num_threads, num_threads, set_num_threads
 from ._rigid_transform import RigidTransform
 from .rigid import dual_quaternion_blend, normalize_dual_quaternion, sclerp
 from .spline import RotationSpline
@@ -18,6 +21,7 @@ __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
     "RotationSpline", "RigidTransform", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
+    "set_num_threads", "get_num_threads", "num_threads",
     "testing",
 ]
 __version__ = "0.1.0"

@@ -11,11 +11,11 @@ quaternions; the ``from_*`` functions return unit quaternions.
 
 How the work is done
 --------------------
-Long inputs are processed in blocks of `CHUNK` rows (`_blockwise`): each block
-is copied into component-major scratch (one contiguous row per component, so
-that every ufunc runs on contiguous memory), computed with whole-row ufuncs
-and copied into a preallocated output.  No per-element Python, no
-``(N, 4, 4)`` temporaries.
+Long inputs are processed by the block engine (`_blocks.blockwise`): each
+block is copied into component-major scratch (one contiguous row per
+component, so that every ufunc runs on contiguous memory) and computed with
+whole-row ufuncs that write into the preallocated output.  No per-element
+Python, no ``(N, 4, 4)`` temporaries.
 
 Half-angle sines and cosines come from one tangent: with ``t = tan(a / 4)``,
 ``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and ``sin(a / 2) = 2 t / (1 + t²)``.  NumPy's
@@ -29,8 +29,9 @@ import math
 
 import numpy as np
 
+from . import _blocks
 from ._kernels import _matrix_one
-from ._validate import CHUNK, float_array
+from ._validate import float_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
@@ -47,35 +48,13 @@ _POLAR_MAXITER = 60
 
 
 
-# --- the block runner ---------------------------------------------------------------
+# --- the block engine, quietly ------------------------------------------------------
 
 def _blockwise(kernel, ins, outs, **params):
-    """Run `kernel` over blocks of rows of 2-D arrays.
-
-    `ins` and `outs` are ``(n, k)`` arrays (any strides, broadcast views
-    allowed for `ins`).  For each block of at most `CHUNK` rows, the inputs are
-    copied into component-major scratch ``(k, m)`` and ``kernel(*ins, *outs,
-    **params)`` fills the component-major output scratch, which is then copied
-    into `outs`.  Returns True if any call of `kernel` returned a true value.
-    """
-    n = outs[0].shape[0]
-    c = min(n, CHUNK)
-    ibuf = [np.empty((a.shape[1], c), a.dtype) for a in ins]
-    obuf = [np.empty((a.shape[1], c), a.dtype) for a in outs]
-    flag = False
+    """`_blocks.blockwise` with floating-point warnings off: the kernels handle
+    zero, infinite and nan input themselves (nan out, or a status flag)."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for start in range(0, n, CHUNK):
-            stop = min(start + CHUNK, n)
-            m = stop - start
-            iv = [b[:, :m] for b in ibuf]
-            ov = [b[:, :m] for b in obuf]
-            for b, a in zip(iv, ins):
-                np.copyto(b, a[start:stop].T)
-            if kernel(*iv, *ov, **params):
-                flag = True
-            for b, a in zip(ov, outs):
-                np.copyto(a[start:stop].T, b)
-    return flag
+        return _blocks.blockwise(kernel, ins, outs, **params)
 
 
 def _quat(q, name="quat"):

@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 from ._convert import _blockwise, _half_angle, _quat
+from ._kernels import multiply_rows
 from ._validate import float_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
@@ -269,19 +270,9 @@ def _k_from_davenport(angles, q, axes, extrinsic, scale):
     for n in range(1, len(axes)):
         c, s = _half_angle(angles[n], scale)
         e = [c] + [s * a for a in axes[n]]
-        p = _mul_rows(e, p) if extrinsic else _mul_rows(p, e)
+        p = multiply_rows(e, p) if extrinsic else multiply_rows(p, e)
     for row, value in zip(q, p):
         np.copyto(row, value)
-
-
-def _mul_rows(p, q):
-    """Hamilton product on component rows."""
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return [w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2]
 
 
 def from_davenport(axes, order, angles, degrees=False):

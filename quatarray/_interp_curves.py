@@ -18,7 +18,8 @@ uniform-spacing tangents are scaled by 2 Δ_out / (Δ_in + Δ_out) and
 
 import numpy as np
 
-from ._interp_kernels import drive, slerp_core, vdot
+from . import _blocks
+from ._interp_kernels import slerp_core, vdot
 from ._kernels import conjugate as _conj
 from ._kernels import multiply as _qmul
 
@@ -84,10 +85,11 @@ def _slerp_noflip(p, q, h):
 
     Always the blocked kernel (pooled scratch, no full-size temporaries), so
     that a batch of tracks gets bit for bit the control points of its tracks."""
-    def fn(A, B, hb, O, work):
-        slerp_core(A, B, hb, O, False, work)
-
-    return drive(fn, (p, q), np.asarray(h, np.float64), np.dtype(np.float64))
+    h = np.asarray(h, np.float64)
+    batch = np.broadcast_shapes(p.shape[:-1], q.shape[:-1], h.shape)
+    out = np.empty(batch + (4,))
+    _blocks.blockwise(slerp_core, [p, q], [out], batch, np.float64, views=[h], shortest=False)
+    return out
 
 
 # --------------------------------------------------------------------------

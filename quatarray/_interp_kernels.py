@@ -3,12 +3,11 @@
 Layout.  Inside a block the maths runs on *structure-of-arrays* views: a
 block of quaternions of batch shape ``s`` is held as an array of shape
 ``(4, *s)`` (components first), so every NumPy call streams over long
-contiguous rows.  Blocks are copied in from the caller's ``(..., 4)`` arrays
-and written straight into ``np.moveaxis(out, -1, 0)`` of a preallocated
-output.  Scratch rows live in a `Work` object, pooled per thread and reused
-across blocks and calls, so a call allocates O(BLOCK) extra memory whatever
-the size of its input (and fresh pages, which cost ~1.6 µs each to fault
-in on this machine, are not touched again on every call).
+contiguous rows.  The block engine (`_blocks.blockwise`) copies blocks in
+from the caller's ``(..., 4)`` arrays and hands the kernels
+``np.moveaxis(out, -1, 0)`` views of a preallocated output; scratch rows
+come from the thread's bounded `_blocks.scratch()`, so a call allocates
+O(BLOCK) extra memory whatever the size of its input.
 
 SLERP weights.  For quaternions A, B (unit), with a = |B - A|, b = |B + A|,
 the angle between them is Omega = 2 atan2(a, b) and rho = a / b =
@@ -25,23 +24,18 @@ element, tan and arctan ~1.4 ns), and no 1 - cos cancellation appears:
 for tiny angles tau / rho -> h with full relative accuracy.
 """
 
-import threading
 from math import prod
 
 import numpy as np
 
-from ._kernels import _sub, blocks, result_dtype
-from ._validate import CHUNK
+from . import _blocks
+from ._blocks import soa
+from ._kernels import result_dtype
 
 __all__ = [
-    "BLOCK", "Work", "drive", "soa", "sqsum", "vdot", "slerp_core", "frame_core", "frames",
-    "slerp", "lerp", "nlerp", "squad", "bezier", "unflip",
+    "vdot", "soa", "sqsum", "slerp_weights", "slerp_core", "squad_param", "squad_blend",
+    "frame_core", "frames", "slerp", "lerp", "nlerp", "squad", "bezier", "unflip",
 ]
-
-#: Quaternions per block for the interpolation kernels (two of the shared
-#: CHUNK: the per-call overhead of ~30 NumPy calls per block is then below
-#: 2 ns per quaternion while the scratch stays within L2 / fast L3).
-BLOCK = 2 * CHUNK
 
 
 _TINY = {np.dtype(d): (np.sqrt(np.finfo(d).tiny), 4 * np.finfo(d).tiny) for d in (np.float32, np.float64)}
@@ -55,6 +49,10 @@ def _tiny(dtype):
 def _floor(dtype):
     """Floor for b² = |B + A|² (4 · smallest normal): keeps a²/b² finite and quiet."""
     return _TINY[np.dtype(dtype)][1]
+
+
+def _rows(n, s, dtype):
+    return _blocks.scratch().rows(n, s, dtype)
 
 
 def vdot(p, q, axis=-1):
@@ -77,59 +75,6 @@ def vdot(p, q, axis=-1):
     return out
 
 
-_POOL = threading.local()
-
-
-class Work:
-    """Scratch rows of one dtype, allocated once per call and reused per block.
-
-    ``rows(key, n, shape)`` returns an ``(n, *shape)`` view of a buffer that
-    is kept under `key`; two different keys never share memory.
-    """
-
-    def __init__(self, dtype):
-        self.dtype = np.dtype(dtype)
-        self._bufs = {}
-        self.busy = False
-
-    @classmethod
-    def acquire(cls, dtype):
-        """This thread's pooled scratch for `dtype` (a fresh one if it is in use).
-
-        Fresh scratch costs page faults on first touch: for a call on ~10⁴
-        quaternions that is several times the arithmetic, so the buffers are
-        kept between calls (a few MB per thread and dtype, bounded by BLOCK).
-        Pair with `release`.
-        """
-        pool = getattr(_POOL, "pool", None)
-        if pool is None:
-            pool = _POOL.pool = {}
-        dtype = np.dtype(dtype)
-        work = pool.get(dtype)
-        if work is None or work.busy:
-            work = cls(dtype)
-            pool.setdefault(dtype, work)
-        work.busy = True
-        return work
-
-    def release(self):
-        self.busy = False
-
-    def rows(self, key, n, shape):
-        shape = tuple(shape)
-        count = prod(shape)
-        buf = self._bufs.get(key)
-        if buf is None or buf.shape[0] < n or buf.shape[1] < count:
-            buf = self._bufs[key] = np.empty((n, max(count, 1)), self.dtype)
-        return buf[:n, :count].reshape((n,) + shape)
-
-
-def soa(out):
-    """Components-first view ``(4, ...)`` of an ``(..., 4)`` array (no copy)."""
-    n = out.ndim - 1
-    return out.transpose((n,) + tuple(range(n)))
-
-
 def sqsum(T, out):
     """out = T[0]² + ... + T[3]² for a (4, ...) array (T is overwritten)."""
     np.multiply(T, T, out=T)
@@ -143,29 +88,20 @@ def sqsum(T, out):
 # SLERP between two blocks (angle computed at run time)
 # --------------------------------------------------------------------------
 
-def slerp_core(A, B, h, O, shortest, work):
-    """``O = slerp(A, B, h)`` on components-first arrays.
+def slerp_weights(a2, b2, h, shortest):
+    """The SLERP weights (w0, w1) of ``w0 A + w1 B``, written once for every path.
 
-    A, B : (4, *s) arrays (not modified); h : broadcastable to s;
-    O : (4, *s) output, may be a strided view, must not overlap A or B.
-    With `shortest`, B is replaced by -B when |B + A| < |B - A| (ties keep B).
+    a2 = |B - A|², b2 = |B + A|² (arrays of one shape, both overwritten),
+    h broadcastable to them.  With `shortest`, B counts as -B when
+    |B + A| < |B - A| (w1 then carries the sign; ties keep B).  Returns
+    views into the thread's scratch: use them before the caller's scratch
+    frame ends.
     """
-    s = O.shape[1:]
-    dtype = work.dtype
-    T = work.rows("sl_T", 8, s)
-    R = work.rows("sl_R", 7, s)
-    a2, b2, r2, rho, tau, t2, w0 = R
-    np.subtract(B, A, out=T[:4])
-    np.add(B, A, out=T[4:])
-    np.multiply(T, T, out=T)
-    Tv = T.reshape((2, 4) + s)
-    ab = R[:2]
-    np.add(Tv[:, 0], Tv[:, 1], out=ab)
-    ab += Tv[:, 2]
-    ab += Tv[:, 3]
+    s = a2.shape
+    dtype = a2.dtype
+    r2, rho, tau, t2, w0, sgn = _rows(6, s, dtype)
     antipodal = None
     if shortest:
-        sgn = T[0]  # scratch row: T is free again
         np.subtract(b2, a2, out=sgn)  # sign of the dot product (b² - a² = 4 A·B)
         np.minimum(a2, b2, out=r2)
         np.maximum(a2, b2, out=b2)
@@ -208,9 +144,48 @@ def slerp_core(A, B, h, O, shortest, work):
         hb = np.broadcast_to(h, s)
         w0[antipodal] = hb[antipodal] < 0.5
         w1[antipodal] = hb[antipodal] >= 0.5
-    np.multiply(A, w0, out=T[:4])
-    np.multiply(B, w1, out=T[4:])
-    np.add(T[:4], T[4:], out=O)
+    return w0, w1
+
+
+def slerp_core(A, B, h, O, shortest):
+    """``O = slerp(A, B, h)`` on components-first arrays.
+
+    A, B : (4, *s) arrays (not modified); h : broadcastable to s;
+    O : (4, *s) output, may be a strided view, must not overlap A or B.
+    With `shortest`, B is replaced by -B when |B + A| < |B - A| (ties keep B).
+    """
+    s = O.shape[1:]
+    with _blocks.scratch().frame() as work:
+        T = work.rows(8, s, O.dtype)
+        np.subtract(B, A, out=T[:4])
+        np.add(B, A, out=T[4:])
+        np.multiply(T, T, out=T)
+        Tv = T.reshape((2, 4) + s)
+        ab = work.rows(2, s, O.dtype)
+        np.add(Tv[:, 0], Tv[:, 1], out=ab)
+        ab += Tv[:, 2]
+        ab += Tv[:, 3]
+        w0, w1 = slerp_weights(ab[0], ab[1], h, shortest)
+        np.multiply(A, w0, out=T[:4])
+        np.multiply(B, w1, out=T[4:])
+        np.add(T[:4], T[4:], out=O)
+    return O
+
+
+def squad_param(h, out=None):
+    """2 h (1 - h): the parameter of squad's outer SLERP (its derivative is 2 - 4 h)."""
+    out = np.subtract(1, h, out=out, casting="unsafe")
+    np.multiply(out, h, out=out, casting="unsafe")
+    out *= 2
+    return out
+
+
+def squad_blend(P, S, h, O):
+    """Squad's outer blend, written once: ``O = slerp(P, S, 2 h (1 - h))`` (no flip),
+    with P = slerp(q0, q1, h) and S = slerp(a, b, h) (components first)."""
+    with _blocks.scratch().frame() as work:
+        hh = squad_param(h, work.rows(1, np.shape(h), O.dtype)[0])
+        slerp_core(P, S, hh, O, False)
     return O
 
 
@@ -230,9 +205,9 @@ def frames(k0, k1, F=None, phi=None):
     phi = 0 (a constant rotation: the arc is not unique).  `F` and `phi`
     may be given as output arrays (views into a table).
 
-    Runs in blocks along the second axis with pooled scratch: fresh
-    temporaries of the full size would cost more in page faults than the
-    arithmetic.
+    Runs on the block engine (blocks of the batch s, bounded scratch):
+    fresh temporaries of the full size would cost more in page faults than
+    the arithmetic.
     """
     s = np.broadcast_shapes(k0.shape, k1.shape)[1:]
     if F is None:
@@ -240,31 +215,23 @@ def frames(k0, k1, F=None, phi=None):
         phi = np.empty(s, F.dtype)
     k0 = np.broadcast_to(k0, (4,) + s)
     k1 = np.broadcast_to(k1, (4,) + s)
-    if not s or 0 in s:
-        _frames_block(k0, k1, F, phi, Work(F.dtype))
+    if 0 in s:
         return F, phi
-    # flatten all but the last axis of s into blocks of about BLOCK frames
-    lead = s[:-1]
-    per = max(1, BLOCK // max(s[-1], 1))
-    work = Work.acquire(F.dtype)
-    try:
-        for idx in np.ndindex(*lead[:-1]) if len(lead) > 1 else [()]:
-            n = lead[-1] if lead else 1
-            for start in range(0, n, per):
-                sl = idx + ((slice(start, start + per),) if lead else ())
-                full = (slice(None),) + sl
-                _frames_block(k0[full], k1[full], F[full], phi[sl], work)
-    finally:
-        work.release()
+
+    def block(idx):
+        full = (slice(None),) + idx
+        _frames_block(k0[full], k1[full], F[full], phi[idx])
+
+    _blocks.run(block, _blocks.split(s), prod(s))
     return F, phi
 
 
-def _frames_block(k0, k1, F, phi, work):
+def _frames_block(k0, k1, F, phi):
     s = phi.shape
     D = F[4:]
     np.subtract(k1, k0, out=D)
-    T = work.rows("frT", 4, s)
-    R = work.rows("frR", 4, s)
+    T = _rows(4, s, F.dtype)
+    R = _rows(4, s, F.dtype)
     a2, b2, n2, sc = R
     np.multiply(D, D, out=T)
     np.add(T[0], T[1], out=a2)
@@ -292,7 +259,7 @@ def _frames_block(k0, k1, F, phi, work):
     F[:4] = k0
 
 
-def frame_core(F, phi, u, O, work, key="fr"):
+def frame_core(F, phi, u, O):
     """``O = cos(2 u phi) k + sin(2 u phi) p`` with F = [k; p] of shape (8, *s).
 
     `F` is used as scratch (overwritten).  u broadcastable to s.
@@ -300,7 +267,7 @@ def frame_core(F, phi, u, O, work, key="fr"):
     u = 0 gives exactly k.
     """
     s = O.shape[1:]
-    CS = work.rows(key, 2, s)
+    CS = _rows(2, s, O.dtype)
     c, sn = CS
     np.multiply(phi, u, out=sn, casting="unsafe")
     np.tan(sn, out=sn)                       # tau
@@ -316,35 +283,15 @@ def frame_core(F, phi, u, O, work, key="fr"):
 
 
 # --------------------------------------------------------------------------
-# Pairwise drivers: broadcasting, blocks, preallocated output
+# Pairwise functions: broadcasting, blocks, preallocated output
 # --------------------------------------------------------------------------
 
-def drive(fn, quats, t, dtype, extra=()):
-    """Run `fn(blocks_of_quats_soa, t_block, O, work, *extra)` over cache-sized blocks.
-
-    quats: raw (..., 4) arrays broadcasting against each other and t.
-    Returns the (batch, 4) output.
-    """
+def _pairwise(kernel, quats, t, dtype, **params):
+    """Run ``kernel(*quats_block, t_block, O, **params)`` on the block engine;
+    returns the (batch, 4) output."""
     batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)
-    if not batch:  # kernels index scratch rows: give them at least one batch axis
-        return drive(fn, [q[None] for q in quats], t[None], dtype, extra)[0]
     out = np.empty(batch + (4,), dtype)
-    nb = len(batch)
-    work = Work.acquire(dtype)
-    try:
-        for idx in blocks(batch, BLOCK):
-            ob = out[idx]
-            s = ob.shape[:-1]
-            ins = []
-            for j, q in enumerate(quats):
-                buf = work.rows(("in", j), 4, s)
-                qb = _sub(q, idx, nb)
-                qb = qb.reshape((1,) * (len(s) + 1 - qb.ndim) + qb.shape)
-                np.copyto(buf, soa(qb), casting="unsafe")
-                ins.append(buf)
-            fn(*ins, _sub(t, idx, nb, lead=0), soa(ob), work, *extra)
-    finally:
-        work.release()
+    _blocks.blockwise(kernel, list(quats), [out], batch, dtype, views=[t], **params)
     return out
 
 
@@ -377,77 +324,24 @@ def _sq_last(x):
 def slerp(q0, q1, t, shortest=True):
     """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`)."""
     dtype = result_dtype(q0, q1)
-    if q0.shape == q1.shape == (4,) and t.ndim == 0:
-        return _slerp_one(q0, q1, float(t), shortest, dtype)
     if _small((q0, q1), t) is not None:
         return _slerp_small(q0, q1, t, shortest, dtype)
-
-    def fn(A, B, h, O, work):
-        slerp_core(A, B, h, O, shortest, work)
-
-    return drive(fn, (q0, q1), t, dtype)
+    return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
 
 
 def _slerp_small(q0, q1, t, shortest, dtype):
-    """`slerp_core`'s weights as direct expressions on (..., 4) arrays (small batches)."""
-    A = q0.astype(dtype, copy=False)
-    B = q1.astype(dtype, copy=False)
-    h = t.astype(dtype, copy=False)
-    a2 = _sq_last(B - A)
-    b2 = _sq_last(B + A)
-    floor = _floor(dtype)
-    if shortest:
-        sgn = np.copysign(1, b2 - a2)
-        r2 = np.minimum(a2, b2) / np.maximum(np.maximum(a2, b2), floor)
-    else:
-        r2 = a2 / np.maximum(b2, floor)
-    rho = np.maximum(np.sqrt(r2), _tiny(dtype))
-    tau = np.tan(np.arctan(rho) * h)
-    t2 = tau * tau
-    g = 1 / (1 + t2)
-    v = tau / rho
-    w0 = (1 - (t2 + (1 - r2) * v)) * g
-    w1 = (1 + r2) * v * g
-    if shortest:
-        w1 *= sgn
-    else:
-        anti = (b2 == 0) & (a2 > 0)
-        if anti.any():   # B = -A followed as given: constant rotation (as slerp_core)
-            hb = np.broadcast_to(h, anti.shape)
-            w0 = np.where(anti, hb < 0.5, w0)
-            w1 = np.where(anti, hb >= 0.5, w1)
-    out = A * w0[..., None].astype(dtype, copy=False)
-    out += B * w1[..., None].astype(dtype, copy=False)
-    return out
-
-
-def _slerp_one(q0, q1, h, shortest, dtype):
-    """One pair with Python floats (a few µs instead of ~30 NumPy calls)."""
-    import math
-    a = q0.tolist()
-    b = q1.tolist()
-    a2 = sum((y - x) ** 2 for x, y in zip(a, b))
-    b2 = sum((y + x) ** 2 for x, y in zip(a, b))
-    sign = 1.0
-    if shortest and a2 > b2:
-        a2, b2, sign = b2, a2, -1.0
-    if b2 == 0:
-        if a2 == 0 or math.isnan(h):
-            w0 = w1 = math.nan
-        else:  # antipodal, shortest=False
-            w0, w1 = float(h < 0.5), float(h >= 0.5)
-    elif math.isnan(a2 + b2 + h) or math.isinf(h):
-        w0 = w1 = math.nan
-    else:
-        r2 = a2 / b2
-        rho = max(math.sqrt(r2), float(_tiny(dtype)))
-        tau = math.tan(h * math.atan(rho))
-        t2 = tau * tau
-        v = tau / rho
-        g = 1 / (1 + t2)
-        w0 = ((1 - t2) - (1 - r2) * v) * g
-        w1 = sign * v * (1 + r2) * g
-    return np.array([w0 * x + w1 * y for x, y in zip(a, b)], dtype)
+    """`slerp_core` as direct expressions on (n, 4) arrays (small batches, one pair)."""
+    batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], t.shape)
+    A = np.broadcast_to(q0, batch + (4,)).reshape(-1, 4).astype(dtype, copy=False)
+    B = np.broadcast_to(q1, batch + (4,)).reshape(-1, 4).astype(dtype, copy=False)
+    h = np.broadcast_to(t, batch).reshape(-1)
+    a2 = np.asarray(_sq_last(B - A))
+    b2 = np.asarray(_sq_last(B + A))
+    with _blocks.scratch().frame():
+        w0, w1 = slerp_weights(a2, b2, h, shortest)
+        out = A * w0[:, None]
+        out += B * w1[:, None]
+    return out.reshape(batch + (4,))
 
 
 def lerp(q0, q1, t):
@@ -461,16 +355,17 @@ def lerp(q0, q1, t):
         h = t.astype(dtype, copy=False)[..., None]
         return ((1 - h) * q0 + h * q1).astype(dtype, copy=False)
 
-    def fn(A, B, h, O, work):
-        s = O.shape[1:]
-        w = work.rows("lerp_w", 1, s)[0]
-        np.subtract(1, h, out=w, casting="unsafe")
-        T = work.rows("lerp_T", 8, s)
-        np.multiply(A, w, out=T[:4])
-        np.multiply(B, h, out=T[4:], casting="unsafe")
-        np.add(T[:4], T[4:], out=O)
+    return _pairwise(_lerp_block, (q0, q1), t, dtype)
 
-    return drive(fn, (q0, q1), t, dtype)
+
+def _lerp_block(A, B, h, O):
+    s = O.shape[1:]
+    w = _rows(1, s, O.dtype)[0]
+    np.subtract(1, h, out=w, casting="unsafe")
+    T = _rows(8, s, O.dtype)
+    np.multiply(A, w, out=T[:4])
+    np.multiply(B, h, out=T[4:], casting="unsafe")
+    np.add(T[:4], T[4:], out=O)
 
 
 _ZERO_BLEND = ("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
@@ -506,35 +401,36 @@ def nlerp(q0, q1, t, shortest=True):
         n /= norm[..., None]
         return n.astype(dtype, copy=False)
 
-    def fn(A, B, h, O, work):
-        s = O.shape[1:]
-        w0, w1, n = work.rows("nl_R", 3, s)
-        T = work.rows("nl_T", 8, s)
-        np.subtract(1, h, out=w0, casting="unsafe")
-        np.copyto(w1, h, casting="unsafe")
-        if shortest:
-            np.multiply(A, B, out=T[:4])
-            np.add(T[0], T[1], out=n)
-            n += T[2]
-            n += T[3]
-            n += 0.0                          # -0.0 -> +0.0: a zero dot product keeps q1
-            np.copysign(1, n, out=n)
-            w1 *= n
-        N = T[:4]
-        np.multiply(A, w0, out=N)
-        np.multiply(B, w1, out=T[4:])
-        N += T[4:]
-        np.multiply(N, N, out=T[4:])
-        np.add(T[4], T[5], out=n)
-        n += T[6]
-        n += T[7]
-        if not (n > 0).all():
-            raise ValueError(_ZERO_BLEND)
-        np.sqrt(n, out=n)
-        np.divide(1, n, out=n)
-        np.multiply(N, n, out=O)
+    return _pairwise(_nlerp_block, (q0, q1), t, dtype, shortest=shortest)
 
-    return drive(fn, (q0, q1), t, dtype)
+
+def _nlerp_block(A, B, h, O, shortest):
+    s = O.shape[1:]
+    w0, w1, n = _rows(3, s, O.dtype)
+    T = _rows(8, s, O.dtype)
+    np.subtract(1, h, out=w0, casting="unsafe")
+    np.copyto(w1, h, casting="unsafe")
+    if shortest:
+        np.multiply(A, B, out=T[:4])
+        np.add(T[0], T[1], out=n)
+        n += T[2]
+        n += T[3]
+        n += 0.0                          # -0.0 -> +0.0: a zero dot product keeps q1
+        np.copysign(1, n, out=n)
+        w1 *= n
+    N = T[:4]
+    np.multiply(A, w0, out=N)
+    np.multiply(B, w1, out=T[4:])
+    N += T[4:]
+    np.multiply(N, N, out=T[4:])
+    np.add(T[4], T[5], out=n)
+    n += T[6]
+    n += T[7]
+    if not (n > 0).all():
+        raise ValueError(_ZERO_BLEND)
+    np.sqrt(n, out=n)
+    np.divide(1, n, out=n)
+    np.multiply(N, n, out=O)
 
 
 def unflip(q, axis):
@@ -570,42 +466,39 @@ def unflip(q, axis):
 # squad and spherical Bézier: pairwise evaluation
 # --------------------------------------------------------------------------
 
-def _squad_block(Q0, A, B, Q1, h, O, work):
+def _squad_block(Q0, A, B, Q1, h, O):
     s = O.shape[1:]
-    P = work.rows("sq_P", 4, s)
-    S = work.rows("sq_S", 4, s)
-    slerp_core(Q0, Q1, h, P, False, work)
-    slerp_core(A, B, h, S, False, work)
-    hh = work.rows("sq_h", 1, s)[0]
-    np.subtract(1, h, out=hh, casting="unsafe")
-    np.multiply(hh, h, out=hh, casting="unsafe")
-    hh *= 2
-    slerp_core(P, S, hh, O, False, work)
+    P = _rows(4, s, O.dtype)
+    S = _rows(4, s, O.dtype)
+    slerp_core(Q0, Q1, h, P, False)
+    slerp_core(A, B, h, S, False)
+    squad_blend(P, S, h, O)
 
 
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
-    return drive(_squad_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
+    return _pairwise(_squad_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
 
 
-def _bezier_levels(L, h, O, work):
-    """de Casteljau by SLERP: L (4, 4, *s) holds the control points along axis 1."""
+def bezier_levels(L, h, O):
+    """de Casteljau by SLERP: L (4, n, *s) holds n = 3 or 4 control points along axis 1."""
     s = O.shape[1:]
-    M = work.rows("bz_M", 12, s).reshape((4, 3) + s)
-    slerp_core(L[:, :3], L[:, 1:], h, M, False, work)
-    N = work.rows("bz_N", 8, s).reshape((4, 2) + s)
-    slerp_core(M[:, :2], M[:, 1:], h, N, False, work)
-    slerp_core(N[:, 0], N[:, 1], h, O, False, work)
+    while L.shape[1] > 2:
+        n = L.shape[1] - 1
+        M = _rows(4 * n, s, O.dtype).reshape((4, n) + s)
+        slerp_core(L[:, :n], L[:, 1:], h, M, False)
+        L = M
+    slerp_core(L[:, 0], L[:, 1], h, O, False)
 
 
-def _bezier_block(Q0, A, B, Q1, h, O, work):
+def _bezier_block(Q0, A, B, Q1, h, O):
     s = O.shape[1:]
-    L = work.rows("bz_L", 16, s).reshape((4, 4) + s)
+    L = _rows(16, s, O.dtype).reshape((4, 4) + s)
     for j, X in enumerate((Q0, A, B, Q1)):
         L[:, j] = X
-    _bezier_levels(L, h, O, work)
+    bezier_levels(L, h, O)
 
 
 def bezier(q0, a, b, q1, t):
     """Pairwise spherical cubic Bézier (raw arrays), de Casteljau with SLERP."""
-    return drive(_bezier_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
+    return _pairwise(_bezier_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))

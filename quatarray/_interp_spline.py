@@ -19,6 +19,7 @@ holds components.  float32 stays float32.
 
 import numpy as np
 
+from . import _blocks
 from . import _convert as C
 from . import _kernels as Kn
 
@@ -232,7 +233,7 @@ def evaluate(times, keys, coeff, t, order=0):
     dtype = keys.dtype
     width = 4 if order == 0 else 3
     out = np.empty(t.shape + batch + (width,), dtype)
-    per = max(1, Kn.CHUNK // max(1, int(np.prod(batch, dtype=np.int64))))
+    per = max(1, _blocks.BLOCK // max(1, int(np.prod(batch, dtype=np.int64))))
     for start in range(0, len(t), per):
         tb = t[start:start + per]
         idx = segments(times, tb)

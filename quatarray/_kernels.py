@@ -2,18 +2,18 @@
 
 Every function broadcasts batch shapes the NumPy way, keeps float32 as
 float32, never modifies its inputs and never imports the `QuatArray` class.
-Long inputs are processed in cache-sized blocks (`blocks`) into a
-preallocated output.
+Long inputs are processed in cache-sized blocks by the block engine
+(`_blocks`) into a preallocated output.
 """
 
 from math import prod
 
 import numpy as np
 
-from ._validate import CHUNK
+from . import _blocks
 
 __all__ = [
-    "blocks", "result_dtype", "multiply", "conjugate", "sqnorm", "norm",
+    "result_dtype", "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
     "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
 ]
 
@@ -29,51 +29,6 @@ def result_dtype(*arrays):
     return np.result_type(*arrays, np.float32)
 
 
-def blocks(shape, chunk=CHUNK):
-    """Partition a batch `shape` into blocks of about `chunk` elements.
-
-    Yields index tuples (into the leading axes) that together cover the
-    batch exactly once; a batch of at most `chunk` elements is one block
-    ``()``.
-
-    >>> list(blocks((5,), chunk=2))
-    [(slice(0, 2, None),), (slice(2, 4, None),), (slice(4, 6, None),)]
-    >>> len(list(blocks((3, 4), chunk=4)))
-    3
-    """
-    shape = tuple(shape)
-    if prod(shape) <= chunk:
-        yield ()
-        return
-    inner, k = 1, len(shape)
-    while k > 0 and inner * shape[k - 1] <= chunk:
-        inner *= shape[k - 1]
-        k -= 1
-    ax = k - 1
-    step = max(chunk // inner, 1)
-    for outer in np.ndindex(*shape[:ax]):
-        for start in range(0, shape[ax], step):
-            yield outer + (slice(start, start + step),)
-
-
-def _sub(a, idx, batch_ndim, lead=1):
-    """The part of `a` (batch right-aligned to a batch of `batch_ndim` axes,
-    with `lead` trailing core axes) that broadcasts against block `idx`."""
-    if not idx:
-        return a
-    offset = batch_ndim - (a.ndim - lead)
-    sel = []
-    for i, ix in enumerate(idx):
-        j = i - offset
-        if j < 0:
-            continue
-        if a.shape[j] == 1:
-            sel.append(0 if isinstance(ix, int) else slice(None))
-        else:
-            sel.append(ix)
-    return a[tuple(sel)]
-
-
 def _contig_last(a, dtype):
     """`a` as `dtype` with a contiguous last axis (needed for complex views)."""
     if a.dtype != dtype:
@@ -83,54 +38,40 @@ def _contig_last(a, dtype):
     return a
 
 
-def _mul_parts(a, b, c, d, o0, o1, t):
-    """(o0, o1) = (a c - b conj(d), a d + b conj(c)): the product of p = a + b j
-    and q = c + d j as pairs of complex numbers (a = w + x i, b = y + z i).
+def hamilton(a, b, c, d, o0=None, o1=None, t=None):
+    """The Hamilton product p q, written once for every path.
 
-    Eight ufunc passes with `out` given positionally; `t` is scratch; the
-    outputs must not overlap the inputs.
+    p = a + b j and q = c + d j as pairs of complex numbers (a = w + x i,
+    b = y + z i): p q = (a c - b conj(d)) + (a d + b conj(c)) j.  Eight ufunc
+    passes; with outputs `o0`, `o1` and scratch `t` given (not overlapping
+    the inputs) nothing is allocated.  Works on complex arrays and scalars.
+
+    >>> hamilton(1j, 0, 0, 1)   # i j = k: (0 + 0i) + (0 + 1i) j
+    (np.complex128(0j), np.complex128(1j))
     """
-    np.multiply(a, c, o0)
-    np.conjugate(d, t)
-    np.multiply(b, t, t)
-    np.subtract(o0, t, o0)
-    np.multiply(a, d, o1)
-    np.conjugate(c, t)
-    np.multiply(b, t, t)
-    np.add(o1, t, o1)
+    given = o0 is not None
+    r0 = np.multiply(a, c, o0)
+    u = np.multiply(b, np.conjugate(d, t), t)
+    r0 = np.subtract(r0, u, o0 if given else None)
+    r1 = np.multiply(a, d, o1)
+    u = np.multiply(b, np.conjugate(c, t), t)
+    r1 = np.add(r1, u, o1 if given else None)
+    return r0, r1
 
 
-def _mul_block(p, q, o):
-    """o = p q (Hamilton) on one block of broadcasting float arrays."""
-    ct = _COMPLEX[o.dtype]
-    P, Q, O = p.view(ct), q.view(ct), o.view(ct)
-    _mul_parts(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], np.empty(O.shape[:-1], ct))
-
-
-def _mul_flat(p, q, o):
-    """Chunked product of C-contiguous (N, 4) arrays of one shape.
-
-    The complex views are made once; each block is a basic slice of them.
-    """
-    n = len(o)
-    ct = _COMPLEX[o.dtype]
-    P, Q, O = p.view(ct), q.view(ct), o.view(ct)
-    t = np.empty(min(n, CHUNK), ct)
-    for s in range(0, n, CHUNK):
-        e = min(s + CHUNK, n)
-        _mul_parts(P[s:e, 0], P[s:e, 1], Q[s:e, 0], Q[s:e, 1], O[s:e, 0], O[s:e, 1], t[: e - s])
+def _mul_views(P, Q, O):
+    """O = P Q on complex views (..., 2) of one block."""
+    work = _blocks.scratch()
+    t = work.rows(1, O.shape[:-1], O.dtype)[0]
+    hamilton(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], t)
 
 
 def _mul_scalar(p, q, dtype):
-    """Product of two single quaternions with Python floats (a few µs)."""
+    """Product of two single quaternions (no blocks, no scratch)."""
     w1, x1, y1, z1 = p.tolist()
     w2, x2, y2, z2 = q.tolist()
-    return np.array([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ], dtype)
+    r0, r1 = hamilton(complex(w1, x1), complex(y1, z1), complex(w2, x2), complex(y2, z2))
+    return np.array([r0.real, r0.imag, r1.real, r1.imag], dtype)
 
 
 def _out(out, shape, dtype, name="out"):
@@ -177,13 +118,45 @@ def multiply(p, q, out=None):
     q = _contig_last(q, dtype)
     if p.shape == q.shape == shape and p.flags.c_contiguous and q.flags.c_contiguous:
         _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), target.reshape(-1, 4))
-    else:
+    elif batch:
+        ct = _COMPLEX[dtype]
+        P, Q, O = p.view(ct), q.view(ct), target.view(ct)
         nb = len(batch)
-        for idx in blocks(batch):
-            _mul_block(_sub(p, idx, nb), _sub(q, idx, nb), target[idx])
+
+        def block(idx):
+            _mul_views(_blocks.part(P, idx, nb), _blocks.part(Q, idx, nb), O[idx])
+
+        _blocks.run(block, _blocks.split(batch), prod(batch))
+    else:
+        target[...] = _mul_scalar(p.reshape(4), q.reshape(4), dtype)
     if target is not res:
         res[...] = target
     return res
+
+
+def _mul_flat(p, q, o):
+    """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once)."""
+    ct = _COMPLEX[o.dtype]
+    P, Q, O = p.view(ct), q.view(ct), o.view(ct)
+
+    def block(idx):
+        _mul_views(P[idx], Q[idx], O[idx])
+
+    _blocks.run(block, _blocks.split((len(o),)), len(o))
+
+
+def multiply_rows(p, q):
+    """Hamilton product of quaternions given as component rows [w, x, y, z].
+
+    The rows broadcast against each other; returns the product's rows.
+
+    >>> [float(c) for c in multiply_rows([0., 1, 0, 0], [0., 0, 1, 0])]
+    [0.0, 0.0, 0.0, 1.0]
+    """
+    dtype = result_dtype(*p, *q)
+    P = np.stack(np.broadcast_arrays(*p), axis=-1).astype(dtype, copy=False)
+    Q = np.stack(np.broadcast_arrays(*q), axis=-1).astype(dtype, copy=False)
+    return list(_blocks.soa(multiply(P, Q)))
 
 
 _SIGNS = {}
@@ -193,7 +166,7 @@ def _conj_signs(dtype):
     """(1, -1, -1, -1) tiled over one block, per dtype (built once)."""
     dtype = np.dtype(dtype)
     if dtype not in _SIGNS:
-        _SIGNS[dtype] = np.tile(np.array([1, -1, -1, -1], dtype), CHUNK)
+        _SIGNS[dtype] = np.tile(np.array([1, -1, -1, -1], dtype), _blocks.BLOCK)
     return _SIGNS[dtype]
 
 
@@ -213,10 +186,13 @@ def conjugate(q, out=None):
         return res
     src, dst = q.reshape(-1), res.reshape(-1)
     signs = _conj_signs(dtype)
-    step = signs.size
-    for start in range(0, src.size, step):
-        stop = min(start + step, src.size)
-        np.multiply(src[start:stop], signs[:stop - start], out=dst[start:stop])
+
+    def block(idx):
+        sl = idx[0] if idx else slice(None)
+        o = dst[sl]
+        np.multiply(src[sl], signs[:o.size], out=o)
+
+    _blocks.run(block, _blocks.split((src.size,), signs.size), src.size // 4)
     return res
 
 
@@ -248,6 +224,25 @@ def dot(p, q):
     return np.einsum("...i,...i->...", p, q, dtype=dtype)
 
 
+_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero (or nan) quaternion"
+
+
+def _k_normalize(q, o):
+    n = _sum_sq(q, 0, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    np.sqrt(n, out=n)
+    if not (n > 0).all():
+        raise ValueError(_ZERO_NORMALIZE)
+    np.divide(q, n, out=o)
+
+
+def _sum_sq(q, start, out):
+    """out = q[start]² + ... + q[3]² for components-first rows."""
+    np.multiply(q[start], q[start], out=out)
+    for k in range(start + 1, len(q)):
+        out += q[k] * q[k]
+    return out
+
+
 def normalize(q, out=None):
     """q / |q|.  Zero quaternions raise `ValueError` (they have no direction).
 
@@ -258,30 +253,35 @@ def normalize(q, out=None):
     if res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype and not np.may_share_memory(q, res):
         _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
         return res
-    n = norm(q)
-    if not np.all(n > 0):
-        raise ValueError(_ZERO_NORMALIZE)
-    np.divide(q, n[..., None], out=res)
+    target = np.empty(q.shape, res.dtype)
+    _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
+    res[...] = target
     return res
-
-
-_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero (or nan) quaternion"
 
 
 def _normalize_flat(q, out):
     """Blocked q / |q| on (N, 4) C-contiguous arrays: one einsum for the squared
     norms, then one division per component column (long inner loops)."""
-    n = len(q)
-    s = np.empty(min(n, CHUNK), q.dtype)
-    for i in range(0, n, CHUNK):
-        j = min(i + CHUNK, n)
-        blk, o, t = q[i:j], out[i:j], s[: j - i]
+    def block(idx):
+        blk, o = q[idx], out[idx]
+        t = _blocks.scratch().rows(1, (len(o),), q.dtype)[0]
         np.einsum("ij,ij->i", blk, blk, out=t)
         np.sqrt(t, t)
         if not (t > 0).all():
             raise ValueError(_ZERO_NORMALIZE)
         for c in range(4):
             np.divide(blk[:, c], t, o[:, c])
+
+    _blocks.run(block, _blocks.split((len(q),)), len(q))
+
+
+def _k_inverse(q, o):
+    n2 = _sum_sq(q, 0, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    if not (n2 > 0).all():
+        raise ZeroDivisionError("quaternion inverse: expected non-zero quaternions, got a zero quaternion")
+    np.divide(q[0], n2, out=o[0])
+    np.negative(n2, out=n2)
+    np.divide(q[1:], n2, out=o[1:])
 
 
 def inverse(q):
@@ -292,17 +292,21 @@ def inverse(q):
     >>> inverse(np.array([0., 2, 0, 0]))
     array([ 0. , -0.5, -0. , -0. ])
     """
-    n2 = sqnorm(q)
-    if not np.all(n2 > 0):
-        raise ZeroDivisionError("quaternion inverse: expected non-zero quaternions, got a zero quaternion")
-    res = conjugate(q)
-    res /= n2[..., None]
+    res = np.empty(q.shape, result_dtype(q))
+    _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
     return res
 
 
-def _vec_norm(q):
-    v = q[..., 1:]
-    return np.sqrt(np.einsum("...i,...i->...", v, v))
+def _k_exp(q, o):
+    vn = _sum_sq(q, 1, o[0])
+    np.sqrt(vn, out=vn)
+    ew = np.exp(q[0])
+    # sin|v| / |v|, with its limit 1 at |v| = 0
+    s = np.where(vn > 0, np.sin(vn) / vn, 1.0).astype(o.dtype, copy=False)
+    s *= ew
+    np.multiply(q[1:], s, out=o[1:])
+    np.cos(vn, out=o[0])
+    o[0] *= ew
 
 
 def exp(q):
@@ -312,29 +316,33 @@ def exp(q):
     True
     """
     q = np.asarray(q)
-    vn = _vec_norm(q)
-    ew = np.exp(q[..., 0])
     res = np.empty(q.shape, result_dtype(q))
-    res[..., 0] = ew * np.cos(vn)
-    # sin|v| / |v|, with its limit 1 at |v| = 0
     with np.errstate(invalid="ignore", divide="ignore"):
-        s = np.where(vn > 0, np.sin(vn) / vn, 1.0).astype(res.dtype, copy=False)
-    np.multiply(q[..., 1:], (ew * s)[..., None], out=res[..., 1:])
+        _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)
     return res
 
 
 def _log_parts(q):
-    """(ln|q|, angle θ = atan2(|v|, w), scale θ/|v|) for the principal log.
+    """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|) for the principal log of
+    components-first rows.
 
     The scale has its limit 1/w at |v| = 0, w > 0; for a negative real
     quaternion (|v| = 0, w < 0) the axis is taken as x (θ = π)."""
-    vn = _vec_norm(q)
-    w = q[..., 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ln = np.log(np.hypot(vn, w))
-        theta = np.arctan2(vn, w)
-        scale = np.where(vn > 0, theta / vn, np.where(w > 0, 1.0 / w, 0.0))
+    vn = np.sqrt(_sum_sq(q, 1, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0]))
+    w = q[0]
+    ln = np.log(np.hypot(vn, w))
+    theta = np.arctan2(vn, w)
+    scale = np.where(vn > 0, theta / vn, np.where(w > 0, 1.0 / w, 0.0))
     return ln, theta, vn, scale.astype(q.dtype, copy=False)
+
+
+def _k_log(q, o):
+    ln, theta, vn, scale = _log_parts(q)
+    np.multiply(q[1:], scale, out=o[1:])
+    np.copyto(o[0], ln)
+    neg_real = (vn == 0) & (q[0] < 0)
+    if neg_real.any():
+        np.copyto(o[1], np.pi, where=neg_real)
 
 
 def log(q):
@@ -347,14 +355,30 @@ def log(q):
     True
     """
     q = np.asarray(q)
-    ln, theta, vn, scale = _log_parts(q)
     res = np.empty(q.shape, result_dtype(q))
-    res[..., 0] = ln
-    np.multiply(q[..., 1:], scale[..., None], out=res[..., 1:])
-    neg_real = (vn == 0) & (q[..., 0] < 0)
-    if neg_real.any():
-        res[..., 1][neg_real] = np.pi
+    with np.errstate(divide="ignore", invalid="ignore"):
+        _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
     return res
+
+
+def _k_power(q, t, o):
+    t = t[0]
+    ln, theta, vn, scale = _log_parts(q)
+    mag = np.exp(t * ln)
+    zero = (vn == 0) & (q[0] == 0)
+    if zero.any():
+        mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
+    ang = t * theta
+    # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
+    s = np.where(vn > 0, np.sin(ang) / np.where(vn > 0, vn, 1), t * scale)
+    factor = mag * s
+    if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
+        factor = np.where(zero, 0.0, factor)
+    np.multiply(mag, np.cos(ang), out=o[0])
+    np.multiply(q[1:], factor, out=o[1:])
+    neg_real = (vn == 0) & (q[0] < 0)
+    if neg_real.any():
+        np.copyto(o[1], mag * np.sin(ang), where=neg_real)
 
 
 def power(q, t):
@@ -369,27 +393,10 @@ def power(q, t):
     q = np.asarray(q)
     t = np.asarray(t)
     dtype = result_dtype(q)
-    if t.dtype.kind == "f" and t.dtype.itemsize > np.dtype(dtype).itemsize:
-        t = t.astype(dtype)
-    ln, theta, vn, scale = _log_parts(q)
-    with np.errstate(invalid="ignore", over="ignore"):
-        mag = np.exp(t * ln)
-        zero = (vn == 0) & (q[..., 0] == 0)
-        if zero.any():
-            mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
-        ang = t * theta
-        # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
-        s = np.where(vn > 0, np.sin(ang) / np.where(vn > 0, vn, 1), t * scale)
-        factor = mag * s
-        if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
-            factor = np.where(zero, 0.0, factor)
-    batch = np.broadcast_shapes(q.shape[:-1], np.shape(ang))
+    batch = np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
-    res[..., 0] = mag * np.cos(ang)
-    np.multiply(q[..., 1:], factor[..., None], out=res[..., 1:])
-    neg_real = (vn == 0) & (q[..., 0] < 0)
-    if neg_real.any():
-        res[..., 1] = np.where(neg_real, mag * np.sin(ang), res[..., 1])
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        _blocks.blockwise(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
     return res
 
 
@@ -417,10 +424,8 @@ def rotate(q, v, inverse=False):
         res = np.matmul(m.T if inverse else m, v.astype(dtype, copy=False), axes=[(-2, -1), (-1, -2), (-1, -2)])
         return res.reshape(batch + (3,))
     res = np.empty(batch + (3,), dtype)
-    nb = len(batch)
     with np.errstate(divide="ignore", invalid="ignore"):  # zero quaternions give nan
-        for idx in blocks(batch):
-            _rotate_block(_sub(q, idx, nb), _sub(v, idx, nb), res[idx], -1.0 if inverse else 1.0)
+        _blocks.blockwise(_rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
 
 
@@ -450,12 +455,12 @@ def _rotate_scalar(q, u, dtype, inverse=False):
 
 
 def _rotate_block(q, u, o, wsign):
-    w, x, y, z = q[..., 0] * wsign, q[..., 1], q[..., 2], q[..., 3]
-    ux, uy, uz = u[..., 0], u[..., 1], u[..., 2]
+    w, x, y, z = q[0] * wsign, q[1], q[2], q[3]
+    ux, uy, uz = u
     s = 2.0 / (w * w + x * x + y * y + z * z)
     tx = (y * uz - z * uy) * s
     ty = (z * ux - x * uz) * s
     tz = (x * uy - y * ux) * s
-    o[..., 0] = ux + w * tx + (y * tz - z * ty)
-    o[..., 1] = uy + w * ty + (z * tx - x * tz)
-    o[..., 2] = uz + w * tz + (x * ty - y * tx)
+    o[0] = ux + w * tx + (y * tz - z * ty)
+    o[1] = uy + w * ty + (z * tx - x * tz)
+    o[2] = uz + w * tz + (x * ty - y * tx)

@@ -6,12 +6,7 @@ Messages name the argument, what was expected and what came, e.g.
 
 import numpy as np
 
-__all__ = ["float_array", "real_array", "finite", "batch_shape", "CHUNK"]
-
-#: Number of quaternions processed per block by the chunked kernels: a few
-#: arrays of this many quaternions stay inside the L2 cache.
-CHUNK = 8192
-
+__all__ = ["float_array", "real_array", "finite", "batch_shape"]
 
 def float_array(x, name, last=None, dtype=None):
     """Return `x` as a float32 or float64 ndarray (never copied if already one).

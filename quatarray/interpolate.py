@@ -25,11 +25,13 @@ from math import prod
 
 import numpy as np
 
+from . import _blocks
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
 from . import _interp_spline as ISp
 from . import _kernels as Kn
 from ._array import QuatArray
+from ._blocks import soa
 from ._interp_lookup import SegmentIndex
 from ._validate import finite, float_array
 
@@ -425,20 +427,17 @@ def _components_first(q, K, B):
     """(K, ..., 4) -> C-contiguous float64 (4, K, B): long contiguous rows for the
     construction-time maths (strided views make every NumPy call several times slower)."""
     out = np.empty((4, K, B))
-    out[...] = IK.soa(q.reshape(K, B, 4))
+    out[...] = soa(q.reshape(K, B, 4))
     return out
 
 
 def _qt_blocks(M, B):
-    """(query slice, track slice) blocks of about BLOCK quaternions each."""
-    if B <= IK.BLOCK:
-        m = max(1, IK.BLOCK // max(B, 1))
-        for s in range(0, M, m):
-            yield slice(s, s + m), slice(None)
-    else:
-        for q in range(M):
-            for s in range(0, B, IK.BLOCK):
-                yield slice(q, q + 1), slice(s, s + IK.BLOCK)
+    """(query slice, track slice) blocks of at most BLOCK quaternions each."""
+    def as_slice(ix):
+        return slice(ix, ix + 1) if isinstance(ix, int) else ix
+
+    return [tuple(as_slice(ix) for ix in idx) + (slice(None),) * (2 - len(idx))
+            for idx in _blocks.split((M, B))]
 
 
 class Track:
@@ -552,7 +551,7 @@ class Track:
         K1, B = pieces[0][0].shape[1:]
         table = np.empty((9 * n, K1 + 1, B))
         Fv = table[:8 * n].reshape(n, 8, K1 + 1, B)
-        if n > 1 and n * K1 * B <= IK.BLOCK:   # small: one call on the stacked pieces
+        if n > 1 and n * K1 * B <= _blocks.BLOCK:   # small: one call on the stacked pieces
             k0 = np.stack([p[0] for p in pieces], 1)
             k1 = np.stack([p[1] for p in pieces], 1)
             IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), table[8 * n:, :K1])
@@ -669,63 +668,59 @@ class Track:
             return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
         M, B = flat.size, self._B
         out = np.empty((M, B, 4), self._dtype)
-        work = IK.Work.acquire(self._dtype)
-        try:
-            for sm, sb in _qt_blocks(M, B):
-                i, u = self._segments(flat[sm], False)
-                G = self._gather(i, sb, work)
-                uu = u.astype(self._dtype)[:, None]
-                self._eval_block(G, uu, IK.soa(out[sm, sb]), work)
-        finally:
-            work.release()
+
+        def block(qt):
+            sm, sb = qt
+            i, u = self._segments(flat[sm], False)
+            G = self._gather(i, sb)
+            uu = u.astype(self._dtype)[:, None]
+            self._eval_block(G, uu, soa(out[sm, sb]))
+
+        _blocks.run(block, _qt_blocks(M, B), M * B)
         return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
 
-    def _gather(self, i, sb, work):
+    def _gather(self, i, sb):
         """Table rows of segments `i` for tracks `sb`: (R, len(i), b), components first."""
         R = self._table.shape[0]
+        work = _blocks.scratch()
         if self._B == 1:   # 2-D take: one element per row and index (twice as fast)
-            G = work.rows("G", R, (len(i),))
+            G = work.rows(R, (len(i),), self._dtype)
             np.take(self._table[:, :, 0], i, axis=1, mode="clip", out=G)
             return G[:, :, None]
         tab = self._table[:, :, sb]
-        G = work.rows("G", R, (len(i), tab.shape[2]))
+        G = work.rows(R, (len(i), tab.shape[2]), self._dtype)
         np.take(tab, i, axis=1, mode="clip", out=G)
         return G
 
-    def _eval_block(self, G, u, O, work):
+    def _eval_block(self, G, u, O):
         s = O.shape[1:]
         method = self._method
+        work = _blocks.scratch()
         if method == "slerp":
-            IK.frame_core(G[:8], G[8], u, O, work)
+            IK.frame_core(G[:8], G[8], u, O)
         elif method == "linear":
             Gv = G.reshape((2, 4) + s)
-            W = work.rows("lin_W", 2, s)
+            W = work.rows(2, s, O.dtype)
             np.subtract(1, u, out=W[0])
             np.copyto(W[1], u)
             np.multiply(Gv, W[:, None], out=Gv)
             np.add(Gv[0], Gv[1], out=O)
-            n = work.rows("lin_n", 1, s)[0]
+            n = work.rows(1, s, O.dtype)[0]
             np.copyto(Gv[0], O)
             IK.sqsum(Gv[0], n)
             np.sqrt(n, out=n)
             np.divide(O, n, out=O)
         elif method == "squad":
-            P = work.rows("sq_P", 4, s)
-            S = work.rows("sq_S", 4, s)
-            IK.frame_core(G[:8], G[16], u, P, work)
-            IK.frame_core(G[8:16], G[17], u, S, work)
-            h = work.rows("sq_h", 1, s[:1] + (1,))[0]
-            np.subtract(1, u, out=h)
-            h *= u
-            h *= 2
-            IK.slerp_core(P, S, h, O, False, work)
+            P = work.rows(4, s, O.dtype)
+            S = work.rows(4, s, O.dtype)
+            IK.frame_core(G[:8], G[16], u, P)
+            IK.frame_core(G[8:16], G[17], u, S)
+            IK.squad_blend(P, S, u, O)
         else:
-            L = work.rows("bz_L", 12, s).reshape((4, 3) + s)
+            L = work.rows(12, s, O.dtype).reshape((4, 3) + s)
             for j in range(3):
-                IK.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j], work)
-            M = work.rows("bz_M", 8, s).reshape((4, 2) + s)
-            IK.slerp_core(L[:, :2], L[:, 1:], u, M, False, work)
-            IK.slerp_core(M[:, 0], M[:, 1], u, O, False, work)
+                IK.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j])
+            IK.bezier_levels(L, u, O)
 
     def angular_velocity(self, t, *, frame="world"):
         """Angular velocity of the interpolated rotation, analytic (no finite differences).
@@ -777,7 +772,7 @@ class Track:
             w = IC.omega_from(q, dq, frame) / np.take(self._dt, i)[:, None]
             if outside is not None:
                 w[:, outside[sm]] = 0
-            IK.soa(out[sm, sb])[...] = w
+            soa(out[sm, sb])[...] = w
         return out.reshape(tshape + self._batch + (3,)).astype(self._dtype, copy=False)
 
     def _deriv_block(self, G, u):
@@ -790,7 +785,7 @@ class Track:
         if method == "squad":
             A, dA = IC.frame_deriv(G[:8], G[16], u)
             S, dS = IC.frame_deriv(G[8:16], G[17], u)
-            return IC.slerp_deriv(A, dA, S, dS, 2 * u * (1 - u), 2 - 4 * u)
+            return IC.slerp_deriv(A, dA, S, dS, IK.squad_param(u), 2 - 4 * u)
         L = [IC.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
         M = [IC.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
         return IC.slerp_deriv(*M[0], *M[1], u, 1.0)

@@ -16,7 +16,7 @@ from quatarray import QuatArray
 from quatarray import _convert as C
 from quatarray import _euler as E
 from quatarray import _kernels as K
-from quatarray._validate import CHUNK
+from quatarray._blocks import BLOCK as CHUNK
 from quatarray.testing import assert_allclose
 
 from .conftest import random_quats, tol

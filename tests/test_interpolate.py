@@ -17,6 +17,7 @@ from scipy.spatial.transform import Slerp as SciSlerp
 
 from quatarray import QuatArray
 from quatarray import _interp_kernels as IK
+from quatarray._blocks import BLOCK
 from quatarray._interp_lookup import SegmentIndex
 from quatarray._kernels import multiply as qmul
 from quatarray.interpolate import (
@@ -301,7 +302,7 @@ def test_slerp_broadcasting_and_scalar_parameter(rng, path):
 
 def test_slerp_large_batches_are_blocked(rng):
     """More quaternions than a block, with a broadcast operand (several blocks)."""
-    n = IK.BLOCK * 2 + 123
+    n = BLOCK * 2 + 123
     q0 = random_quats(rng, (2, n))
     q1 = random_quats(rng, (n,))
     t = rng.uniform(0, 1, (2, 1))
@@ -730,14 +731,14 @@ def test_empty_batch_of_tracks(method):
 
 def test_many_tracks_and_many_queries_are_blocked(rng):
     """More tracks than a block (split across tracks), and more queries than a block."""
-    times, keys = random_track(rng, 3, (IK.BLOCK + 7,), step=0.5)
+    times, keys = random_track(rng, 3, (BLOCK + 7,), step=0.5)
     track = Track(times, keys, method="squad")
     t = np.array([times[0] + 0.3, times[1] + 0.1])
     got = plain(track(t))
-    for j in (0, IK.BLOCK - 1, IK.BLOCK + 6):
+    for j in (0, BLOCK - 1, BLOCK + 6):
         np.testing.assert_array_equal(got[:, j], plain(Track(times, keys[:, j], method="squad")(t)))
     times, keys = random_track(rng, 50)
-    t = rng.uniform(times[0], times[-1], 2 * IK.BLOCK + 5)
+    t = rng.uniform(times[0], times[-1], 2 * BLOCK + 5)
     for method in METHODS:
         track = Track(times, keys, method=method)
         got = plain(track(t))

@@ -129,14 +129,6 @@ def test_empty_batches():
     assert K.norm(e).shape == (0,)
 
 
-def test_blocks_cover_batch_exactly_once():
-    for shape in [(5,), (3, 4), (7, 3, 5), (2, 9), (0, 3)]:
-        seen = np.zeros(shape, int)
-        for idx in K.blocks(shape, chunk=4):
-            seen[idx] += 1
-        assert np.all(seen == 1)
-
-
 # --- hypothesis identities ----------------------------------------------------------
 
 @given(finite_quat, finite_quat, finite_quat)
