@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from . import _blocks
+from . import _blocks, _scale
 from ._kernels import _matrix_one
 from ._validate import float_array
 
@@ -38,14 +38,11 @@ __all__ = [
     "as_mrp", "from_mrp", "canonical", "magnitude",
 ]
 
-_TINY = {np.dtype(np.float32): 1e-30, np.dtype(np.float64): 1e-300}
+_ANGLE_FLOOR = {np.dtype(np.float32): 1e-30, np.dtype(np.float64): 1e-300}
 """A positive floor for rotation angles: tan(θ/4)/θ is then exactly 1/4 at θ = 0."""
 
 _POLAR_MAXITER = 60
 """Newton steps allowed for the polar factor before falling back to an SVD."""
-
-"""Middle Euler angle this close to 0 or π counts as gimbal lock (scipy's value)."""
-
 
 
 # --- the block engine, quietly ------------------------------------------------------
@@ -91,7 +88,7 @@ def _k_from_quat(q, o, order):
     return bad
 
 
-def from_quat(quat, scalar_first=False):
+def from_quat(quat, scalar_first=False, name="quat"):
     """Unit scalar-first quaternions from quaternions in either order (scipy's `from_quat`).
 
     Parameters
@@ -99,6 +96,8 @@ def from_quat(quat, scalar_first=False):
     quat : array_like, shape (..., 4)
         ``(x, y, z, w)``, or ``(w, x, y, z)`` with ``scalar_first=True``.
     scalar_first : bool, default False
+    name : str, default "quat"
+        What to call `quat` in error messages.
 
     Returns
     -------
@@ -128,11 +127,11 @@ def from_quat(quat, scalar_first=False):
         finite = np.isfinite(flat).all(axis=1)
         if not finite.all():
             first = int(np.argmin(finite))
-            raise ValueError(f"expected finite quat, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
+            raise ValueError(f"expected finite {name}, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
         scale = np.abs(flat).max(axis=1)
         if not (scale > 0).all():
             first = int(np.argmin(scale > 0))
-            raise ValueError(f"Found zero norm quaternions in `quat`: expected non-zero quaternions, "
+            raise ValueError(f"Found zero norm quaternions in `{name}`: expected non-zero quaternions, "
                              f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
         # norms that over- or underflow: normalise after scaling by the largest component
         with np.errstate(over="ignore", under="ignore"):
@@ -151,9 +150,17 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
+def _guarded(q):
+    """Squared norms of a block's scratch copy `q`, rescaling it in place where
+    they would over- or underflow (`_scale.guard`)."""
+    n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    _scale.guard(q, n2)
+    return n2
+
+
 def _k_as_matrix(q, o):
     w, x, y, z = q
-    s = 2.0 / (w * w + x * x + y * y + z * z)
+    s = np.divide(2.0, _guarded(q))
     xs, ys, zs = x * s, y * s, z * s
     wx, wy, wz = w * xs, w * ys, w * zs
     xx, xy, xz = x * xs, x * ys, x * zs
@@ -291,6 +298,29 @@ def _svd_polar(mat):
     return u @ vt
 
 
+def _rescaled_matrices(flat, qflat, status, tol_off):
+    """Try again, scaled by a power of two near their largest entry, the finite
+    matrices whose determinant over- or underflowed (``1e103 * I`` is the
+    identity, as in scipy); updates `qflat` and `status` in place and returns
+    the matrices with those rows scaled (a copy; `flat` itself is not modified)."""
+    redo = np.flatnonzero(status == 2)
+    sub = flat[redo]
+    ok = np.isfinite(sub).all(axis=1) & (sub != 0).any(axis=1)
+    redo, sub = redo[ok], sub[ok]
+    if not redo.size:
+        return flat
+    _, e = np.frexp(np.abs(sub).max(axis=1))
+    sub = np.ldexp(sub, -e[:, None])
+    qsub = np.empty((len(sub), 4), flat.dtype)
+    ssub = np.empty((len(sub), 1), np.int8)
+    _blockwise(_k_from_matrix, [sub], [qsub, ssub], tol_diag=1e-5 + tol_off, tol_off=tol_off)
+    qflat[redo] = qsub
+    status[redo] = ssub[:, 0]
+    flat = flat.copy()
+    flat[redo] = sub
+    return flat
+
+
 def from_matrix(matrix, assume_valid=False):
     """Quaternions of rotation matrices, as scipy's ``Rotation.from_matrix``.
 
@@ -341,12 +371,15 @@ def from_matrix(matrix, assume_valid=False):
     _blockwise(_k_from_matrix, [flat], [qflat, status], tol_diag=1e-5 + tol_off, tol_off=tol_off)
     status = status[:, 0]
     if n and status.max() == 2:
+        given, flat = flat, _rescaled_matrices(flat, qflat, status, tol_off)
+    if n and status.max() == 2:
         first = int(np.argmax(status == 2))
         where = _index(first, batch)
-        bad = flat[first].reshape(3, 3)
+        bad = given[first].reshape(3, 3)
         if not np.isfinite(bad).all():
             raise ValueError(f"expected finite values in matrix, got nan or inf in matrix {where}")
-        det = float(np.linalg.det(bad.astype(np.float64)))
+        with np.errstate(over="ignore", under="ignore"):
+            det = float(np.linalg.det(bad.astype(np.float64)))
         raise ValueError(
             "Non-positive determinant (left-handed or null coordinate frame) in rotation "
             f"matrix {where}: expected det > 0, got det = {det:.6g} for\n{bad}")
@@ -377,9 +410,22 @@ def _flip_mask(w, x, y, z):
     return flip
 
 
-def _k_as_rotvec(q, o, factor):
+def _vector_norm(q):
+    """|v| of a block's scratch copy `q`, rescaled in place first where |q|² would
+    over- or underflow (|v|² + w² is checked: two more ufuncs than |v| alone)."""
     w, x, y, z = q
-    nv = np.sqrt(x * x + y * y + z * z)
+    v2 = x * x + y * y + z * z
+    n2 = w * w
+    n2 += v2
+    if not _scale.fits(n2):
+        _scale.guard(q, n2)
+        v2 = x * x + y * y + z * z
+    return np.sqrt(v2, out=v2)
+
+
+def _k_as_rotvec(q, o, factor):
+    nv = _vector_norm(q)
+    w, x, y, z = q
     half = np.arctan2(nv, np.abs(w))
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
@@ -425,7 +471,7 @@ def _k_from_rotvec(v, q, factor):
     theta = np.sqrt(x * x + y * y + z * z)
     if factor != 1.0:
         theta *= factor
-    np.maximum(theta, _TINY[theta.dtype], out=theta)
+    np.maximum(theta, _ANGLE_FLOOR[theta.dtype], out=theta)
     cos_half, sin_half = _half_angle(theta, 0.25)
     np.copyto(q[0], cos_half)
     # sin(θ/2) / θ, times the degree factor that converts v itself
@@ -465,8 +511,7 @@ def from_rotvec(rotvec, degrees=False):
 
 
 def _k_magnitude(q, o):
-    w, x, y, z = q
-    np.arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w), out=o[0])
+    np.arctan2(_vector_norm(q), np.abs(q[0]), out=o[0])
     o[0] *= 2.0
 
 
@@ -489,7 +534,7 @@ def magnitude(q):
     q = _quat(q)
     out = np.empty(q.shape[:-1], q.dtype)
     if q.shape == (4,):  # one rotation: Python floats
-        w, x, y, z = q.tolist()
+        (w, x, y, z), _ = _scale.guard_one(q.tolist())
         out[()] = 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
         return out
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
@@ -497,8 +542,9 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
+    n = np.sqrt(_guarded(q))
     w, x, y, z = q
-    k = 1.0 / (np.sqrt(w * w + x * x + y * y + z * z) + np.abs(w))
+    k = 1.0 / (n + np.abs(w))
     np.negative(k, out=k, where=w < 0)
     np.multiply(x, k, out=o[0])
     np.multiply(y, k, out=o[1])

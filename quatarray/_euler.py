@@ -13,7 +13,7 @@ import warnings
 
 import numpy as np
 
-from ._convert import _blockwise, _half_angle, _quat
+from ._convert import _blockwise, _guarded, _half_angle, _quat
 from ._kernels import multiply_rows
 from ._validate import float_array
 
@@ -169,6 +169,7 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
+    _guarded(q)
     w = q[0]
     qi, qj, qk = q[i + 1], q[j + 1], q[k + 1]
     qk = qk if sign > 0 else -qk
@@ -314,6 +315,7 @@ def from_davenport(axes, order, angles, degrees=False):
 
 
 def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
+    _guarded(abcd)
     gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
     if flip:
         np.negative(o[1], out=o[1])

@@ -6,11 +6,13 @@ Long inputs are processed in cache-sized blocks by the block engine
 (`_blocks`) into a preallocated output.
 """
 
+import math
 from math import prod
 
 import numpy as np
 
-from . import _blocks
+from . import _blocks, _scale
+from ._blocks import soa
 
 __all__ = [
     "result_dtype", "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
@@ -205,13 +207,28 @@ def sqnorm(q):
     return np.einsum("...i,...i->...", q, q)
 
 
-def norm(q):
-    """Norm |q|, batch shape; overflow-safe like `np.hypot`.
+def _k_norm(q, o):
+    n = _scale.sum_squares(q, o[0])
+    e, _ = _scale.guard(q, n)
+    np.sqrt(n, out=n)
+    _scale.unscale(n, e)
 
-    >>> norm(np.array([[1., 2, 2, 4], [0, 0, 0, 0]]))
-    array([5., 0.])
+
+def norm(q):
+    """Norm |q|, batch shape; neither overflows nor underflows before the result does.
+
+    >>> norm(np.array([[1., 2, 2, 4], [0, 0, 0, 0], [1e300, 0, 0, 0]]))
+    array([5.e+000, 0.e+000, 1.e+300])
     """
-    return np.linalg.norm(q, axis=-1)
+    q = np.asarray(q)
+    dtype = result_dtype(q)
+    if q.shape == (4,):
+        c, e = _scale.guard_one(q.tolist())
+        return dtype.type(math.ldexp(math.sqrt(sum(x * x for x in c)), e))
+    out = np.empty(q.shape[:-1] + (1,), dtype)
+    with np.errstate(over="ignore"):   # squares that overflow are rescaled
+        _blocks.blockwise(_k_norm, [q], [out], dtype=dtype)
+    return out[..., 0]
 
 
 def dot(p, q):
@@ -224,23 +241,21 @@ def dot(p, q):
     return np.einsum("...i,...i->...", p, q, dtype=dtype)
 
 
-_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero (or nan) quaternion"
+_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quaternion"
+
+
+_NONFINITE_NORMALIZE = "expected finite quaternions to normalize, got nan or inf"
 
 
 def _k_normalize(q, o):
-    n = _sum_sq(q, 0, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    n = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    _, finite = _scale.guard(q, n)   # q is the block's scratch copy: rescaled in place if needed
+    if not finite:
+        raise ValueError(_NONFINITE_NORMALIZE)
     np.sqrt(n, out=n)
     if not (n > 0).all():
         raise ValueError(_ZERO_NORMALIZE)
     np.divide(q, n, out=o)
-
-
-def _sum_sq(q, start, out):
-    """out = q[start]² + ... + q[3]² for components-first rows."""
-    np.multiply(q[start], q[start], out=out)
-    for k in range(start + 1, len(q)):
-        out += q[k] * q[k]
-    return out
 
 
 def normalize(q, out=None):
@@ -251,10 +266,12 @@ def normalize(q, out=None):
     """
     res = _out(out, q.shape, result_dtype(q))
     if res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype and not np.may_share_memory(q, res):
-        _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
+        with np.errstate(over="ignore"):   # squares that overflow are rescaled
+            _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
         return res
     target = np.empty(q.shape, res.dtype)
-    _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
+    with np.errstate(over="ignore"):
+        _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
 
@@ -266,9 +283,10 @@ def _normalize_flat(q, out):
         blk, o = q[idx], out[idx]
         t = _blocks.scratch().rows(1, (len(o),), q.dtype)[0]
         np.einsum("ij,ij->i", blk, blk, out=t)
+        if not _scale.fits(t):   # extreme magnitudes, zeros or nan: the general kernel
+            _k_normalize(soa(blk).copy(), soa(o))
+            return
         np.sqrt(t, t)
-        if not (t > 0).all():
-            raise ValueError(_ZERO_NORMALIZE)
         for c in range(4):
             np.divide(blk[:, c], t, o[:, c])
 
@@ -276,12 +294,16 @@ def _normalize_flat(q, out):
 
 
 def _k_inverse(q, o):
-    n2 = _sum_sq(q, 0, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    e, _ = _scale.guard(q, n2)
     if not (n2 > 0).all():
         raise ZeroDivisionError("quaternion inverse: expected non-zero quaternions, got a zero quaternion")
     np.divide(q[0], n2, out=o[0])
     np.negative(n2, out=n2)
     np.divide(q[1:], n2, out=o[1:])
+    if e is not None:   # q was scaled by 2**-e: its inverse by 2**e
+        np.negative(e, out=e)
+        _scale.unscale(o, e)
 
 
 def inverse(q):
@@ -293,12 +315,13 @@ def inverse(q):
     array([ 0. , -0.5, -0. , -0. ])
     """
     res = np.empty(q.shape, result_dtype(q))
-    _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
+    with np.errstate(over="ignore"):   # squares that overflow are rescaled
+        _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
     return res
 
 
 def _k_exp(q, o):
-    vn = _sum_sq(q, 1, o[0])
+    vn = _scale.sum_squares(q, o[0], 1)
     np.sqrt(vn, out=vn)
     ew = np.exp(q[0])
     # sin|v| / |v|, with its limit 1 at |v| = 0
@@ -323,23 +346,30 @@ def exp(q):
 
 
 def _log_parts(q):
-    """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|) for the principal log of
+    """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|, e) for the principal log of
     components-first rows.
 
     The scale has its limit 1/w at |v| = 0, w > 0; for a negative real
-    quaternion (|v| = 0, w < 0) the axis is taken as x (θ = π)."""
-    vn = np.sqrt(_sum_sq(q, 1, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0]))
+    quaternion (|v| = 0, w < 0) the axis is taken as x (θ = π).  Blocks of
+    extreme magnitude are rescaled in place first by 2**-e (e None when
+    not): ln|q|, |v| and the scale then refer to the rescaled q, which is
+    what the callers multiply."""
+    work = _blocks.scratch()
+    e, _ = _scale.guard(q, _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0]))
+    vn = np.sqrt(_scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0], 1))
     w = q[0]
     ln = np.log(np.hypot(vn, w))
     theta = np.arctan2(vn, w)
     scale = np.where(vn > 0, theta / vn, np.where(w > 0, 1.0 / w, 0.0))
-    return ln, theta, vn, scale.astype(q.dtype, copy=False)
+    return ln, theta, vn, scale.astype(q.dtype, copy=False), e
 
 
 def _k_log(q, o):
-    ln, theta, vn, scale = _log_parts(q)
+    ln, theta, vn, scale, e = _log_parts(q)
     np.multiply(q[1:], scale, out=o[1:])
     np.copyto(o[0], ln)
+    if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
+        o[0] += e * np.log(o.dtype.type(2))
     neg_real = (vn == 0) & (q[0] < 0)
     if neg_real.any():
         np.copyto(o[1], np.pi, where=neg_real)
@@ -356,15 +386,17 @@ def log(q):
     """
     q = np.asarray(q)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
     return res
 
 
 def _k_power(q, t, o):
     t = t[0]
-    ln, theta, vn, scale = _log_parts(q)
+    ln, theta, vn, scale, e = _log_parts(q)
     mag = np.exp(t * ln)
+    if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
+        mag = mag * np.exp2(t * e)
     zero = (vn == 0) & (q[0] == 0)
     if zero.any():
         mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
@@ -424,14 +456,14 @@ def rotate(q, v, inverse=False):
         res = np.matmul(m.T if inverse else m, v.astype(dtype, copy=False), axes=[(-2, -1), (-1, -2), (-1, -2)])
         return res.reshape(batch + (3,))
     res = np.empty(batch + (3,), dtype)
-    with np.errstate(divide="ignore", invalid="ignore"):  # zero quaternions give nan
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         _blocks.blockwise(_rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
 
 
 def _matrix_one(q, dtype):
     """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero)."""
-    w, x, y, z = q.reshape(4).tolist()
+    (w, x, y, z), _ = _scale.guard_one(q.reshape(4).tolist())
     n2 = w * w + x * x + y * y + z * z
     s = 2.0 / n2 if n2 else float("nan")
     return np.array([
@@ -443,7 +475,7 @@ def _matrix_one(q, dtype):
 
 def _rotate_scalar(q, u, dtype, inverse=False):
     """`rotate` for one quaternion and one vector, with Python floats (a few µs)."""
-    w, x, y, z = q.tolist()
+    (w, x, y, z), _ = _scale.guard_one(q.tolist())
     if inverse:
         w = -w  # conj(q) = (w, -vec): t -> -t, and vec × t keeps its sign
     ux, uy, uz = u.tolist()
@@ -455,9 +487,11 @@ def _rotate_scalar(q, u, dtype, inverse=False):
 
 
 def _rotate_block(q, u, o, wsign):
+    n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    _scale.guard(q, n2)
     w, x, y, z = q[0] * wsign, q[1], q[2], q[3]
     ux, uy, uz = u
-    s = 2.0 / (w * w + x * x + y * y + z * z)
+    s = np.divide(2.0, n2, out=n2)
     tx = (y * uz - z * uy) * s
     ty = (z * ux - x * uz) * s
     tz = (x * uy - y * ux) * s

@@ -430,8 +430,9 @@ class RotationMixin:
         Raises
         ------
         ValueError
-            For an empty set, negative or non-finite weights, weights that do
-            not broadcast, or a bad `axis`.
+            For an empty set, a zero quaternion, NaN or inf in a quaternion,
+            negative or non-finite weights, weights that do not broadcast, or
+            a bad `axis`.
 
         Examples
         --------
@@ -459,9 +460,9 @@ class RotationMixin:
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")
-        q64 = q.astype(np.float64, copy=False)
-        # Σ w q qᵀ / |q|²: the rotations q/|q|, with the normalisation folded into the weights
-        scale = 1.0 / np.einsum("...i,...i->...", q64, q64)
+        # Σ w q qᵀ of the rotations q/|q| (normalised at any magnitude; nan, inf and zero refused)
+        q64 = C.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name="rotations to average")
+        scale = np.ones(batch)
         if weights is not None:
             w = float_array(weights, "weights").astype(np.float64)
             if not np.isfinite(w).all():

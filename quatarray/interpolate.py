@@ -305,7 +305,7 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
         raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
                          f"(a sequence of at least 2 rotations), got {keys.shape}")
     finite(keys, name)
-    n = np.sqrt(IK.vdot(keys, keys))
+    n = Kn.norm(keys)   # no overflow or underflow for keys of extreme magnitude
     if not (n > 0).all():
         raise ValueError(f"expected non-zero {name}, got a zero quaternion")
     keys = IK.unflip(keys / n[..., None].astype(keys.dtype, copy=False), 0)

@@ -69,9 +69,9 @@ class RotationSpline:
             raise ValueError("Values in `times` must be in a strictly increasing order.")
         if keys.dtype not in (np.float32, np.float64):
             keys = keys.astype(np.float64)
-        keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
+        self.rotations = QuatArray.from_quat(keys, scalar_first=True)   # normalised, any magnitude
+        keys = self.rotations.ndarray
         self.times = times
-        self.rotations = QuatArray.from_quat(keys, scalar_first=True)
         self._keys = keys
         self._coeff = S.coefficients(times, keys)
 
