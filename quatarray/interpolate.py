@@ -45,6 +45,12 @@ METHODS = ("linear", "slerp", "squad", "bezier", "spline")
 EXTRAPOLATE = ("raise", "clamp", "extend")
 FRAMES = ("world", "body")
 
+#: How far ``extrapolate='extend'`` reaches: this many lengths of the first
+#: (last) segment before the first (after the last) key.  squad, Bézier and
+#: spline curves are polynomials in time; further out they overflow, and
+#: already here their angle keeps few correct digits (in float32, none).
+EXTEND_LIMIT = 1e4
+
 
 # ---------------------------------------------------------------------------
 # argument handling
@@ -463,7 +469,9 @@ class Track:
     extrapolate : {'raise', 'clamp', 'extend'}, default 'raise'
         Queries outside [times[0], times[-1]]: ``'raise'`` a ValueError,
         ``'clamp'`` to the end keys (zero angular velocity there), or
-        ``'extend'`` the first / last segment's curve.
+        ``'extend'`` the first / last segment's curve, up to `EXTEND_LIMIT`
+        (10⁴) lengths of that segment beyond the key range (further out:
+        ValueError).
 
     Notes
     -----
@@ -625,8 +633,14 @@ class Track:
             if self._extrapolate == "clamp" and (lo < t0 or hi > t1):
                 outside = (flat < t0) | (flat > t1)
                 flat = np.clip(flat, t0, t1)
-            if self._extrapolate == "extend" and not (np.isfinite(lo) and np.isfinite(hi)):
-                raise ValueError(f"expected finite {name} to extrapolate (extrapolate='extend'), got {lo!r} .. {hi!r}")
+            if self._extrapolate == "extend":
+                first = t0 - EXTEND_LIMIT * (float(self._times[1]) - t0)
+                last = t1 + EXTEND_LIMIT * (t1 - float(self._times[-2]))
+                if not first <= lo <= hi <= last:
+                    bad = lo if not first <= lo else hi
+                    raise ValueError(
+                        f"expected {name} within {EXTEND_LIMIT:g} end-segment lengths of the keys, i.e. in "
+                        f"[{first!r}, {last!r}] (extrapolate='extend'), got {bad!r}")
         return t.shape, flat, outside
 
     def _segments(self, tb, velocity):
