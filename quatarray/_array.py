@@ -19,7 +19,7 @@ import numpy as np
 
 from . import _kernels as K
 from ._rotation import RotationMixin
-from ._validate import batch_shape, float_array
+from ._validate import all_finite, batch_shape, finite, float_array
 
 __all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS"]
 
@@ -243,7 +243,8 @@ class QuatArray(RotationMixin, np.ndarray):
         >>> QuatArray([1, 2, 3, 4]).conj()
         QuatArray([ 1., -2., -3., -4.])
         """
-        return self._wrap(K.conjugate(_raw(self)))
+        q = _raw(self)
+        return self._wrap(_finite_result(K.conjugate(q), ("the quaternions", q)))
 
     conjugate = conj
 
@@ -278,7 +279,7 @@ class QuatArray(RotationMixin, np.ndarray):
         >>> QuatArray([0, 0, 0, 0]).exp()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(K.exp(_raw(self)))
+        return self._wrap(K.exp(finite(_raw(self), "the quaternions")))
 
     def log(self):
         """Principal logarithm (ln|q|, θ v/|v|) with θ in [0, π]; also ``np.log(q)``.
@@ -295,7 +296,7 @@ class QuatArray(RotationMixin, np.ndarray):
         >>> np.allclose(k.power(2), [-1, 0, 0, 0])
         True
         """
-        return self._wrap(K.power(_raw(self), _real(t, "t")))
+        return self._wrap(K.power(_raw(self), finite(_real(t, "t"), "t")))
 
     def dot(self, other):
         """4-D inner product with `other` (a QuatArray), batch shape.
@@ -303,7 +304,9 @@ class QuatArray(RotationMixin, np.ndarray):
         >>> QuatArray([1, 2, 3, 4]).dot(QuatArray([1, 1, 1, 1]))
         np.float64(10.0)
         """
-        return K.dot(_raw(self), _quat(other, "other"))
+        p, q = _raw(self), _operand(other, "other")
+        _check_batches("dot", p, True, q, True)
+        return _finite_result(K.dot(p, q), ("the quaternions", p), ("other", q))
 
     def rotate(self, v):
         """Rotate vectors `v` (..., 3) by q/|q|, i.e. q v q⁻¹, broadcasting batch shapes.
@@ -315,7 +318,13 @@ class QuatArray(RotationMixin, np.ndarray):
         array([0., 1., 0.])
         """
         q = _raw(self)
-        v = float_array(v, "v", last=3)
+        v = finite(float_array(v, "v", last=3), "v")
+        if q.shape[:-1] != v.shape[:-1]:
+            try:
+                np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+            except ValueError:
+                raise ValueError(f"expected v of a batch shape that broadcasts with the quaternions' "
+                                 f"{q.shape[:-1]}, got v of batch shape {v.shape[:-1]}") from None
         res = K.rotate(q, v)
         if not np.isfinite(res).all() and np.isfinite(q).all() and np.isfinite(v).all():
             raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
@@ -391,8 +400,11 @@ class QuatArray(RotationMixin, np.ndarray):
             if ufunc in _BINARY and len(inputs) == 2:
                 return _binary(ufunc, *inputs, out=out)
             if ufunc in _UNARY and len(inputs) == 1:
-                res = _UNARY[ufunc](_quat(inputs[0], "argument"))
-                return _finish_plain(res, out) if ufunc in _PLAIN_UNARY else _finish(res, out)
+                q = _operand(inputs[0], "argument")
+                if ufunc in _PLAIN_UNARY:
+                    return _finish_plain(_UNARY[ufunc](q), out)
+                res = _UNARY[ufunc](q)
+                return _finish(_finite_result(res, (f"the argument of {ufunc.__name__}", q)), out)
         elif method in ("reduce", "accumulate") and ufunc in (np.multiply, np.add):
             return _reduce(ufunc, method, *inputs, out=out, **kwargs)
         raise TypeError(
@@ -408,7 +420,7 @@ class QuatArray(RotationMixin, np.ndarray):
 
 # --- operand handling ------------------------------------------------------------
 
-def _quat(x, name):
+def _operand(x, name):
     """Raw quaternion array of a QuatArray operand; plain arrays are refused."""
     if isinstance(x, QuatArray):
         return _raw(x)
@@ -417,12 +429,17 @@ def _quat(x, name):
 
 
 def _finish(res, out):
-    """Wrap a raw quaternion result (..., 4), or copy it into `out`."""
+    """Wrap a raw quaternion result (..., 4), or copy it into `out`.
+
+    The copy follows NumPy's rule for in-place operations: the result is
+    computed in the operands' common dtype and cast to `out`'s if that is a
+    ``same_kind`` cast (``p32 *= p64`` computes in float64 and rounds to
+    float32); other casts raise `TypeError`."""
     if out is None:
         return res.view(QuatArray)
     if out.shape != res.shape:
-        raise ValueError(f"expected out of shape {res.shape}, got {out.shape}")
-    out.view(np.ndarray)[...] = res
+        raise ValueError(f"expected out of shape {res.shape} (the broadcast result), got {out.shape}")
+    np.copyto(out.view(np.ndarray), res, casting="same_kind")
     return out
 
 
@@ -442,53 +459,102 @@ def _lift(s, dtype_like):
     return q
 
 
+_SYMBOLS = {np.multiply: "*", np.divide: "/", np.add: "+", np.subtract: "-", np.power: "**",
+            np.float_power: "**", np.equal: "==", np.not_equal: "!="}
+
+
+def _batch_of(x, is_quat):
+    shape = x.shape if isinstance(x, np.ndarray) else np.shape(x)
+    return shape[:-1] if is_quat else shape
+
+
+def _check_batches(ufunc, A, qa, B, qb):
+    """A ValueError naming the operands and their batch shapes, instead of
+    NumPy's message about the (..., 4) arrays."""
+    sa, sb = _batch_of(A, qa), _batch_of(B, qb)
+    if sa == sb or not sa or not sb:
+        return
+    try:
+        np.broadcast_shapes(sa, sb)
+    except ValueError:
+        kind = {True: "QuatArray", False: "real"}
+        raise ValueError(
+            f"expected operands of {_SYMBOLS.get(ufunc, getattr(ufunc, '__name__', ufunc))} with broadcastable batch shapes, got "
+            f"left {kind[qa]} operand of batch shape {sa} and right {kind[qb]} operand of batch shape {sb}"
+        ) from None
+
+
+def _finite_result(res, *named):
+    """The API's non-finite policy for results computed without a guard.
+
+    NaN and infinities in the operands reach the result of these operations,
+    so one sum of the result decides the common case; only a result that is
+    not finite (non-finite operands, or finite ones that overflowed, which
+    is allowed as in NumPy) has its operands looked at one by one."""
+    if not all_finite(res):
+        for name, x in named:
+            finite(x, name)
+    return res
+
+
 def _binary(ufunc, a, b, out=None):
     qa, qb = isinstance(a, QuatArray), isinstance(b, QuatArray)
     name = ufunc.__name__
     A = _raw(a) if qa else _real(a, "left operand of " + name)
     B = _raw(b) if qb else _real(b, "right operand of " + name)
-    raw_out = _raw(out) if isinstance(out, QuatArray) else out
-    if ufunc is np.multiply:
-        if qa and qb:
-            if raw_out is not None:
-                K.multiply(A, B, out=raw_out)
-                return out
-            return _finish(K.multiply(A, B), None)
-        return _finish(np.multiply(A if qa else _per_quat(A), B if qb else _per_quat(B)), out)
-    if ufunc is np.divide:
-        if qb:
-            Binv = K.inverse(B)
-            if qa:
-                return _finish(K.multiply(A, Binv), out)
-            return _finish(_per_quat(A) * Binv, out)
-        return _finish(np.divide(A, _per_quat(B)), out)
-    if ufunc in (np.add, np.subtract):
-        if not qa:
-            A = _lift(A, B)
-        if not qb:
-            B = _lift(B, A)
-        return _finish(ufunc(A, B), out)
-    if ufunc in (np.power, np.float_power):
-        if qb or not qa:
-            raise TypeError(f"expected a QuatArray raised to a real exponent, got {type(a).__name__} ** {type(b).__name__}")
-        if ufunc is np.float_power:
-            A = A.astype(np.float64)
-        return _finish(K.power(A, B), out)
-    if ufunc in (np.equal, np.not_equal):
+    _check_batches(ufunc, A, qa, B, qb)
+    if ufunc in (np.equal, np.not_equal):   # comparisons accept nan (nan != nan)
         if not qa:
             A = _lift(A, B)
         if not qb:
             B = _lift(B, A)
         res = np.all(A == B, axis=-1)
         return _finish_plain(res if ufunc is np.equal else ~res, out)
-    raise TypeError(f"ufunc {name!r} is not a binary quaternion operation")  # pragma: no cover
+    res = _compute(ufunc, A, qa, B, qb, a, b)
+    if not all_finite(res):
+        symbol = _SYMBOLS[ufunc]
+        finite(A, f"the left operand of {symbol}")
+        finite(B, f"the right operand of {symbol}")
+    return _finish(res, out)
+
+
+def _compute(ufunc, A, qa, B, qb, a, b):
+    """The raw result of a binary operation (the quaternion meaning of `ufunc`)."""
+    if ufunc is np.multiply:
+        if qa and qb:
+            return K.multiply(A, B)
+        return np.multiply(A if qa else _per_quat(A), B if qb else _per_quat(B))
+    if ufunc is np.divide:
+        if qb:
+            Binv = K.inverse(B)
+            return K.multiply(A, Binv) if qa else _per_quat(A) * Binv
+        return np.divide(A, _per_quat(B))
+    if ufunc in (np.add, np.subtract):
+        if not qa:
+            A = _lift(A, B)
+        if not qb:
+            B = _lift(B, A)
+        return ufunc(A, B)
+    if ufunc in (np.power, np.float_power):
+        if qb or not qa:
+            raise TypeError(f"expected a QuatArray raised to a real exponent, got {type(a).__name__} ** {type(b).__name__}")
+        if ufunc is np.float_power:
+            A = A.astype(np.float64)
+        return K.power(A, B)
+    if ufunc in (np.equal, np.not_equal):
+        if not qa:
+            A = _lift(A, B)
+        if not qb:
+            B = _lift(B, A)
+        raise AssertionError("comparisons are handled by _binary")  # pragma: no cover
+    raise TypeError(f"ufunc {ufunc.__name__!r} is not a binary quaternion operation")  # pragma: no cover
 
 
 _BINARY = {np.multiply, np.divide, np.add, np.subtract, np.power, np.float_power, np.equal, np.not_equal}
 
 
 _UNARY = {
-    np.exp: K.exp,
+    np.exp: lambda q: K.exp(finite(q, "the argument of exp")),   # exp(-inf) is finite
     np.log: K.log,
     np.sqrt: lambda q: K.power(q, 0.5),
     np.conjugate: K.conjugate,
@@ -502,7 +568,8 @@ _UNARY = {
 """Unary ufuncs with a quaternion meaning (all others raise `TypeError`)."""
 
 _PLAIN_UNARY = {np.absolute, np.isnan, np.isfinite}
-"""The unary ufuncs whose results are per quaternion, not quaternions."""
+"""The unary ufuncs whose results are per quaternion, not quaternions (`absolute`
+refuses nan and inf in its kernel; `isnan` and `isfinite` test for them)."""
 
 
 def _ordered_product(a, axis):
@@ -534,12 +601,17 @@ def _reduce(ufunc, method, q, axis=0, dtype=None, out=None, keepdims=False, wher
     bad = sorted(kwargs) + (["dtype"] if dtype is not None else []) + ([] if where is True else ["where"])
     if bad:
         raise TypeError(f"QuatArray {ufunc.__name__}.{method} supports axis, out and keepdims only, got {bad}")
-    raw = _quat(q, "argument")
+    raw = _operand(q, "argument")
+    with np.errstate(invalid="ignore"):   # inf * 0: refused by the check below
+        return _reduce_raw(ufunc, method, raw, axis, out, keepdims)
+
+
+def _reduce_raw(ufunc, method, raw, axis, out, keepdims):
     nb = raw.ndim - 1
     if method == "accumulate":
         ax = _batch_axis(axis, nb)
         res = _ordered_scan(raw, ax) if ufunc is np.multiply else np.add.accumulate(raw, axis=ax)
-        return _finish(res, out)
+        return _finish(_finite_result(res, ("the quaternions", raw)), out)
     axes = _batch_axes(axis, nb)
     if ufunc is np.add:
         res = np.add.reduce(raw, axis=axes, keepdims=keepdims)
@@ -549,17 +621,17 @@ def _reduce(ufunc, method, q, axis=0, dtype=None, out=None, keepdims=False, wher
             res = _ordered_product(res, ax)
             if keepdims:
                 res = np.expand_dims(res, ax)
-    return _finish(res, out)
+    return _finish(_finite_result(res, ("the quaternions", raw)), out)
 
 
 # --- NumPy function registries -------------------------------------------------------
 
-def _quats(seq, name):
-    return [_quat(a, f"{name}[{i}]") for i, a in enumerate(seq)]
+def _operands(seq, name):
+    return [_operand(a, f"{name}[{i}]") for i, a in enumerate(seq)]
 
 
 def _concatenate(arrays, axis=0, out=None, **kwargs):
-    raws = _quats(arrays, "arrays")
+    raws = _operands(arrays, "arrays")
     if axis is None:
         raws = [r.reshape(-1, 4) for r in raws]
         axis = 0
@@ -569,18 +641,18 @@ def _concatenate(arrays, axis=0, out=None, **kwargs):
 
 
 def _stack(arrays, axis=0, out=None, **kwargs):
-    raws = _quats(arrays, "arrays")
+    raws = _operands(arrays, "arrays")
     nb = raws[0].ndim - 1
     return _finish(np.stack(raws, axis=_batch_axis(axis, nb, extra=1), **kwargs), out)
 
 
 def _copy(a, order="K", subok=True):
-    return QuatArray._wrap(np.copy(_quat(a, "a"), order=order))
+    return QuatArray._wrap(np.copy(_operand(a, "a"), order=order))
 
 
 def _broadcast_to(array, shape, subok=True):
     shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-    return QuatArray._wrap(np.broadcast_to(_quat(array, "array"), shape + (4,)))
+    return QuatArray._wrap(np.broadcast_to(_operand(array, "array"), shape + (4,)))
 
 
 def _where(condition, *xy):
@@ -596,7 +668,7 @@ def _where(condition, *xy):
 
 
 def _take(a, indices, axis=None, out=None, mode="raise"):
-    raw = _quat(a, "a")
+    raw = _operand(a, "a")
     if axis is None:
         raw, axis = raw.reshape(-1, 4), 0
     res = np.take(raw, _plain(indices), axis=_batch_axis(axis, raw.ndim - 1), mode=mode)
@@ -604,19 +676,19 @@ def _take(a, indices, axis=None, out=None, mode="raise"):
 
 
 def _flip(m, axis=None):
-    raw = _quat(m, "m")
+    raw = _operand(m, "m")
     return QuatArray._wrap(np.flip(raw, axis=_batch_axes(axis, raw.ndim - 1)))
 
 
 def _roll(a, shift, axis=None):
-    raw = _quat(a, "a")
+    raw = _operand(a, "a")
     if axis is None:
         return QuatArray._wrap(np.roll(raw.reshape(-1, 4), shift, axis=0).reshape(raw.shape))
     return QuatArray._wrap(np.roll(raw, shift, axis=_batch_axes(axis, raw.ndim - 1)))
 
 
 def _expand_dims(a, axis):
-    raw = _quat(a, "a")
+    raw = _operand(a, "a")
     axes = axis if isinstance(axis, tuple) else (axis,)
     nb_new = raw.ndim - 1 + len(axes)
     axes = tuple(_batch_axis(ax, nb_new) for ax in axes)
@@ -629,7 +701,7 @@ def _squeeze(a, axis=None):
 
 def _like(fill):
     def like(prototype, dtype=None, order="K", subok=True, shape=None, **kwargs):
-        raw = _quat(prototype, "prototype")
+        raw = _operand(prototype, "prototype")
         dtype = raw.dtype if dtype is None else np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TypeError(f"expected dtype float32 or float64 for a QuatArray, got {dtype}")

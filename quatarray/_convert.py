@@ -31,7 +31,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._kernels import _matrix_one
-from ._validate import float_array
+from ._validate import finite, float_array, quat_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
@@ -52,10 +52,6 @@ def _blockwise(kernel, ins, outs, **params):
     zero, infinite and nan input themselves (nan out, or a status flag)."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return _blocks.blockwise(kernel, ins, outs, **params)
-
-
-def _quat(q, name="quat"):
-    return float_array(q, name, last=4)
 
 
 def _vec3(v, name):
@@ -114,7 +110,7 @@ def from_quat(quat, scalar_first=False, name="quat"):
     >>> from_quat([0, 0, 3, 4])
     array([0.8, 0. , 0. , 0.6])
     """
-    q = _quat(quat)
+    q = quat_array(quat, "quat")
     order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
     if q.ndim == 1:  # one quaternion: Python floats (a few µs instead of a block run)
         c = q.tolist()
@@ -197,7 +193,7 @@ def as_matrix(q):
            [ 1.,  0.,  0.],
            [ 0.,  0.,  1.]])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     if q.shape == (4,):  # one rotation: Python floats (about 2 µs instead of 20)
         return _matrix_one(q, q.dtype)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
@@ -459,7 +455,7 @@ def as_rotvec(q, degrees=False):
     >>> as_rotvec(q, degrees=True)
     array([ 0.,  0., 90.])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     factor = 2.0 * (180.0 / np.pi if degrees else 1.0)
     _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=factor)
@@ -503,7 +499,7 @@ def from_rotvec(rotvec, degrees=False):
     >>> np.round(from_rotvec([0, 0, 90], degrees=True), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
-    v = _vec3(rotvec, "rotvec")
+    v = finite(_vec3(rotvec, "rotvec"), "rotvec")
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     factor = np.pi / 180.0 if degrees else 1.0
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
@@ -531,7 +527,7 @@ def magnitude(q):
     >>> magnitude(np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [-1, 1, 0, 0]]))
     array([0.        , 3.14159265, 1.57079633])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1], q.dtype)
     if q.shape == (4,):  # one rotation: Python floats
         (w, x, y, z), _ = _scale.guard_one(q.tolist())
@@ -568,7 +564,7 @@ def as_mrp(q):
     >>> np.round(as_mrp(np.array([0.0, 0, 0, 1])), 12)  # 180° about z
     array([0., 0., 1.])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
@@ -602,7 +598,7 @@ def from_mrp(mrp):
     >>> from_mrp([0, 0, 1])
     array([0., 0., 0., 1.])
     """
-    p = _vec3(mrp, "mrp")
+    p = finite(_vec3(mrp, "mrp"), "mrp")
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
     return out
@@ -628,7 +624,7 @@ def canonical(q):
     array([[ 1.,  0.,  0.,  0.],
            [-0., -0.,  1., -1.]])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     flip = _flip_mask(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     return np.where(flip[..., None], -q, q)
 

@@ -13,9 +13,9 @@ import warnings
 
 import numpy as np
 
-from ._convert import _blockwise, _guarded, _half_angle, _quat
+from ._convert import _blockwise, _guarded, _half_angle
 from ._kernels import multiply_rows
-from ._validate import float_array
+from ._validate import finite, float_array, quat_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
 
@@ -124,7 +124,7 @@ def from_euler(seq, angles, degrees=False):
            [0.707107, 0.      , 0.707107, 0.      ]])
     """
     axes, intrinsic = check_seq(seq)
-    a = float_array(angles, "angles")
+    a = finite(float_array(angles, "angles"), "angles")
     if a.ndim == 0:
         a = a.reshape(1)
     if a.shape[-1] != len(axes):
@@ -216,7 +216,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     array([90., 30., 10.])
     """
     axes, intrinsic = check_seq(seq, 3)
-    q = _quat(q)
+    q = quat_array(q, "quat")
     i, j, k = axes[::-1] if intrinsic else axes
     symmetric = i == k
     if symmetric:
@@ -301,7 +301,7 @@ def from_davenport(axes, order, angles, degrees=False):
     """
     extrinsic = check_order(order)
     ax = _unit_axes(axes)
-    a = float_array(angles, "angles")
+    a = finite(float_array(angles, "angles"), "angles")
     if a.ndim == 0:
         a = a.reshape(1)
     if a.shape[-1] != ax.shape[0]:
@@ -353,7 +353,7 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     """
     extrinsic = check_order(order)
     n1, n2, n3 = _unit_axes(axes, 3)
-    q = _quat(q)
+    q = quat_array(q, "quat")
     if not extrinsic:
         n1, n3 = n3, n1
     ncross = np.cross(n1, n2)
@@ -371,7 +371,8 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     proj[0, 0] = 1
     proj[1:, 1:] = [n1, n2, ncross]
     lmat = (proj @ left).astype(q.dtype)
-    abcd = q.reshape(-1, 4) @ lmat.T
+    with np.errstate(invalid="ignore", over="ignore"):   # nan, inf and overflow: the kernel's guard
+        abcd = q.reshape(-1, 4) @ lmat.T
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
                         extrinsic=extrinsic, lamb=lamb, flip=flip)

@@ -209,7 +209,7 @@ def sqnorm(q):
 
 def _k_norm(q, o):
     n = _scale.sum_squares(q, o[0])
-    e, _ = _scale.guard(q, n)
+    e = _scale.guard(q, n)
     np.sqrt(n, out=n)
     _scale.unscale(n, e)
 
@@ -244,14 +244,9 @@ def dot(p, q):
 _ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quaternion"
 
 
-_NONFINITE_NORMALIZE = "expected finite quaternions to normalize, got nan or inf"
-
-
 def _k_normalize(q, o):
     n = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    _, finite = _scale.guard(q, n)   # q is the block's scratch copy: rescaled in place if needed
-    if not finite:
-        raise ValueError(_NONFINITE_NORMALIZE)
+    _scale.guard(q, n)   # q is the block's scratch copy: rescaled in place if needed
     np.sqrt(n, out=n)
     if not (n > 0).all():
         raise ValueError(_ZERO_NORMALIZE)
@@ -295,7 +290,7 @@ def _normalize_flat(q, out):
 
 def _k_inverse(q, o):
     n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    e, _ = _scale.guard(q, n2)
+    e = _scale.guard(q, n2)
     if not (n2 > 0).all():
         raise ZeroDivisionError("quaternion inverse: expected non-zero quaternions, got a zero quaternion")
     np.divide(q[0], n2, out=o[0])
@@ -355,7 +350,7 @@ def _log_parts(q):
     not): ln|q|, |v| and the scale then refer to the rescaled q, which is
     what the callers multiply."""
     work = _blocks.scratch()
-    e, _ = _scale.guard(q, _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0]))
+    e = _scale.guard(q, _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0]))
     vn = np.sqrt(_scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0], 1))
     w = q[0]
     ln = np.log(np.hypot(vn, w))

@@ -20,7 +20,7 @@ import numpy as np
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
-from ._validate import batch_shape, float_array
+from ._validate import batch_shape, finite, float_array
 
 __all__ = ["RotationMixin"]
 
@@ -328,7 +328,7 @@ class RotationMixin:
         array([[1., 0., 0.],
                [0., 1., 0.]])
         """
-        v = float_array(vectors, "vectors")
+        v = finite(float_array(vectors, "vectors"), "vectors")
         q = _raw(self)
         if v.shape == (3,) and q.shape == (4,):
             return K.rotate(q, v, inverse)
@@ -351,7 +351,7 @@ class RotationMixin:
         >>> r.inv().as_rotvec() + 0.0
         array([ 0.,  0., -1.])
         """
-        return self._wrap(K.conjugate(_raw(self)))
+        return self._wrap(K.conjugate(finite(_raw(self), "rotations")))
 
     def magnitude(self):
         """Rotation angles in [0, π] (a NumPy scalar for a single rotation).
@@ -515,7 +515,11 @@ class RotationMixin:
         """
         size = batch_shape(num, shape)
         if not isinstance(rng, (np.random.Generator, np.random.RandomState)):
-            rng = np.random.default_rng(rng)
+            try:
+                rng = np.random.default_rng(rng)
+            except (TypeError, ValueError):
+                raise ValueError(f"expected rng to be a numpy.random.Generator, a RandomState, None or a "
+                                 f"non-negative int seed, got {rng!r}") from None
         return cls.from_quat(rng.normal(size=size + (4,)))
 
     @classmethod
@@ -613,7 +617,8 @@ class RotationMixin:
         array([30.,  0.,  0.])
         """
         from scipy.spatial.transform import Rotation as ScipyRotation
-        return ScipyRotation.from_quat(_raw(self).astype(np.float64), scalar_first=True)
+        q = C.from_quat(_raw(self).astype(np.float64), scalar_first=True, name="rotations")
+        return ScipyRotation.from_quat(q, scalar_first=True)
 
 
 def _align(a, b, weights, return_sensitivity):

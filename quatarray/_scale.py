@@ -23,7 +23,9 @@ import math
 
 import numpy as np
 
-__all__ = ["LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guard_one", "unscale"]
+__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guard_one", "unscale"]
+
+NONFINITE = "expected finite quaternions, got nan or inf"
 
 _RANGE = {}
 for _d in (np.float32, np.float64):
@@ -85,17 +87,19 @@ def guard(q, n2, start=0):
     """The squared norms `n2` of a block, made safe: if they do not all `fit`,
     rescale `q` in place (`rescale`) and recompute them into `n2`.
 
-    Returns ``(e, finite)``: the exponents applied (None when nothing was
-    rescaled: the common path) and whether every component is finite.
-    `start` = 1 when `n2` holds the squared norms of the vector parts only
-    (the whole quaternion is rescaled all the same).
+    Returns the exponents applied (None when nothing was rescaled: the
+    common path).  NaN or infinite components raise
+    `ValueError` (the API's policy for non-finite input), found at no cost
+    on the common path.  `start` = 1 when `n2` holds the squared norms of
+    the vector parts only (the whole quaternion is rescaled all the same).
     """
     if fits(n2):
-        return None, True
-    finite = bool(np.isfinite(q).all())
+        return None
+    if not np.isfinite(q).all():
+        raise ValueError(NONFINITE)
     e = rescale(q)
     sum_squares(q, n2, start)
-    return e, finite
+    return e
 
 
 def guard_one(c):
@@ -110,8 +114,10 @@ def guard_one(c):
     w, x, y, z = c
     if _ONE[0] <= w * w + x * x + y * y + z * z <= _ONE[1]:
         return c, 0
-    m = max(abs(x) for x in c)
-    if m == 0 or not math.isfinite(m):
+    if not (math.isfinite(w) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise ValueError(NONFINITE)
+    m = max(abs(w), abs(x), abs(y), abs(z))
+    if m == 0:
         return c, 0
     e = math.frexp(m)[1]
     return [math.ldexp(x, -e) for x in c], e

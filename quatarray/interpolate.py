@@ -33,7 +33,7 @@ from . import _kernels as Kn
 from ._array import QuatArray
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
-from ._validate import finite, float_array
+from ._validate import finite, float_array, quat_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -56,12 +56,12 @@ EXTEND_LIMIT = 1e4
 # argument handling
 # ---------------------------------------------------------------------------
 
-def _quat(x, name):
-    return float_array(x, name, last=4)
+def _finite_quat(x, name):
+    return finite(quat_array(x, name), name)
 
 
 def _param(t):
-    return float_array(t, "t")
+    return finite(float_array(t, "t"), "t")
 
 
 def _broadcast(names, shapes):
@@ -111,7 +111,7 @@ def lerp(q0, q1, t):
                [0.5, 0. , 0. , 0.5],
                [0. , 0. , 0. , 1. ]])
     """
-    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
     return QuatArray._wrap(IK.lerp(q0, q1, t))
 
@@ -148,7 +148,7 @@ def nlerp(q0, q1, t, *, shortest=True):
     >>> np.allclose(q, [np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
     True
     """
-    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
     return QuatArray._wrap(IK.nlerp(q0, q1, t, bool(shortest)))
 
@@ -195,7 +195,7 @@ def slerp(q0, q1, t, *, shortest=True):
     >>> slerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5)    # the same rotation: stays put
     QuatArray([1., 0., 0., 0.])
     """
-    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
     return QuatArray._wrap(IK.slerp(q0, q1, t, bool(shortest)))
 
@@ -226,7 +226,7 @@ def unflip(q, axis=0):
                [ 0. , -1. ,  0. ,  0. ],
                [-0.6, -0.8, -0. , -0. ]])
     """
-    q = _quat(q, "q")
+    q = _finite_quat(q, "q")
     nb = q.ndim - 1
     if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
         raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
@@ -263,7 +263,7 @@ def squad(q0, a, b, q1, t):
     >>> np.allclose(squad(q0, q0, q1, q1, 0.25), slerp(q0, q1, 0.25))
     True
     """
-    qs = [_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
+    qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
     return QuatArray._wrap(IK.squad(*qs, t))
@@ -295,7 +295,7 @@ def bezier(q0, a, b, q1, t):
     >>> np.allclose(bezier(q0, a, b, q1, 0.4), slerp(q0, q1, 0.4))
     True
     """
-    qs = [_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
+    qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
     return QuatArray._wrap(IK.bezier(*qs, t))
@@ -623,8 +623,8 @@ class Track:
         outside = None
         if flat.size:
             lo, hi = float(flat.min()), float(flat.max())
-            if np.isnan(lo) or np.isnan(hi):
-                raise ValueError(f"expected {name} without nan, got nan")
+            if not (np.isfinite(lo) and np.isfinite(hi)):   # the API refuses nan and inf
+                finite(flat, name)
             t0, t1 = float(self._times[0]), float(self._times[-1])
             if self._extrapolate == "raise" and (lo < t0 or hi > t1):
                 bad = lo if lo < t0 else hi
