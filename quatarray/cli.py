@@ -6,8 +6,8 @@
                                  [--extrapolate raise|clamp|extend] [--scalar-last]
     quatarray demo [-o DIR]
 
-Formats follow the extensions: ``.csv``, ``.npz`` (interchangeable) and
-``.bvh``.  Bad input ends with a one-line message naming the file (and line)
+Formats follow the extensions: ``.csv``, ``.npz`` (interchangeable),
+``.bvh``, and glTF ``.gltf`` / ``.glb`` (interchangeable).  Bad input ends with a one-line message naming the file (and line)
 on stderr and exit status 2; the output file is then not created or touched.
 """
 
@@ -26,7 +26,8 @@ from .interpolate import Track
 __all__ = ["main", "resample_file", "demo"]
 
 #: File extensions `resample_file` understands, lower case.
-FORMATS = (".csv", ".npz", ".bvh")
+FORMATS = (".csv", ".npz", ".bvh", ".gltf", ".glb")
+GLTF = (".gltf", ".glb")
 METHODS = ("slerp", "squad", "bezier", "linear")
 EXTRAPOLATE = ("raise", "clamp", "extend")
 
@@ -38,21 +39,24 @@ def _format_of(path):
     return ext
 
 
-def resample_file(src, dst, *, fps=None, times=None, method="slerp", extrapolate="raise", scalar_last=False):
+def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False):
     """Read `src`, resample it and write `dst`; formats follow the extensions.
 
     Parameters
     ----------
     src, dst : str or os.PathLike
-        ``.csv``, ``.npz`` or ``.bvh``.  CSV and NPZ convert into each other;
-        BVH goes to BVH only.  `dst` is written atomically.
+        ``.csv``, ``.npz``, ``.bvh``, ``.gltf`` or ``.glb``.  CSV and NPZ
+        convert into each other, and so do glTF and GLB; BVH goes to BVH
+        only.  `dst` is written atomically.
     fps : float, optional
         Sample at ``t0 + k / fps`` for k = 0, 1, ... up to the last key time.
     times : array_like or str or os.PathLike, optional
         Query times, or a file of one time per line.  For BVH they count from
         the first frame and must be evenly spaced.  Give `fps` or `times`.
     method, extrapolate : str
-        Passed to `quatarray.interpolate.Track`.
+        Passed to `quatarray.interpolate.Track`.  `method` None is 'slerp',
+        except for glTF, where it keeps each sampler's own interpolation
+        (see `quatarray._gltf.resample_gltf`).
     scalar_last : bool
         CSV input and output have components ``x, y, z, w``.
 
@@ -86,6 +90,12 @@ def resample_file(src, dst, *, fps=None, times=None, method="slerp", extrapolate
         raise ValueError("give exactly one of fps and times")
     if times is not None and isinstance(times, (str, os.PathLike)):
         times = read_times(times)
+    if kind_in in GLTF or kind_out in GLTF:
+        if kind_in not in GLTF or kind_out not in GLTF:
+            raise FormatError(f"cannot write {kind_out} from {kind_in} input (glTF converts to glTF only)", dst)
+        from ._gltf import resample_gltf
+        return resample_gltf(src, dst, fps=fps, times=times, method=method, extrapolate=extrapolate)
+    method = "slerp" if method is None else method
     if kind_in == ".bvh":
         data = read_bvh(src)
         key_times = data.times
@@ -213,7 +223,8 @@ def build_parser():
     when = p.add_mutually_exclusive_group(required=True)
     when.add_argument("--fps", type=_fps, metavar="F", help="sample at t0 + k/F up to the last key time")
     when.add_argument("--times", metavar="FILE", help="sample at these times (one per line)")
-    p.add_argument("--method", choices=METHODS, default="slerp", help="curve through the keys (default: slerp)")
+    p.add_argument("--method", choices=METHODS, help="curve through the keys (default: slerp; glTF: each "
+                                                     "sampler's own interpolation)")
     p.add_argument("--extrapolate", choices=EXTRAPOLATE, default="raise",
                    help="query times outside the keys: raise (default), clamp or extend")
     p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
@@ -232,7 +243,7 @@ def _run_resample(args):
     nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
                                    extrapolate=args.extrapolate, scalar_last=args.scalar_last)
     print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
-          f"({args.method}, {time.perf_counter() - start:.2f} s)")
+          f"({args.method or 'default'}, {time.perf_counter() - start:.2f} s)")
     return 0
 
 
