@@ -91,8 +91,8 @@ class Sampler:
         Key times (float64), strictly increasing.
     values : ndarray, shape (K, n) or (3 K, n)
         One row per key (CUBICSPLINE: in-tangent, value, out-tangent rows),
-        float64; morph weights have one column per target.  Rotation key
-        values are normalised.
+        float64; morph weights have one column per target.  Rotation keys of
+        STEP and LINEAR samplers are normalised.
     interpolation : str
         'STEP', 'LINEAR' or 'CUBICSPLINE'.
     path : str or None
@@ -290,7 +290,8 @@ def read_animations(gf):
     Checks the channels (sampler index, target path), that input times are
     finite and strictly increasing, that the output holds a whole number of
     values per key of the type its path needs, and that no rotation key is
-    zero.  Rotation key values are normalised.
+    zero.  Rotation keys of STEP and LINEAR samplers are normalised (keys
+    stored as normalized integers are unit only to their precision).
     """
     doc, path = gf.json, gf.path
     result = []
@@ -337,11 +338,13 @@ def read_animations(gf):
             if not np.isfinite(values).all():
                 raise FormatError(f"{what}: non-finite output value", path)
             if target == "rotation":
-                rows = values.reshape(len(times), -1, 4)[:, 1 if interpolation == "CUBICSPLINE" else 0]
+                cubic = interpolation == "CUBICSPLINE"
+                rows = values.reshape(len(times), -1, 4)[:, 1 if cubic else 0]
                 norm = np.linalg.norm(rows, axis=-1)
                 if not (norm > 0).all():
                     raise FormatError(f"{what}: rotation key {int(np.argmin(norm))} is zero", path)
-                rows /= norm[:, None]
+                if not cubic:   # (CUBICSPLINE: the spec normalises the curve, not the keys)
+                    rows /= norm[:, None]
             decoded.append(Sampler(times, values, interpolation, target, out_type))
         result.append(decoded)
     return result
@@ -566,7 +569,7 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
             new.append(None)
             continue
         t0, t1 = min(s.times[0] for s in samplers), max(s.times[-1] for s in samplers)
-        t = fps_times(t0, t1, fps) if times is None else times
+        t = _fps_grid(t0, t1, fps) if times is None else times
         if extrapolate != "clamp" and (t[0] < t0 or t[-1] > t1):
             bad = t[0] if t[0] < t0 else t[-1]
             raise ValueError(f"query time {float(bad)!r} is outside animation {a}'s key times [{float(t0)!r}, "
@@ -575,6 +578,7 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         grid = t.astype(np.float32)
         if (np.diff(grid) <= 0).any():
             raise ValueError(f"times closer than float32 key times can hold near {float(t[-1])!r} s")
+        t = grid.astype(np.float64)   # the values belong to the times as written
         outputs = [resample_sampler(s.times, s.values, s.interpolation, t, s.path == "rotation", method)
                    for s in samplers]
         new.append((grid, outputs))
@@ -582,6 +586,16 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         nframes += len(t)
     write_gltf(dst, gf, new)
     return nkeys, nframes
+
+
+def _fps_grid(t0, t1, fps):
+    """`fps_times` from t0 to t1, where t1 counts as reached within float32 rounding.
+
+    Key times are float32 in glTF: a last key at k / fps is stored a little
+    below it as often as not, and the grid must still include it.
+    """
+    slack = 4 * float(np.spacing(np.float32(max(abs(t0), abs(t1)))))
+    return np.minimum(fps_times(t0, t1 + slack, fps), t1)
 
 
 # --------------------------------------------------------------------------- an example file

@@ -125,7 +125,8 @@ def demo(outdir=".", *, fps=120, file=None):
 
     Prints what it did and writes ``demo.png`` (angular speed over time per
     method, when matplotlib is installed) into `outdir`, with copies of the
-    example inputs (``demo_arm.csv``, ``demo_arm.npz``, ``demo_walk.bvh``) to
+    example inputs (``demo_arm.csv``, ``demo_arm.npz``, ``demo_walk.bvh``, and
+    ``demo_arm.glb``: the arm's tracks as a glTF animation of a joint chain) to
     try ``quatarray resample`` on.  Returns the path of ``demo.png``, or None
     without matplotlib.
     """
@@ -159,13 +160,15 @@ def demo(outdir=".", *, fps=120, file=None):
     print(f"BVH: {len(walk.joints)} joints, {len(walk.frames)} frames at {1 / walk.frame_time:g} fps -> "
           f"{len(fine.frames)} frames at 60 fps (squad) in {1e3 * elapsed:.2f} ms", file=file)
 
+    from ._gltf import keyframes_to_gltf
     inputs = {"demo_arm.csv": lambda p: write_csv(p, kf), "demo_arm.npz": lambda p: write_npz(p, kf),
-              "demo_walk.bvh": lambda p: write_bvh(p, walk)}
+              "demo_walk.bvh": lambda p: write_bvh(p, walk), "demo_arm.glb": lambda p: keyframes_to_gltf(p, kf)}
     for name, write in inputs.items():
         write(os.path.join(outdir, name))
     print(f"example inputs written to {outdir}: {', '.join(inputs)}; try", file=file)
     print(f"  quatarray resample {os.path.join(outdir, 'demo_walk.bvh')} -o walk_60.bvh --fps 60 --method squad",
           file=file)
+    print(f"  quatarray resample {os.path.join(outdir, 'demo_arm.glb')} -o arm_30.glb --fps 30", file=file)
     try:
         from matplotlib.figure import Figure  # only the demo needs matplotlib
     except ImportError:
