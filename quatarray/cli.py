@@ -246,7 +246,8 @@ def _run_resample(args):
     nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
                                    extrapolate=args.extrapolate, scalar_last=args.scalar_last)
     print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
-          f"({args.method or 'default'}, {time.perf_counter() - start:.2f} s)")
+          f"({args.method or ('own' if _format_of(args.input) in GLTF else 'slerp')}, "
+          f"{time.perf_counter() - start:.2f} s)")
     return 0
 
 

@@ -19,7 +19,8 @@ import pytest
 pygltflib = pytest.importorskip("pygltflib", reason="the glTF tests need pygltflib (pip install 'quatarray[gltf]')")
 
 from quatarray import cli  # noqa: E402
-from quatarray._gltf import keyframes_to_gltf, read_accessor, read_gltf, resample_gltf  # noqa: E402
+from quatarray._gltf import keyframes_to_gltf, resample_gltf  # noqa: E402
+from quatarray._gltf_read import read_accessor, read_gltf  # noqa: E402
 from quatarray._gltf_sampler import evaluate_sampler  # noqa: E402
 from quatarray._io import example_path, read_csv  # noqa: E402
 from quatarray.interpolate import Track  # noqa: E402
