@@ -256,14 +256,14 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
             continue
         t0, t1 = min(s.times[0] for s in samplers), max(s.times[-1] for s in samplers)
         t = _fps_grid(t0, t1, fps) if times is None else times
-        if extrapolate != "clamp" and (t[0] < t0 or t[-1] > t1):
-            bad = t[0] if t[0] < t0 else t[-1]
+        grid = t.astype(np.float32)   # key times are float32: 0.1 s is the key stored as 0.1
+        if (np.diff(grid) <= 0).any():
+            raise ValueError(f"times closer than float32 key times can hold near {float(t[-1])!r} s")
+        if extrapolate != "clamp" and (grid[0] < t0 or grid[-1] > t1):
+            bad = t[0] if grid[0] < t0 else t[-1]
             raise ValueError(f"query time {float(bad)!r} is outside animation {a}'s key times [{float(t0)!r}, "
                              f"{float(t1)!r}] and extrapolate is {extrapolate!r} (glTF holds the end values: "
                              "use --extrapolate clamp)")
-        grid = t.astype(np.float32)
-        if (np.diff(grid) <= 0).any():
-            raise ValueError(f"times closer than float32 key times can hold near {float(t[-1])!r} s")
         t = grid.astype(np.float64)   # the values belong to the times as written
         outputs = [resample_sampler(s.times, s.values, s.interpolation, t, s.path == "rotation", method)
                    for s in samplers]

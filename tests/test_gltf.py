@@ -666,3 +666,59 @@ def test_demo_writes_a_gltf_example(tmp_path):
     t, got, _ = channel_output(doc, data, 0, 1, "rotation")
     want = Track(kf.times, kf.keys[:, 1], method="squad", extrapolate="clamp")(t)
     assert_close(got, np.roll(np.asarray(want), -1, axis=-1), True, 8 * EPS32)
+
+
+def test_references_inside_images_and_extensions_are_renumbered(tmp_path, rng):
+    # animation data first, so everything after it moves: an image in a buffer view, an instancing
+    # attribute (EXT_mesh_gpu_instancing) and a Draco-compressed primitive's buffer view
+    b = Builder()
+    b.g.nodes = [pygltflib.Node(name="a"), pygltflib.Node(name="many", mesh=0)]
+    anim = pygltflib.Animation()
+    b.channel(anim, 0, "rotation", [0.0, 1.0], unit(rng, 2), "VEC4")
+    png = bytes(range(7)) * 5
+    draco = bytes(range(100, 123))
+    b.g.images = [pygltflib.Image(bufferView=b.view(png), mimeType="image/png")]
+    shifts = rng.normal(size=(3, 3))
+    b.g.nodes[1].extensions = {"EXT_mesh_gpu_instancing": {"attributes": {"TRANSLATION": b.accessor(shifts, "VEC3")}}}
+    position = b.accessor(np.eye(3), "VEC3", bounds=True)
+    b.g.meshes = [pygltflib.Mesh(primitives=[pygltflib.Primitive(
+        attributes=pygltflib.Attributes(POSITION=position),
+        extensions={"KHR_draco_mesh_compression": {"bufferView": b.view(draco), "attributes": {"POSITION": 0}}})])]
+    b.g.extensionsUsed = ["EXT_mesh_gpu_instancing", "KHR_draco_mesh_compression"]
+    b.g.extensionsRequired = ["KHR_draco_mesh_compression"]
+    b.g.animations = [anim]
+    b.save(tmp_path / "in.glb")
+    resample_gltf(tmp_path / "in.glb", tmp_path / "out.glb", fps=5)
+    doc, data = load(tmp_path / "out.glb")
+
+    def view_bytes(j):
+        v = doc["bufferViews"][j]
+        return data[0][v["byteOffset"]:v["byteOffset"] + v["byteLength"]]
+
+    assert view_bytes(doc["images"][0]["bufferView"]) == png
+    prim = doc["meshes"][0]["primitives"][0]
+    assert view_bytes(prim["extensions"]["KHR_draco_mesh_compression"]["bufferView"]) == draco
+    assert prim["extensions"]["KHR_draco_mesh_compression"]["attributes"] == {"POSITION": 0}   # Draco ids, not accessors
+    np.testing.assert_array_equal(decode(doc, data, prim["attributes"]["POSITION"]), np.eye(3))
+    inst = doc["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"]
+    np.testing.assert_array_equal(decode(doc, data, inst), np.asarray(shifts, np.float32))
+    assert inst != 3 and prim["attributes"]["POSITION"] != 4          # both moved down past the old animation data
+
+
+def test_cli_times_file_and_message(tmp_path, rng):
+    b, animations = skinned(rng)
+    b.save(tmp_path / "in.glb")
+    (tmp_path / "t.txt").write_text("0.1\n0.2\n0.4\n")
+    res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "out.glb", "--times", tmp_path / "t.txt")
+    assert res.returncode == 0, res.stderr
+    assert "6 frames (own," in res.stdout                       # 3 times in each of the two animations
+    doc, data = load(tmp_path / "out.glb")
+    t, got, _ = channel_output(doc, data, 0, 1, "translation")
+    np.testing.assert_array_equal(t, np.float32([0.1, 0.2, 0.4]))
+    res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "out2.glb", "--times", tmp_path / "t.txt",
+              "--method", "squad")
+    assert res.returncode == 0, res.stderr
+    (tmp_path / "t.txt").write_text("0.05\n0.2\n")
+    res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "out3.glb", "--times", tmp_path / "t.txt")
+    assert res.returncode == 2 and "query time 0.05 is outside animation 1's key times" in res.stderr
+    assert "--extrapolate clamp" in res.stderr and not (tmp_path / "out3.glb").exists()
