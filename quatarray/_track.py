@@ -22,6 +22,7 @@ import numpy as np
 from . import _blocks
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
+from . import _kernels as Kn
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
 from ._validate import float_array
@@ -242,3 +243,78 @@ def angular_velocity(timeline, method, table, flat, outside, frame):
             w[:, outside[sm]] = 0
         soa(out[sm, sb])[...] = w
     return out.astype(table.dtype, copy=False)
+
+
+# --------------------------------------------------------------------------- rigid motions
+
+RIGID_ROWS = 23   # frame (8), phi, t0 (3), D (3), P (3), X (3), cos(2 phi), 1 / sin(2 phi)
+
+
+def rigid_table(keys, translations):
+    """Table (23, K, B) of a track of rigid motions, ScLERP on every segment.
+
+    `keys` (K, ..., 4) are unit, unflipped rotation quaternions and
+    `translations` (K, ..., 3) the translations, in the keys' dtype.  On
+    segment i the rotation is SLERP (the real part of ScLERP), and with the
+    relative rotation ``q_{i+1} q_i*`` = (cos Ω, sin Ω a) (world axis a) and
+    ``Δ = t_{i+1} - t_i`` split into D = (a·Δ) a along the axis and
+    P = Δ - D across it, the translation along the screw is
+
+        t(u) = t_i + u D + f(u) P + g(u) a × P,
+        f = sin(uΩ) cos((1-u)Ω) / sin Ω,   g = -sin(uΩ) sin((1-u)Ω) / sin Ω,
+
+    written without the screw axis' point, which runs off to infinity as
+    Ω -> 0 (f -> u, g -> 0: linear translation).
+    """
+    K = keys.shape[0]
+    B = prod(keys.shape[1:-1])
+    Q = components_first(keys, K, B)
+    T = components_first(translations, K, B)
+    table = np.zeros((RIGID_ROWS, K, B))
+    table[:9] = frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
+    rel = Kn.multiply(np.moveaxis(Q[:, 1:], 0, -1), Kn.conjugate(np.moveaxis(Q[:, :-1], 0, -1)))
+    vec = rel[..., 1:]
+    s = np.sqrt(np.sum(vec * vec, axis=-1, keepdims=True))
+    axis = np.divide(vec, s, out=np.zeros_like(vec), where=s > 0)
+    delta = np.moveaxis(T[:, 1:] - T[:, :-1], 0, -1)
+    D = np.sum(axis * delta, axis=-1, keepdims=True) * axis
+    P = delta - D
+    table[9:12] = T
+    table[12:15, :-1] = np.moveaxis(D, -1, 0)
+    table[15:18, :-1] = np.moveaxis(P, -1, 0)
+    table[18:21, :-1] = np.moveaxis(np.cross(axis, P), -1, 0)
+    omega = 2 * table[8, :-1]
+    table[21] = 1
+    table[21, :-1] = np.cos(omega)
+    sin = np.sin(omega)
+    table[22, :-1] = np.divide(1, sin, out=np.zeros_like(sin), where=sin > 0)
+    return np.ascontiguousarray(table, dtype=keys.dtype)
+
+
+def rigid_block(G, u, O):
+    """Rotations (O[:4]) and translations (O[4:7]) from gathered `rigid_table` rows."""
+    s = O.shape[1:]
+    work = _blocks.scratch()
+    c, sn, rc, w = work.rows(4, s, O.dtype)
+    np.multiply(G[8], u, out=sn)
+    sn *= 2                                    # u Ω
+    np.cos(sn, out=c)
+    np.sin(sn, out=sn)
+    Fv = G[:8].reshape((2, 4) + s)
+    np.multiply(Fv[0], c, out=O[:4])
+    np.multiply(Fv[1], sn, out=Fv[1])
+    O[:4] += Fv[1]
+    np.multiply(sn, G[22], out=rc)             # sin(uΩ) / sin Ω ...
+    np.copyto(rc, np.broadcast_to(u, s), where=G[22] == 0)   # ... -> u as Ω -> 0
+    rc *= G[21]                                # times cos Ω
+    Ot = O[4:7]
+    np.multiply(G[12:15], u, out=Ot)
+    Ot += G[9:12]
+    np.multiply(rc, c, out=w)
+    w += sn * sn                               # f
+    np.multiply(G[15:18], w, out=G[15:18])
+    Ot += G[15:18]
+    np.subtract(rc, c, out=w)
+    w *= sn                                    # g
+    np.multiply(G[18:21], w, out=G[18:21])
+    Ot += G[18:21]
