@@ -61,10 +61,7 @@ default_role = "py:obj"
 # -- doctest: only the guide's explicit ``.. doctest::`` blocks -------------
 # (docstring examples are run by pytest --doctest-modules)
 doctest_test_doctest_blocks = ""
-doctest_global_setup = """
-import numpy as np
-np.set_printoptions(precision=4, suppress=True)
-"""
+doctest_global_setup = "import numpy as np"
 
 # -- plots: built from the code in the pages ---------------------------------
 plot_include_source = True
