@@ -58,6 +58,13 @@ numpydoc_validation_checks = set()
 # object and stay plain otherwise.
 default_role = "py:obj"
 
+# -- accuracy: measured at build time, so the figures follow the formulas --------
+import _accuracy  # noqa: E402
+
+_ACCURACY_SAMPLES = 300
+_apigen._write(os.path.join(HERE, "guide", "accuracy_table.inc"),
+               _accuracy.rst_table(_accuracy.measure(_ACCURACY_SAMPLES), _ACCURACY_SAMPLES))
+
 # -- doctest: only the guide's explicit ``.. doctest::`` blocks -------------
 # (docstring examples are run by pytest --doctest-modules)
 doctest_test_doctest_blocks = ""
