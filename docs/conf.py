@@ -71,6 +71,7 @@ doctest_test_doctest_blocks = ""
 doctest_global_setup = "import numpy as np"
 
 # -- plots: built from the code in the pages ---------------------------------
+plot_working_directory = HERE      # data files are named relative to docs/
 plot_include_source = True
 plot_html_show_source_link = False
 plot_html_show_formats = False
