@@ -30,7 +30,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.doctest",
-    "sphinx.ext.mathjax",
+    "_mathml",
     "numpydoc",
     "matplotlib.sphinxext.plot_directive",
 ]
@@ -85,6 +85,7 @@ import matplotlib.pyplot as plt
 
 # -- HTML --------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
+html_math_renderer = "mathml"      # formulas as MathML: no JavaScript, nothing fetched
 html_title = f"quatarray {release}"
 html_theme_options = {
     "navbar_align": "left",
