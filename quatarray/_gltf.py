@@ -29,7 +29,8 @@ import numpy as np
 
 from ._gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
 from ._gltf_sampler import resample_sampler
-from ._io import FormatError, _atomic, fps_times
+from ._text import FormatError, atomic_write, check_size
+from .io import fps_times
 
 __all__ = ["write_gltf", "resample_gltf", "keyframes_to_gltf"]
 
@@ -185,7 +186,7 @@ def _write_document(dst, doc, data, layout):
         chunks = struct.pack("<II", len(text), JSON_CHUNK) + text
         if data:
             chunks += struct.pack("<II", len(data), BIN_CHUNK) + data
-        with _atomic(dst, binary=True) as f:
+        with atomic_write(dst, binary=True) as f:
             f.write(struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks)
         return
     if data and layout == "embedded":
@@ -193,9 +194,9 @@ def _write_document(dst, doc, data, layout):
     elif data:
         name = os.path.splitext(os.path.basename(dst))[0] + ".bin"
         doc["buffers"][0]["uri"] = urllib.parse.quote(name)
-        with _atomic(os.path.join(os.path.dirname(dst), name), binary=True) as f:
+        with atomic_write(os.path.join(os.path.dirname(dst), name), binary=True) as f:
             f.write(data)
-    with _atomic(dst) as f:
+    with atomic_write(dst) as f:
         f.write(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
 
 
@@ -233,7 +234,7 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     Examples
     --------
     >>> import os, tempfile
-    >>> from quatarray._io import example_path, read_csv
+    >>> from quatarray.io import example_path, read_csv
     >>> from quatarray._gltf import keyframes_to_gltf, resample_gltf
     >>> tmp = tempfile.TemporaryDirectory()
     >>> src, dst = os.path.join(tmp.name, "arm.glb"), os.path.join(tmp.name, "arm_60.glb")
@@ -255,7 +256,12 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
             new.append(None)
             continue
         t0, t1 = min(s.times[0] for s in samplers), max(s.times[-1] for s in samplers)
-        t = _fps_grid(t0, t1, fps) if times is None else times
+        per_frame = 1 + sum(s.values.shape[1] for s in samplers)   # a time and every sampler's values
+        if times is None:
+            t = _fps_grid(t0, t1, fps, per_frame)
+        else:
+            check_size(len(times), per_frame, "the query times")
+            t = times
         grid = t.astype(np.float32)   # key times are float32: 0.1 s is the key stored as 0.1
         if (np.diff(grid) <= 0).any():
             raise ValueError(f"times closer than float32 key times can hold near {float(t[-1])!r} s")
@@ -274,14 +280,14 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     return nkeys, nframes
 
 
-def _fps_grid(t0, t1, fps):
+def _fps_grid(t0, t1, fps, per_frame):
     """`fps_times` from t0 to t1, where t1 counts as reached within float32 rounding.
 
     Key times are float32 in glTF: a last key at k / fps is stored a little
     below it as often as not, and the grid must still include it.
     """
     slack = 4 * float(np.spacing(np.float32(max(abs(t0), abs(t1)))))
-    return np.minimum(fps_times(t0, t1 + slack, fps), t1)
+    return np.minimum(fps_times(t0, t1 + slack, fps, per_frame), t1)
 
 
 # --------------------------------------------------------------------------- an example file

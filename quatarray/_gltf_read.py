@@ -20,7 +20,7 @@ import urllib.parse
 import numpy as np
 
 from ._gltf_sampler import INTERPOLATIONS
-from ._io import FormatError
+from ._text import FormatError
 
 __all__ = ["SUPPORTED_EXTENSIONS", "GltfFile", "Sampler", "read_gltf", "read_accessor", "read_animations"]
 

@@ -22,7 +22,7 @@ from quatarray import cli  # noqa: E402
 from quatarray._gltf import keyframes_to_gltf, resample_gltf  # noqa: E402
 from quatarray._gltf_read import read_accessor, read_gltf  # noqa: E402
 from quatarray._gltf_sampler import evaluate_sampler  # noqa: E402
-from quatarray._io import example_path, read_csv  # noqa: E402
+from quatarray.io import example_path, read_csv  # noqa: E402
 from quatarray.interpolate import Track  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -572,7 +572,12 @@ def test_cli_resample_and_conversions(tmp_path, rng):
     assert res.returncode == 0, res.stderr
     assert "7 keys" in res.stdout and "86 frames" in res.stdout     # 61 at 0..1 s, 25 at 0.1..0.5 s
     res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "out.csv", "--fps", 60)
-    assert res.returncode == 2 and "glTF converts to glTF only" in res.stderr
+    assert res.returncode == 2 and "glTF files convert into .gltf, .glb only" in res.stderr
+    res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "huge.glb", "--fps", "1e12")
+    assert res.returncode == 2 and "asks for" in res.stderr and "the limit is" in res.stderr
+    assert res.stderr.count("\n") == 1 and not (tmp_path / "huge.glb").exists()
+    res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "in.glb", "--fps", 30)
+    assert res.returncode == 2 and "--force" in res.stderr
 
 
 def _malformed(tmp_path, rng, how):
