@@ -178,10 +178,18 @@ def write_gltf(dst, gf, animations):
     _write_document(dst, doc, bytes(blob.data), gf.layout)
 
 
+def _json_bytes(doc, **style):
+    """UTF-8 JSON; names stay readable, but a lone surrogate escape (valid JSON) stays escaped."""
+    try:
+        return json.dumps(doc, ensure_ascii=False, **style).encode("utf-8")
+    except UnicodeEncodeError:
+        return json.dumps(doc, **style).encode("ascii")
+
+
 def _write_document(dst, doc, data, layout):
     """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it."""
     if os.path.splitext(dst)[1].lower() == ".glb":
-        text = json.dumps(doc, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+        text = _json_bytes(doc, separators=(",", ":"))
         text += b" " * (-len(text) % 4)
         chunks = struct.pack("<II", len(text), JSON_CHUNK) + text
         if data:
@@ -196,8 +204,8 @@ def _write_document(dst, doc, data, layout):
         doc["buffers"][0]["uri"] = urllib.parse.quote(name)
         with atomic_write(os.path.join(os.path.dirname(dst), name), binary=True) as f:
             f.write(data)
-    with atomic_write(dst) as f:
-        f.write(json.dumps(doc, indent=2, ensure_ascii=False) + "\n")
+    with atomic_write(dst, binary=True) as f:
+        f.write(_json_bytes(doc, indent=2) + b"\n")
 
 
 # --------------------------------------------------------------------------- resampling

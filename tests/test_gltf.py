@@ -465,7 +465,7 @@ def test_everything_else_is_kept(tmp_path, rng, src_layout, dst_name):
     doc_in = b.save(src, src_layout)
     if src_layout != "glb":   # a property pygltflib cannot write: the default morph weights of a node
         doc_in["nodes"][4]["weights"] = [0.25, 0.5]
-        doc_in["extras"] = {"author": "tests", "empty": []}
+        doc_in["extras"] = {"author": "tests \u00e9\u4e2d", "empty": []}
         with open(src, "w") as f:
             json.dump(doc_in, f)
     dst = tmp_path / dst_name
@@ -727,3 +727,14 @@ def test_cli_times_file_and_message(tmp_path, rng):
     res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "out3.glb", "--times", tmp_path / "t.txt")
     assert res.returncode == 2 and "query time 0.05 is outside animation 1's key times" in res.stderr
     assert "--extrapolate clamp" in res.stderr and not (tmp_path / "out3.glb").exists()
+
+
+@pytest.mark.parametrize("name", ["out.gltf", "out.glb"])
+def test_text_that_utf8_cannot_hold_stays_escaped(tmp_path, rng, name):
+    b, _ = skinned(rng)
+    doc = b.save(tmp_path / "in.gltf", "embedded")
+    doc["nodes"][0]["name"] = "\ud800 lone"           # valid JSON (an escape), not encodable as UTF-8
+    with open(tmp_path / "in.gltf", "w") as f:
+        json.dump(doc, f)
+    resample_gltf(tmp_path / "in.gltf", tmp_path / name, fps=10)
+    assert read_gltf(tmp_path / name).json["nodes"][0]["name"] == "\ud800 lone"
