@@ -76,10 +76,15 @@ def _view_slots(doc, accessors):
                 yield draco, "bufferView"
 
 
+def _targets(slots):
+    """The indices the slots hold (what is not an index is caught by `_renumber`)."""
+    return {c[k] for c, k in slots if type(c[k]) is int}
+
+
 def _renumber(slots, mapping, what, path):
     for container, key in slots:
         old = container[key]
-        if old not in mapping:
+        if not (type(old) is int and old in mapping):
             raise FormatError(f"a reference to {what} {old!r}, which does not exist", path)
         container[key] = mapping[old]
 
@@ -136,13 +141,13 @@ def write_gltf(dst, gf, animations):
                 for s in anim.get("samplers", []) for k in ("input", "output") if k in s}
     kept_anim = {s[k] for anim, new in zip(doc.get("animations", []), animations) if new is None
                  for s in anim.get("samplers", []) for k in ("input", "output") if k in s}
-    used = {c[k] for c, k in _accessor_slots(doc)} | kept_anim
+    used = _targets(_accessor_slots(doc)) | kept_anim
     keep = [i for i in range(len(old_accessors)) if i not in replaced or i in used]
     accessor_map = {old: new for new, old in enumerate(keep)}
     accessors = [old_accessors[i] for i in keep]
     dropped = [old_accessors[i] for i in range(len(old_accessors)) if i not in accessor_map]
     views = doc.get("bufferViews", [])
-    dead = {c[k] for c, k in _view_slots({}, dropped)} - {c[k] for c, k in _view_slots(doc, accessors)}
+    dead = _targets(_view_slots({}, dropped)) - _targets(_view_slots(doc, accessors))
     view_map, blob = {}, _Blob()
     for j, view in enumerate(views):
         if j not in dead:

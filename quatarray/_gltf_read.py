@@ -182,6 +182,7 @@ def read_gltf(path):
     version = (doc.get("asset") or {}).get("version") if isinstance(doc.get("asset"), dict) else None
     if not (isinstance(version, str) and version.startswith("2.")):
         raise FormatError(f"expected glTF asset.version 2.x, got {version!r}", path)
+    _check_shapes(doc, path)
     unsupported = [e for e in doc.get("extensionsRequired", []) if not _supported(e)]
     if unsupported:
         raise FormatError(f"unsupported required extension {unsupported[0]!r} (supported: "
@@ -205,6 +206,56 @@ def read_gltf(path):
                               f"({doc['buffers'][b]['byteLength']} bytes)", path)
     layout = "glb" if bin_chunk is not None else "external" if "external" in layouts else "embedded"
     return GltfFile(doc, buffers, path, layout)
+
+
+def _index(x):
+    """An integer (an index, a count, an enum) as JSON gives it: int, not bool."""
+    return type(x) is int
+
+
+def _objects(container, key, where, path):
+    """``container[key]``, an array of JSON objects (empty when absent); FormatError otherwise."""
+    items = container.get(key, [])
+    if not (isinstance(items, list) and all(isinstance(x, dict) for x in items)):
+        raise FormatError(f"{where}{key}: expected an array of objects, got {json.dumps(items)[:60]}", path)
+    return items
+
+
+def _object(container, key, where, path):
+    """``container[key]``, a JSON object (empty when absent); FormatError otherwise."""
+    item = container.get(key, {})
+    if not isinstance(item, dict):
+        raise FormatError(f"{where}{key}: expected an object, got {json.dumps(item)[:60]}", path)
+    return item
+
+
+def _check_shapes(doc, path):
+    """The JSON shapes of everything read or renumbered: arrays of objects, objects where objects go."""
+    for key in ("accessors", "bufferViews", "buffers", "animations", "meshes", "skins", "nodes", "images"):
+        _objects(doc, key, "", path)
+    required = doc.get("extensionsRequired", [])
+    if not (isinstance(required, list) and all(isinstance(e, str) for e in required)):
+        raise FormatError(f"extensionsRequired: expected an array of strings, got {json.dumps(required)[:60]}", path)
+    for a, anim in enumerate(doc.get("animations", [])):
+        _objects(anim, "samplers", f"animations[{a}].", path)
+        for c, channel in enumerate(_objects(anim, "channels", f"animations[{a}].", path)):
+            _object(channel, "target", f"animations[{a}].channels[{c}].", path)
+    for a, acc in enumerate(doc.get("accessors", [])):
+        sparse = _object(acc, "sparse", f"accessors[{a}].", path)
+        for part in ("indices", "values"):
+            _object(sparse, part, f"accessors[{a}].sparse.", path)
+    for m, mesh in enumerate(doc.get("meshes", [])):
+        for p, prim in enumerate(_objects(mesh, "primitives", f"meshes[{m}].", path)):
+            where = f"meshes[{m}].primitives[{p}]."
+            _object(prim, "attributes", where, path)
+            _objects(prim, "targets", where, path)
+            _object(_object(prim, "extensions", where, path), "KHR_draco_mesh_compression", where + "extensions.",
+                    path)
+    for n, node in enumerate(doc.get("nodes", [])):
+        where = f"nodes[{n}].extensions."
+        instancing = _object(_object(node, "extensions", f"nodes[{n}].", path), "EXT_mesh_gpu_instancing",
+                             where, path)
+        _object(instancing, "attributes", where + "EXT_mesh_gpu_instancing.", path)
 
 
 def _elements(gf, view_index, offset, count, dtype, n, what):
@@ -240,11 +291,11 @@ def read_accessor(gf, index, what="accessor"):
     acc = accessors[index]
     what = f"{what}: accessor {index}"
     ctype, kind, count = acc.get("componentType"), acc.get("type"), acc.get("count")
-    if ctype not in _COMPONENTS:
+    if not (_index(ctype) and ctype in _COMPONENTS):
         raise FormatError(f"{what}: unknown componentType {ctype!r}", gf.path)
-    if kind not in SIZES:
+    if not (isinstance(kind, str) and kind in SIZES):
         raise FormatError(f"{what}: expected type SCALAR, VEC2, VEC3 or VEC4, got {kind!r}", gf.path)
-    if not (isinstance(count, int) and count >= 1):
+    if not (_index(count) and count >= 1):
         raise FormatError(f"{what}: expected count >= 1, got {count!r}", gf.path)
     dtype, n = np.dtype(_COMPONENTS[ctype]), SIZES[kind]
     if "bufferView" in acc:
@@ -254,7 +305,8 @@ def read_accessor(gf, index, what="accessor"):
     sparse = acc.get("sparse")
     if sparse:
         m, ind, val = sparse.get("count"), sparse.get("indices") or {}, sparse.get("values") or {}
-        if not (isinstance(m, int) and 1 <= m <= count) or ind.get("componentType") not in _INDEX_COMPONENTS:
+        if not (_index(m) and 1 <= m <= count and _index(ind.get("componentType"))
+                and ind["componentType"] in _INDEX_COMPONENTS):
             raise FormatError(f"{what}: bad sparse count {m!r} or index componentType "
                               f"{ind.get('componentType')!r}", gf.path)
         rows = _elements(gf, ind.get("bufferView"), ind.get("byteOffset", 0), m,
@@ -292,7 +344,7 @@ def read_animations(gf):
             if not (isinstance(s, int) and 0 <= s < len(samplers)):
                 raise FormatError(f"{where} channel {c}: sampler {s!r} does not exist "
                                   f"(the animation has {len(samplers)})", path)
-            if target.get("path") not in _PATH_TYPES:
+            if not (isinstance(target.get("path"), str) and target["path"] in _PATH_TYPES):
                 raise FormatError(f"{where} channel {c}: unsupported target path {target.get('path')!r} "
                                   f"(expected {', '.join(_PATH_TYPES)})", path)
             paths[s].add(target["path"])

@@ -738,3 +738,28 @@ def test_text_that_utf8_cannot_hold_stays_escaped(tmp_path, rng, name):
         json.dump(doc, f)
     resample_gltf(tmp_path / "in.gltf", tmp_path / name, fps=10)
     assert read_gltf(tmp_path / name).json["nodes"][0]["name"] == "\ud800 lone"
+
+
+@pytest.mark.parametrize("where,value,match", [
+    (["animations"], "x", "animations: expected an array of objects"),
+    (["animations", 0, "channels", 0, "target"], 3, "animations[0].channels[0].target: expected an object"),
+    (["accessors", 0, "componentType"], [], "accessor 0: unknown componentType []"),
+    (["accessors", 0, "count"], True, "accessor 0: expected count >= 1, got True"),
+    (["meshes", 0, "primitives", 0, "attributes"], None, "meshes[0].primitives[0].attributes: expected an object"),
+    (["meshes", 0, "primitives", 0, "attributes", "POSITION"], [1], "a reference to accessor [1]"),
+    (["nodes", 4, "extensions"], [], "nodes[4].extensions: expected an object"),
+    (["extensionsRequired"], "KHR_texture_transform", "extensionsRequired: expected an array of strings"),
+])
+def test_wrong_json_shapes_are_format_errors(tmp_path, rng, capsys, where, value, match):
+    b, _ = skinned(rng)
+    doc = b.save(tmp_path / "in.gltf", "embedded")
+    container = doc
+    for key in where[:-1]:
+        container = container[key]
+    container[where[-1]] = value
+    with open(tmp_path / "in.gltf", "w") as f:
+        json.dump(doc, f)
+    assert cli.main(["resample", str(tmp_path / "in.gltf"), "-o", str(tmp_path / "out.glb"), "--fps", "10"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and match in err
+    assert not (tmp_path / "out.glb").exists()
