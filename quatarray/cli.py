@@ -9,9 +9,9 @@
     quatarray --version
 
 Formats follow the extensions: ``.csv``, ``.npz`` (interchangeable),
-``.bvh``, and glTF ``.gltf`` / ``.glb`` (interchangeable).  Bad input ends with a one-line message naming the file (and line)
-on stderr and exit status 2; the output file is then not created or touched
-(also on Ctrl-C and SIGTERM).
+``.bvh``, and glTF ``.gltf``, ``.glb`` (interchangeable).  Bad input ends
+with a one-line message naming the file (and line) on stderr and exit status
+2; the output file is then not created or touched (also on Ctrl-C and SIGTERM).
 """
 
 import argparse
@@ -291,11 +291,12 @@ def build_parser():
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = commands.add_parser(
-        "resample", help="resample a keyframe file (.csv, .npz or .bvh) with a chosen curve",
+        "resample", help="resample a keyframe file (.csv, .npz, .bvh, .gltf or .glb) with a chosen curve",
         description="Resample keyframes at a new rate or at given times. Formats follow the extensions: "
                     "CSV (time,<track>.w,<track>.x,<track>.y,<track>.z,...), NPZ (times (K,), keys (K, ..., 4) "
-                    "scalar-first) and BVH (Euler channels resampled through quaternions). CSV and NPZ "
-                    "convert into each other.")
+                    "scalar-first), BVH (Euler channels resampled through quaternions) and glTF 2.0 "
+                    "(.gltf, .glb: every animation, written back with LINEAR samplers). CSV and NPZ "
+                    "convert into each other, and so do .gltf and .glb.")
     p.add_argument("input", metavar="IN", help="keyframe file to read")
     p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
     when = p.add_mutually_exclusive_group(required=True)
