@@ -341,6 +341,23 @@ def test_evaluate_sampler_raw(rng, interpolation):
         assert_close(got, want, rotation, 1e-12)
 
 
+@pytest.mark.parametrize("interpolation", ["STEP", "LINEAR", "CUBICSPLINE"])
+def test_evaluate_sampler_readonly_strided_empty(rng, interpolation):
+    times = np.array([0.0, 1.0, 3.0])
+    per = 3 if interpolation == "CUBICSPLINE" else 1
+    wide = unit(rng, 2 * per * 3).reshape(per * 3, 8)
+    values = wide[:, ::2]                       # non-contiguous
+    for a in (times, wide):
+        a.flags.writeable = False
+    before = values.copy()
+    t = np.array([0.5, 2.0])
+    got = evaluate_sampler(times, values, interpolation, t, rotation=True)
+    want = evaluate_sampler(times.copy(), np.ascontiguousarray(values), interpolation, t, rotation=True)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(values, before)
+    assert evaluate_sampler(times, values, interpolation, np.empty(0), rotation=True).shape == (0, 4)
+
+
 def test_single_key_sampler_holds_its_value(rng):
     v = unit(rng, 1)
     got = evaluate_sampler(np.array([0.5]), v, "LINEAR", np.array([0.0, 0.5, 9.0]), rotation=True)
