@@ -295,6 +295,9 @@ def test_every_channel_follows_the_spec(tmp_path, rng, layout):
             width = got.shape[1]
             want = [spec_value(times, v32.reshape(-1, width), interp, x, rotation) for x in t]
             assert_close(got, want, rotation, atol=4 * EPS32 * max(1.0, np.abs(v32).max()))
+            if rotation:   # unit, and consecutive frames in the same hemisphere (no sign flips between frames)
+                np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1, rtol=0, atol=2 * EPS32)
+                assert (np.sum(got[1:] * got[:-1], axis=1) >= 0).all()
 
 
 def test_clamped_outside_the_keys(tmp_path, rng):
