@@ -44,8 +44,10 @@ def _docs_extra():
 
 
 def _sphinx(builder, outdir):
+    """Run a builder; the doctrees are where the README's command keeps them, so that a
+    later ``python -m sphinx -W -b html docs docs/_build/html`` is incremental."""
     cmd = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", builder,
-           "-d", str(BUILD / "doctrees"), str(DOCS), str(outdir)]
+           "-d", str(BUILD / "html" / ".doctrees"), str(DOCS), str(outdir)]
     if builder == "html":
         cmd.insert(3, "-E")        # a fresh environment: every page read, every warning seen
     return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900)
