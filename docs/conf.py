@@ -110,7 +110,7 @@ html_show_sourcelink = False
 import re  # noqa: E402
 
 _INLINE_CODE = re.compile(r"(``.+?``|`[^`]+`)")
-_STAR_NAME = re.compile(r"(?<=[(\[, ])\*(?=[A-Za-z_][\w.]*[,)\]])")
+_STAR_NAME = re.compile(r"(?<=[(\[, ])\*(?=[,)\]]|[A-Za-z_][\w.]*[,)\]])")   # (K, *batch), f(a, *, b)
 
 
 def _escape_prose(text):
