@@ -9,11 +9,14 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
+from ._rotation import Rotation
 
 __all__ = ["RotationSpline"]
 
 
 def _keys(rotations):
+    if isinstance(rotations, Rotation):
+        return rotations.as_quatarray().view(np.ndarray)
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
         # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
         q = np.asarray(rotations.as_quat())
@@ -71,7 +74,7 @@ class RotationSpline:
             keys = keys.astype(np.float64)
         keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
         self.times = times
-        self.rotations = QuatArray.from_quat(keys, scalar_first=True)
+        self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys
         self._coeff = S.coefficients(times, keys)
 
@@ -97,4 +100,4 @@ class RotationSpline:
         res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
         if single:
             res = res[0]
-        return QuatArray.from_quat(res, scalar_first=True) if order == 0 else res
+        return Rotation.from_quat(res, scalar_first=True) if order == 0 else res

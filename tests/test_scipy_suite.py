@@ -24,6 +24,7 @@ an entry to `SUITES`.  Run this module with ``-s`` to see the counts.
 
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -134,11 +135,8 @@ def run_suite(name, workdir, reference=False):
 
 
 def _deselected(stdout):
-    for word in stdout.split(","):
-        word = word.strip()
-        if word.endswith("deselected"):
-            return int(word.split()[0])
-    return 0
+    found = re.findall(r"(\d+) deselected", stdout)
+    return int(found[-1]) if found else 0
 
 
 @pytest.mark.parametrize("name", sorted(SUITES))
