@@ -47,6 +47,11 @@ class RigidTransform:
         self._single = single
 
     @classmethod
+    def _from_parts(cls, quat, translation, single):
+        """From raw unit scalar-first quaternions (..., 4) and translations (..., 3), not copied."""
+        return cls(quat, translation, single)
+
+    @classmethod
     def _make(cls, quat, translation, single):
         batch = np.broadcast_shapes(quat.shape[:-1], translation.shape[:-1])
         dtype = np.result_type(quat.dtype, translation.dtype)
