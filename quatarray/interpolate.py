@@ -686,11 +686,6 @@ class Slerp(Track):
         self._setup(t, rotations.as_quatarray(), "slerp", "raise", "times", "rotations")
 
     @property
-    def times(self):
-        """The key times, shape (K,) (read-only)."""
-        return self._times
-
-    @property
     def timedelta(self):
         """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
         return np.diff(self.times)
@@ -709,7 +704,7 @@ class Slerp(Track):
         t = float_array(times, "times")
         if t.ndim > 1:
             raise ValueError(f"`times` must be at most 1-dimensional. Got shape {t.shape}")
-        t0, t1 = self._times[0], self._times[-1]
+        t0, t1 = self.times[0], self.times[-1]
         if t.size and not ((t >= t0).all() and (t <= t1).all()):
             raise ValueError(f"Interpolation times must be within the range [{t0}, {t1}], both inclusive.")
         return Rotation._wrap(self._evaluate(t, "times").view(np.ndarray))
