@@ -9,6 +9,7 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
+from ._rotation import Rotation
 from ._validate import float_array
 
 __all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
@@ -68,6 +69,8 @@ def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
 
 
 def _keys(rotations):
+    if isinstance(rotations, Rotation):
+        return rotations.as_quatarray().view(np.ndarray)
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
         # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
         q = np.asarray(rotations.as_quat())
@@ -125,7 +128,7 @@ class RotationSpline:
             keys = keys.astype(np.float64)
         keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
         self.times = times
-        self.rotations = QuatArray.from_quat(keys, scalar_first=True)
+        self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys
         self._coeff = S.coefficients(times, keys)
 
@@ -151,4 +154,4 @@ class RotationSpline:
         res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
         if single:
             res = res[0]
-        return QuatArray.from_quat(res, scalar_first=True) if order == 0 else res
+        return Rotation.from_quat(res, scalar_first=True) if order == 0 else res
