@@ -10,9 +10,16 @@ result.  Three policies keep it from surprising a NumPy user:
   product for `multiply`, ...).  Any other ufunc raises `TypeError` instead of
   applying componentwise maths.
 * **NumPy functions** go through `BATCH_FUNCTIONS` (keep the class; axes and
-  shapes refer to *batch* axes), `COMPARISON_FUNCTIONS` (per quaternion) and
-  `LAYOUT_FUNCTIONS` (class kept only when the last axis stays last).  Every
-  other function sees plain ndarrays and returns plain results.
+  shapes refer to *batch* axes, e.g. ``np.sum`` and ``np.mean`` of quaternions),
+  `COMPARISON_FUNCTIONS` (per quaternion), `LAYOUT_FUNCTIONS` (class kept only
+  when the last axis stays last) and `PLAIN_FUNCTIONS` (about the array, not
+  its values: ``np.shape``, ``np.shares_memory``, ...).  Any other function
+  raises `TypeError`, as a ufunc without a quaternion meaning does; use
+  ``q.ndarray`` for componentwise maths.
+
+NaN and infinite input is refused with a `ValueError` naming the argument by
+every operation with a quaternion meaning; indexing, layout functions,
+comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 """
 
 import numpy as np
@@ -22,7 +29,7 @@ from . import _euler as E
 from . import _kernels as K
 from ._validate import all_finite, batch_shape, finite, float_array
 
-__all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS"]
+__all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS", "PLAIN_FUNCTIONS"]
 
 
 def _raw(x):
@@ -124,8 +131,40 @@ class QuatArray(np.ndarray):
     copy : bool, default True
         Copy `data` (so that later in-place operations never modify it).
 
+    Attributes
+    ----------
+    batch_shape : tuple
+        ``shape[:-1]``.
+    w, x, y, z, vec : ndarray
+        Plain views of the components (batch shape; ``vec`` is (..., 3)).
+    ndarray : ndarray
+        Plain view of the whole (..., 4) array.
+
+    Methods
+    -------
+    conj(), norm(), normalized(), inverse(), exp(), log(), power(t), dot(other)
+        Quaternion algebra; also ``~q``, ``abs(q)``, ``np.exp(q)``,
+        ``np.log(q)``, ``q ** t``.
+    rotate(v)
+        Rotate vectors (..., 3) by q/|q|.
+    identity(num=None, *, shape=None)
+        Identity quaternions.
+    as_matrix(), as_rotvec(), as_mrp(), as_euler(seq), as_davenport(axes, order)
+        Conversions of the rotation q/|q| (scalar-first; `Rotation` has scipy's API).
+    from_matrix, from_rotvec, from_mrp, from_euler, from_davenport
+        The inverse conversions (class methods, unit results).
+
+    Operators: ``p * q`` (Hamilton product), ``p / q`` (p q⁻¹), ``p + q``,
+    ``p - q``, ``q ** t``, ``==`` per quaternion, with NumPy broadcasting of
+    batch shapes; real operands act as real quaternions.  In-place operators
+    follow NumPy's casting rule (``p32 *= p64`` computes in float64 and
+    rounds to float32).  See the module docstring for indexing, ufuncs,
+    NumPy functions and the refusal of NaN and infinite input.
+
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray import QuatArray
     >>> q = QuatArray([[1, 0, 0, 0], [0, 1, 0, 0]])
     >>> q
     QuatArray([[1., 0., 0., 0.],
@@ -491,10 +530,7 @@ class QuatArray(np.ndarray):
             f"use q.ndarray for componentwise maths on the components")
 
     def __array_function__(self, func, types, args, kwargs):
-        handler = BATCH_FUNCTIONS.get(func) or COMPARISON_FUNCTIONS.get(func) or LAYOUT_FUNCTIONS.get(func)
-        if handler is not None:
-            return handler(*args, **kwargs)
-        return func(*_plain(args), **_plain(kwargs))
+        return _dispatch(func, args, kwargs)
 
 
 # --- operand handling ------------------------------------------------------------
@@ -704,36 +740,88 @@ def _reduce_raw(ufunc, method, raw, axis, out, keepdims):
 
 
 # --- NumPy function registries -------------------------------------------------------
+#
+# Every NumPy function a QuatArray reaches goes through one of these tables
+# (astropy's pattern): a handler is registered next to its code with
+# `_implements`, its signature is NumPy's (tests/test_array.py checks it with
+# `inspect`), and a function in no table raises `TypeError`, as a ufunc
+# without a quaternion meaning does.
+
+BATCH_FUNCTIONS = {}
+"""NumPy functions that keep the class; axes and shapes refer to batch axes."""
+
+COMPARISON_FUNCTIONS = {}
+"""Comparisons per quaternion: `isclose` returns a bool array of batch shape."""
+
+LAYOUT_FUNCTIONS = {}
+"""Functions that rearrange axes: the class is kept only when the last axis
+stays last and whole (a C-order reshape to (..., 4) keeps every quaternion)."""
+
+PLAIN_FUNCTIONS = {
+    np.shape, np.ndim, np.size, np.result_type, np.shares_memory, np.may_share_memory,
+    np.array_repr, np.array_str, np.array2string, np.save, np.savez, np.savez_compressed,
+    np.iscomplexobj, np.isrealobj,
+}
+"""Functions about the array rather than its values (or that store it): they see
+the plain (..., 4) components and return what NumPy returns for them."""
+
+_NOVALUE = np._NoValue
+
+
+def _implements(table, *funcs):
+    """Register the decorated handler for `funcs` in `table`."""
+    def register(handler):
+        for func in funcs:
+            table[func] = handler
+        return handler
+    return register
+
+
+def _dispatch(func, args, kwargs):
+    handler = BATCH_FUNCTIONS.get(func) or COMPARISON_FUNCTIONS.get(func) or LAYOUT_FUNCTIONS.get(func)
+    if handler is not None:
+        return handler(*args, **kwargs)
+    if func in PLAIN_FUNCTIONS:
+        return func(*_plain(args), **_plain(kwargs))
+    name = getattr(func, "__name__", repr(func))
+    raise TypeError(f"NumPy function {name!r} has no quaternion meaning for QuatArray; "
+                    f"use q.ndarray for componentwise maths on the components")
+
 
 def _operands(seq, name):
     return [_operand(a, f"{name}[{i}]") for i, a in enumerate(seq)]
 
 
-def _concatenate(arrays, axis=0, out=None, **kwargs):
+@_implements(BATCH_FUNCTIONS, np.concatenate)
+def _concatenate(arrays, axis=0, out=None, *, dtype=None, casting="same_kind"):
     raws = _operands(arrays, "arrays")
     if axis is None:
         raws = [r.reshape(-1, 4) for r in raws]
         axis = 0
     nb = raws[0].ndim - 1
-    res = np.concatenate(raws, axis=_batch_axis(axis, nb), **kwargs)
+    res = np.concatenate(raws, axis=_batch_axis(axis, nb), dtype=dtype, casting=casting)
     return _finish(res, out)
 
 
-def _stack(arrays, axis=0, out=None, **kwargs):
+@_implements(BATCH_FUNCTIONS, np.stack)
+def _stack(arrays, axis=0, out=None, *, dtype=None, casting="same_kind"):
     raws = _operands(arrays, "arrays")
     nb = raws[0].ndim - 1
-    return _finish(np.stack(raws, axis=_batch_axis(axis, nb, extra=1), **kwargs), out)
+    return _finish(np.stack(raws, axis=_batch_axis(axis, nb, extra=1), dtype=dtype, casting=casting), out)
 
 
-def _copy(a, order="K", subok=True):
+@_implements(BATCH_FUNCTIONS, np.copy)
+def _copy(a, order="K", subok=False):
     return QuatArray._wrap(np.copy(_operand(a, "a"), order=order))
 
 
-def _broadcast_to(array, shape, subok=True):
+@_implements(BATCH_FUNCTIONS, np.broadcast_to)
+def _broadcast_to(array, shape, subok=False):
     shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
     return QuatArray._wrap(np.broadcast_to(_operand(array, "array"), shape + (4,)))
 
 
+@_implements(BATCH_FUNCTIONS, np.where)
 def _where(condition, *xy):
     if len(xy) != 2:
         return np.where(_plain(condition))
@@ -746,6 +834,7 @@ def _where(condition, *xy):
     return QuatArray._wrap(np.where(cond[..., None], X, Y))
 
 
+@_implements(BATCH_FUNCTIONS, np.take)
 def _take(a, indices, axis=None, out=None, mode="raise"):
     raw = _operand(a, "a")
     if axis is None:
@@ -754,11 +843,13 @@ def _take(a, indices, axis=None, out=None, mode="raise"):
     return _finish(res, out)
 
 
+@_implements(BATCH_FUNCTIONS, np.flip)
 def _flip(m, axis=None):
     raw = _operand(m, "m")
     return QuatArray._wrap(np.flip(raw, axis=_batch_axes(axis, raw.ndim - 1)))
 
 
+@_implements(BATCH_FUNCTIONS, np.roll)
 def _roll(a, shift, axis=None):
     raw = _operand(a, "a")
     if axis is None:
@@ -766,6 +857,7 @@ def _roll(a, shift, axis=None):
     return QuatArray._wrap(np.roll(raw, shift, axis=_batch_axes(axis, raw.ndim - 1)))
 
 
+@_implements(BATCH_FUNCTIONS, np.expand_dims)
 def _expand_dims(a, axis):
     raw = _operand(a, "a")
     axes = axis if isinstance(axis, tuple) else (axis,)
@@ -774,13 +866,14 @@ def _expand_dims(a, axis):
     return QuatArray._wrap(np.expand_dims(raw, axes))
 
 
+@_implements(BATCH_FUNCTIONS, np.squeeze)
 def _squeeze(a, axis=None):
     return a.squeeze(axis) if isinstance(a, QuatArray) else np.squeeze(a, axis)
 
 
 def _like(fill):
-    def like(prototype, dtype=None, order="K", subok=True, shape=None, **kwargs):
-        raw = _operand(prototype, "prototype")
+    def like(a, dtype=None, order="K", subok=True, shape=None, *, device=None):
+        raw = _operand(a, "a")
         dtype = raw.dtype if dtype is None else np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TypeError(f"expected dtype float32 or float64 for a QuatArray, got {dtype}")
@@ -793,22 +886,33 @@ def _like(fill):
     return like
 
 
-BATCH_FUNCTIONS = {
-    np.concatenate: _concatenate,
-    np.stack: _stack,
-    np.copy: _copy,
-    np.broadcast_to: _broadcast_to,
-    np.where: _where,
-    np.take: _take,
-    np.flip: _flip,
-    np.roll: _roll,
-    np.expand_dims: _expand_dims,
-    np.squeeze: _squeeze,
-    np.zeros_like: _like(0.0),
-    np.ones_like: _like(1.0),  # the quaternion 1 = (1, 0, 0, 0), as numpy-quaternion's ones_like
-    np.empty_like: _like(None),
-}
-"""NumPy functions that keep the class; axes and shapes refer to batch axes."""
+_implements(BATCH_FUNCTIONS, np.zeros_like)(_like(0.0))
+_implements(BATCH_FUNCTIONS, np.ones_like)(_like(1.0))  # the quaternion 1 = (1, 0, 0, 0), as numpy-quaternion's
+_implements(BATCH_FUNCTIONS, np.empty_like)(_like(None))
+
+
+def _no_extras(name, **given):
+    extra = sorted(k for k, v in given.items() if v is not None and v is not _NOVALUE)
+    if extra:
+        raise TypeError(f"np.{name} of a QuatArray supports axis, out and keepdims only, got {extra}")
+
+
+@_implements(BATCH_FUNCTIONS, np.sum)
+def _sum(a, axis=None, dtype=None, out=None, keepdims=_NOVALUE, initial=_NOVALUE, where=_NOVALUE):
+    """Sum of quaternions over batch axes (all of them by default)."""
+    _no_extras("sum", dtype=dtype, initial=initial, where=where)
+    return _reduce(np.add, "reduce", a, axis=axis, out=out, keepdims=keepdims is True)
+
+
+@_implements(BATCH_FUNCTIONS, np.mean)
+def _mean(a, axis=None, dtype=None, out=None, keepdims=_NOVALUE, *, where=_NOVALUE):
+    """Arithmetic mean of quaternions over batch axes (not normalised; for the
+    mean rotation see `Rotation.mean`)."""
+    _no_extras("mean", dtype=dtype, where=where)
+    raw = _operand(a, "a")
+    count = int(np.prod([raw.shape[ax] for ax in _batch_axes(axis, raw.ndim - 1)]))
+    res = _reduce(np.add, "reduce", a, axis=axis, keepdims=keepdims is True)
+    return _finish(_raw(res) / count, out)
 
 
 def _pair(a, b):
@@ -817,27 +921,22 @@ def _pair(a, b):
     return A, B
 
 
+@_implements(COMPARISON_FUNCTIONS, np.isclose)
 def _isclose(a, b, rtol=1e-05, atol=1e-08, equal_nan=False):
     A, B = _pair(a, b)
     return np.all(np.isclose(A, B, rtol=rtol, atol=atol, equal_nan=equal_nan), axis=-1)
 
 
+@_implements(COMPARISON_FUNCTIONS, np.allclose)
 def _allclose(a, b, rtol=1e-05, atol=1e-08, equal_nan=False):
     A, B = _pair(a, b)
     return bool(np.allclose(A, B, rtol=rtol, atol=atol, equal_nan=equal_nan))
 
 
+@_implements(COMPARISON_FUNCTIONS, np.array_equal)
 def _array_equal(a1, a2, equal_nan=False):
     A, B = _pair(a1, a2)
     return bool(np.array_equal(A, B, equal_nan=equal_nan))
-
-
-COMPARISON_FUNCTIONS = {
-    np.isclose: _isclose,
-    np.allclose: _allclose,
-    np.array_equal: _array_equal,
-}
-"""Comparisons per quaternion: `isclose` returns a bool array of batch shape."""
 
 
 def _last_axis_stays(func, ndim, *args, **kwargs):
@@ -847,22 +946,42 @@ def _last_axis_stays(func, ndim, *args, **kwargs):
     return probe.ndim == ndim and probe.shape[-1] == 2
 
 
-def _permutation(func):
-    def apply(a, *args, **kwargs):
-        if not isinstance(a, QuatArray):  # pragma: no cover - NumPy dispatches here only for QuatArrays
-            return func(_plain(a), *_plain(args), **_plain(kwargs))
-        res = func(_raw(a), *args, **kwargs)
-        return res.view(QuatArray) if _last_axis_stays(func, a.ndim, *args, **kwargs) else res
-    return apply
+def _permuted(func, a, *args, **kwargs):
+    if not isinstance(a, QuatArray):  # pragma: no cover - NumPy dispatches here only for QuatArrays
+        return func(_plain(a), *_plain(args), **_plain(kwargs))
+    res = func(_raw(a), *args, **kwargs)
+    return res.view(QuatArray) if _last_axis_stays(func, a.ndim, *args, **kwargs) else res
 
 
-LAYOUT_FUNCTIONS = {
-    np.reshape: lambda a, *args, **kwargs: a.reshape(*args, **kwargs),
-    np.ravel: lambda a, order="C": a.ravel(order),
-    np.transpose: _permutation(np.transpose),
-    np.swapaxes: _permutation(np.swapaxes),
-    np.moveaxis: _permutation(np.moveaxis),
-    np.rollaxis: _permutation(np.rollaxis),
-}
-"""Functions that rearrange axes: the class is kept only when the last axis
-stays last and whole (a C-order reshape to (..., 4) keeps every quaternion)."""
+@_implements(LAYOUT_FUNCTIONS, np.reshape)
+def _reshape(a, /, shape=None, order="C", *, newshape=None, copy=None):
+    if shape is None:
+        shape = newshape
+    if copy is not None:
+        return a.reshape(shape, order=order, copy=copy)
+    return a.reshape(shape, order=order)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.ravel)
+def _ravel(a, order="C"):
+    return a.ravel(order)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.transpose)
+def _transpose(a, axes=None):
+    return _permuted(np.transpose, a, axes)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.swapaxes)
+def _swapaxes(a, axis1, axis2):
+    return _permuted(np.swapaxes, a, axis1, axis2)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.moveaxis)
+def _moveaxis(a, source, destination):
+    return _permuted(np.moveaxis, a, source, destination)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.rollaxis)
+def _rollaxis(a, axis, start=0):
+    return _permuted(np.rollaxis, a, axis, start)
