@@ -269,6 +269,7 @@ class QuatArray(np.ndarray):
     def conj(self):
         """Conjugate (w, -x, -y, -z); also ``~q``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([1, 2, 3, 4]).conj()
         QuatArray([ 1., -2., -3., -4.])
         """
@@ -280,6 +281,7 @@ class QuatArray(np.ndarray):
     def norm(self):
         """Norm |q| as a plain array of batch shape; also ``abs(q)``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([[1, 2, 2, 4]]).norm()
         array([5.])
         """
@@ -288,6 +290,7 @@ class QuatArray(np.ndarray):
     def normalized(self):
         """q / |q|; zero quaternions raise `ValueError`.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 3, 0, 4]).normalized()
         QuatArray([0. , 0.6, 0. , 0.8])
         """
@@ -296,6 +299,7 @@ class QuatArray(np.ndarray):
     def inverse(self):
         """conj(q) / |q|² (general quaternions); a zero quaternion raises `ZeroDivisionError`.
 
+        >>> from quatarray import QuatArray
         >>> q = QuatArray([1, 1, 1, 1])
         >>> q * q.inverse()
         QuatArray([1., 0., 0., 0.])
@@ -305,6 +309,7 @@ class QuatArray(np.ndarray):
     def exp(self):
         """Quaternion exponential; also ``np.exp(q)``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 0]).exp()
         QuatArray([1., 0., 0., 0.])
         """
@@ -313,6 +318,7 @@ class QuatArray(np.ndarray):
     def log(self):
         """Principal logarithm (ln|q|, θ v/|v|) with θ in [0, π]; also ``np.log(q)``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([1, 0, 0, 0]).log()
         QuatArray([0., 0., 0., 0.])
         """
@@ -321,6 +327,8 @@ class QuatArray(np.ndarray):
     def power(self, t):
         """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped); also ``q ** t``.
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> k = QuatArray([0, 0, 0, 1])
         >>> np.allclose(k.power(2), [-1, 0, 0, 0])
         True
@@ -330,6 +338,7 @@ class QuatArray(np.ndarray):
     def dot(self, other):
         """4-D inner product with `other` (a QuatArray), batch shape.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([1, 2, 3, 4]).dot(QuatArray([1, 1, 1, 1]))
         np.float64(10.0)
         """
@@ -342,6 +351,8 @@ class QuatArray(np.ndarray):
 
         Zero quaternions raise `ValueError`.
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> q = QuatArray([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
         >>> np.round(q.rotate([1, 0, 0]), 12)
         array([0., 1., 0.])
@@ -366,6 +377,7 @@ class QuatArray(np.ndarray):
         `num` gives a batch of shape ``(num,)`` (scipy's convention), `shape`
         any batch shape; with neither, a single quaternion of shape (4,).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray.identity(2)
         QuatArray([[1., 0., 0., 0.],
                    [1., 0., 0., 0.]])
@@ -378,6 +390,7 @@ class QuatArray(np.ndarray):
     def as_matrix(self):
         """Rotation matrices of q/|q|, shape (..., 3, 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 1]).as_matrix() + 0.0
         array([[-1.,  0.,  0.],
                [ 0., -1.,  0.],
@@ -389,6 +402,8 @@ class QuatArray(np.ndarray):
     def from_matrix(cls, matrix, *, assume_valid=False):
         """Unit quaternions of rotation matrices (..., 3, 3) (non-orthogonal ones projected).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> QuatArray.from_matrix(np.eye(3))
         QuatArray([1., 0., 0., 0.])
         """
@@ -397,6 +412,7 @@ class QuatArray(np.ndarray):
     def as_rotvec(self, degrees=False):
         """Rotation vectors (axis × angle, angle in [0, π]) of q/|q|, shape (..., 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 1]).as_rotvec()
         array([0.        , 0.        , 3.14159265])
         """
@@ -406,6 +422,8 @@ class QuatArray(np.ndarray):
     def from_rotvec(cls, rotvec, degrees=False):
         """Unit quaternions of rotation vectors (..., 3).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> np.allclose(QuatArray.from_rotvec([0, 0, 180], degrees=True), [0, 0, 0, 1])
         True
         """
@@ -414,6 +432,7 @@ class QuatArray(np.ndarray):
     def as_mrp(self):
         """Modified Rodrigues parameters ``axis · tan(angle / 4)`` of q/|q|, shape (..., 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 1]).as_mrp()
         array([0., 0., 1.])
         """
@@ -423,6 +442,7 @@ class QuatArray(np.ndarray):
     def from_mrp(cls, mrp):
         """Unit quaternions of modified Rodrigues parameters (..., 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray.from_mrp([0, 0, 1])
         QuatArray([0., 0., 0., 1.])
         """
@@ -431,6 +451,7 @@ class QuatArray(np.ndarray):
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles (..., 3) of q/|q|, scipy's conventions ('xyz' extrinsic, 'XYZ' intrinsic).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray.from_euler("ZXY", [30, 20, 10], degrees=True).as_euler("ZXY", degrees=True).round(9)
         array([30., 20., 10.])
         """
@@ -440,6 +461,8 @@ class QuatArray(np.ndarray):
     def from_euler(cls, seq, angles, degrees=False):
         """Unit quaternions of Euler angles (..., len(seq)).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> np.allclose(QuatArray.from_euler("z", 180, degrees=True), [0, 0, 0, 1])
         True
         """
@@ -448,6 +471,8 @@ class QuatArray(np.ndarray):
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles (..., 3) of q/|q| about three axes (3, 3).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> q = QuatArray.from_euler("zxz", [10, 20, 30], degrees=True)
         >>> q.as_davenport(np.eye(3)[[2, 0, 2]], "e", degrees=True).round(9)
         array([10., 20., 30.])
@@ -458,6 +483,8 @@ class QuatArray(np.ndarray):
     def from_davenport(cls, axes, order, angles, degrees=False):
         """Unit quaternions of Davenport angles about 1 to 3 axes (n, 3).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> np.allclose(QuatArray.from_davenport([0, 0, 1], "e", 180, degrees=True), [0, 0, 0, 1])
         True
         """

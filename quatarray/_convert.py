@@ -107,6 +107,7 @@ def from_quat(quat, scalar_first=False, name="quat"):
 
     Examples
     --------
+    >>> from quatarray._convert import from_quat
     >>> from_quat([0, 0, 3, 4])
     array([0.8, 0. , 0. , 0.6])
     """
@@ -187,6 +188,8 @@ def as_matrix(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import as_matrix
     >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])  # 90° about z
     >>> np.round(as_matrix(q), 12) + 0.0
     array([[ 0., -1.,  0.],
@@ -345,6 +348,8 @@ def from_matrix(matrix, assume_valid=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import from_matrix
     >>> np.round(from_matrix([[0, -1, 0], [1, 0, 0], [0, 0, 1]]), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     >>> np.round(from_matrix(2 * np.eye(3)), 12)  # projected to the nearest rotation
@@ -451,6 +456,8 @@ def as_rotvec(q, degrees=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import as_rotvec
     >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
     >>> as_rotvec(q, degrees=True)
     array([ 0.,  0., 90.])
@@ -496,6 +503,8 @@ def from_rotvec(rotvec, degrees=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import from_rotvec
     >>> np.round(from_rotvec([0, 0, 90], degrees=True), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
@@ -524,6 +533,8 @@ def magnitude(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import magnitude
     >>> magnitude(np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [-1, 1, 0, 0]]))
     array([0.        , 3.14159265, 1.57079633])
     """
@@ -561,6 +572,8 @@ def as_mrp(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import as_mrp
     >>> np.round(as_mrp(np.array([0.0, 0, 0, 1])), 12)  # 180° about z
     array([0., 0., 1.])
     """
@@ -595,6 +608,7 @@ def from_mrp(mrp):
 
     Examples
     --------
+    >>> from quatarray._convert import from_mrp
     >>> from_mrp([0, 0, 1])
     array([0., 0., 0., 1.])
     """
@@ -620,6 +634,8 @@ def canonical(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import canonical
     >>> canonical(np.array([[-1.0, 0, 0, 0], [0, 0, -1, 1]]))
     array([[ 1.,  0.,  0.,  0.],
            [-0., -0.,  1., -1.]])

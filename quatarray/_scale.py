@@ -46,6 +46,8 @@ _ONE = _RANGE[np.dtype(np.float64)]
 def fits(n2):
     """True when every squared norm of a block is in [LOW, HIGH] (False for NaN or inf).
 
+    >>> import numpy as np
+    >>> from quatarray._scale import fits
     >>> [bool(fits(np.array(n2))) for n2 in ([1.0, 4.0], [1.0, 1e-320], [np.nan], [np.inf])]
     [True, False, False, False]
     """
@@ -73,6 +75,8 @@ def rescale(q):
     Zero and non-finite quaternions are left as they are (e = 0).  Returns e
     (batch shape, int32).
 
+    >>> import numpy as np
+    >>> from quatarray._scale import rescale
     >>> q = np.array([[3e300], [4e300], [0.0], [0.0]])
     >>> e = rescale(q); e, np.ldexp(q[:, 0], e) == [3e300, 4e300, 0, 0]
     (array([999], dtype=int32), array([ True,  True,  True,  True]))
@@ -108,6 +112,7 @@ def guard_one(c):
     Returns ``(c, e)``: the components scaled by 2**-e and e (0 for the
     ordinary case: `c` itself).
 
+    >>> from quatarray._scale import guard_one
     >>> guard_one([3e-300, 4e-300, 0.0, 0.0])[1]
     -994
     """

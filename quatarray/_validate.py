@@ -20,6 +20,7 @@ def float_array(x, name, last=None, dtype=None):
 
     Examples
     --------
+    >>> from quatarray._validate import float_array
     >>> float_array([[1, 0, 0, 0]], "quat", last=4).dtype
     dtype('float64')
     >>> float_array([1, 2, 3], "quat", last=4)
@@ -56,6 +57,7 @@ def float_array(x, name, last=None, dtype=None):
 def quat_array(x, name):
     """`float_array` of shape (..., 4): quaternions (any batch shape).
 
+    >>> from quatarray._validate import quat_array
     >>> quat_array([1, 0, 0, 0], "q")
     array([1., 0., 0., 0.])
     """
@@ -69,6 +71,8 @@ def all_finite(a):
     large ones: one sum (a finite sum means finite elements; a sum that is
     not finite is then checked element by element).
 
+    >>> import numpy as np
+    >>> from quatarray._validate import all_finite
     >>> all_finite(np.array([1.0, 2.0])), all_finite(np.array([1.0, np.inf]))
     (True, False)
     """
@@ -91,6 +95,8 @@ def finite(a, name):
     Cheap in the common case (`all_finite`); the first offending element
     is looked for only when there is one.
 
+    >>> import numpy as np
+    >>> from quatarray._validate import finite
     >>> finite(np.array([[1.0, 2.0], [np.nan, 0.0]]), "times")
     Traceback (most recent call last):
     ...
@@ -109,6 +115,7 @@ def finite(a, name):
 def batch_shape(num, shape):
     """scipy's `num` / `shape` arguments as a batch shape: ``(num,)``, `shape`, or ``()``.
 
+    >>> from quatarray._validate import batch_shape
     >>> batch_shape(3, None), batch_shape(None, (2, 5)), batch_shape(None, None)
     ((3,), (2, 5), ())
     """

@@ -224,3 +224,25 @@ def operator_of(op):
     import operator
     return {"__imul__": operator.mul, "__itruediv__": operator.truediv, "__iadd__": operator.add,
             "__isub__": operator.sub}[op]
+
+
+# --- docstring examples import what they use ---------------------------------------------
+
+@pytest.mark.parametrize("module", ["quatarray._array", "quatarray._scale", "quatarray._validate",
+                                    "quatarray._convert"])
+def test_docstring_examples_import_what_they_use(module):
+    """Each docstring's examples run in an empty namespace: no NameError (a user can
+    copy any one of them on its own)."""
+    import doctest
+    import importlib
+
+    class Runner(doctest.DocTestRunner):
+        def report_unexpected_exception(self, out, test, example, exc_info):
+            if issubclass(exc_info[0], NameError):
+                missing.append(f"{test.name}: {exc_info[1]}")
+
+    missing = []
+    for test in doctest.DocTestFinder().find(importlib.import_module(module)):
+        test.globs = {}
+        Runner(optionflags=doctest.ELLIPSIS).run(test, out=lambda s: None)
+    assert not missing, missing
