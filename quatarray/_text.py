@@ -83,12 +83,17 @@ class TextStyle:
         ``"\\n"`` or ``"\\r\\n"``.
     delimiter : str
         Between values on a line (CSV: ``,``, tab or ``;``).
+    time_decimals, time_trim : int or None, bool
+        The same as `decimals` and `trim` for a time column (CSV), which is
+        written so only where that reads back to the same time.
     """
 
     decimals: int = None
     trim: bool = False
     newline: str = "\n"
     delimiter: str = ","
+    time_decimals: int = None
+    time_trim: bool = False
 
 
 _NUMBER_BYTE = np.zeros(256, bool)
@@ -139,12 +144,19 @@ def measure_style(path, skip, ncols=None, delimiter=","):
     newline = "\r\n" if len(ends) and ends[0] > 0 and b[ends[0] - 1] == ord("\r") else "\n"
     start = int(ends[skip - 1]) + 1 if skip and len(ends) >= skip else (0 if not skip else len(data))
     decimals = token_decimals(data[start:])
+    times = np.zeros(0, np.int64)
     if ncols and len(decimals) % ncols == 0:
-        decimals = decimals.reshape(-1, ncols)[:, 1:].ravel()
+        table = decimals.reshape(-1, ncols)
+        times, decimals = table[:, 0], table[:, 1:].ravel()
+    return TextStyle(*_digits(decimals), newline, delimiter, *_digits(times))
+
+
+def _digits(decimals):
+    """``(decimals, trim)`` for numbers printed with these decimals each."""
     if not len(decimals) or decimals.max() > 17:
-        return TextStyle(None, False, newline, delimiter)
+        return None, False
     top = int(decimals.max())
-    return TextStyle(top, bool(decimals.min() != top), newline, delimiter)
+    return top, bool(decimals.min() != top)
 
 
 _TRAILING_ZEROS = re.compile(r"(\.\d*?)0+(?![0-9])")
@@ -159,24 +171,49 @@ def write_rows(f, rows, style=None, sep=None, first=None):
     significant digits.  With it, values are written with that many decimals
     (trailing zeros dropped when ``style.trim``), and a value that rounds to
     zero without being zero is written as plain zero, not ``-0.000``.
-    `first`, a column written before `rows` (CSV times), always reads back to
-    the same number.
+    `first`, a column written before `rows` (CSV times), is written with
+    ``style.time_decimals`` where that reads back to the same number, else
+    exactly.
     """
     style = style or TextStyle()
     sep = style.delimiter if sep is None else sep
-    exact = "%r" if rows.dtype == np.float64 else "%.9g"
-    fmt = exact if style.decimals is None else f"%.{style.decimals}f"
-    line = sep.join(([exact] if first is not None else []) + [fmt] * rows.shape[1]) + "\n"
+    fmt = ("%r" if rows.dtype == np.float64 else "%.9g") if style.decimals is None else f"%.{style.decimals}f"
+    trim = bool(style.decimals and style.trim)
+    line = sep.join(["%s" if trim else fmt] * rows.shape[1]) + "\n"
+    if first is not None:
+        line = "%s" + sep + line
     for start in range(0, len(rows), ROWS):
         block = rows[start:start + ROWS]
         if style.decimals is not None:
-            block = np.where(np.abs(block) < 0.5 * 10.0 ** -style.decimals, 0.0, block)
+            block = np.where((np.abs(block) < 0.5 * 10.0 ** -style.decimals) & (block != 0), 0.0, block)
+        block = _trimmed(block, fmt) if trim else block.tolist()
         if first is not None:
-            block = np.concatenate([first[start:start + ROWS, None], block], axis=1)
-        text = "".join(line % tuple(r) for r in block.tolist())
-        if style.decimals and style.trim:
-            text = _BARE_POINT.sub("", _TRAILING_ZEROS.sub(r"\1", text))
-        f.write(text)
+            block = [(t, *r) for t, r in zip(_time_texts(first[start:start + ROWS], style), block)]
+        f.write("".join(line % tuple(r) for r in block))
+
+
+def _trimmed(block, fmt):
+    """The rows of `block` as lists of text with trailing zeros dropped (``1.500`` -> ``1.5``, ``2.0`` -> ``2``)."""
+    text = " ".join(fmt % v for v in block.ravel().tolist())
+    cells = _BARE_POINT.sub("", _TRAILING_ZEROS.sub(r"\1", text)).split(" ")
+    width = block.shape[1]
+    return [cells[i:i + width] for i in range(0, len(cells), width)]
+
+
+def _time_texts(times, style):
+    """Times as text in the time style, each exactly where the style's decimals cannot hold it."""
+    exact = "%r" if times.dtype == np.float64 else "%.9g"
+    out = []
+    for t in times.tolist():
+        text = exact % t
+        if style.time_decimals is not None:
+            short = f"{t:.{style.time_decimals}f}"
+            if style.time_trim and "." in short:
+                short = short.rstrip("0").rstrip(".")
+            if times.dtype.type(float(short)) == t:
+                text = short
+        out.append(text)
+    return out
 
 
 # --------------------------------------------------------------------------- writing
