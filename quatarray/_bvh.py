@@ -429,6 +429,9 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
                              f"{float(step.min())!r} to {float(step.max())!r}")
     if frame_time is None:
         frame_time = spacing if len(t) > 1 else motion.frame_time
+        n = round(1 / frame_time)
+        if n >= 1 and abs(frame_time * n - 1) <= 1e-9:  # k/30 times: 1/30 exactly, not 1/30 + rounding
+            frame_time = 1 / n
     check_size(len(t), motion.frames.shape[1], f"{len(t):,} frame times")
     frames = _lerp_rows(times, motion.frames, t, extrapolate)  # positions, and reference angles
     for seq, cols in motion.rotation_groups().items():

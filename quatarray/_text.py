@@ -159,10 +159,6 @@ def _digits(decimals):
     return top, bool(decimals.min() != top)
 
 
-_TRAILING_ZEROS = re.compile(r"(\.\d*?)0+(?![0-9])")
-_BARE_POINT = re.compile(r"\.(?![0-9])")
-
-
 def write_rows(f, rows, style=None, sep=None, first=None):
     """Write a 2-D float array as text, one line per row.
 
@@ -178,26 +174,23 @@ def write_rows(f, rows, style=None, sep=None, first=None):
     style = style or TextStyle()
     sep = style.delimiter if sep is None else sep
     fmt = ("%r" if rows.dtype == np.float64 else "%.9g") if style.decimals is None else f"%.{style.decimals}f"
+    line = sep.join([fmt] * rows.shape[1]) + "\n"
     trim = bool(style.decimals and style.trim)
-    line = sep.join(["%s" if trim else fmt] * rows.shape[1]) + "\n"
-    if first is not None:
-        line = "%s" + sep + line
+    if trim:  # every value has exactly `decimals` digits after its point: a run of zeros before a
+        # separator or line end lies inside them (plain replacements: no per-match Python call)
+        zeros = re.compile("0+(?=[" + re.escape(sep) + "\n])")
+        point = re.compile("\\.(?=[" + re.escape(sep) + "\n])")
     for start in range(0, len(rows), ROWS):
         block = rows[start:start + ROWS]
         if style.decimals is not None:
             block = np.where((np.abs(block) < 0.5 * 10.0 ** -style.decimals) & (block != 0), 0.0, block)
-        block = _trimmed(block, fmt) if trim else block.tolist()
-        if first is not None:
-            block = [(t, *r) for t, r in zip(_time_texts(first[start:start + ROWS], style), block)]
-        f.write("".join(line % tuple(r) for r in block))
-
-
-def _trimmed(block, fmt):
-    """The rows of `block` as lists of text with trailing zeros dropped (``1.500`` -> ``1.5``, ``2.0`` -> ``2``)."""
-    text = " ".join(fmt % v for v in block.ravel().tolist())
-    cells = _BARE_POINT.sub("", _TRAILING_ZEROS.sub(r"\1", text)).split(" ")
-    width = block.shape[1]
-    return [cells[i:i + width] for i in range(0, len(cells), width)]
+        text = "".join(line % tuple(r) for r in block.tolist())
+        if trim:
+            text = point.sub("", zeros.sub("", text))
+        if first is not None:  # the time column, in its own style
+            text = "".join(f"{t}{sep}{values}\n" for t, values in
+                           zip(_time_texts(first[start:start + ROWS], style), text.split("\n")))
+        f.write(text)
 
 
 def _time_texts(times, style):

@@ -381,3 +381,20 @@ def test_precision_option(tmp_path, rng, precision):
     else:
         assert {len(c.partition(".")[2]) for row in rows for c in row.split()} == {precision}
         np.testing.assert_allclose(read_bvh(out).frames, want, rtol=0, atol=0.5 * 10.0 ** -precision * (1 + 1e-9))
+
+
+def test_spacing_of_k_over_n_times_gives_frame_time_one_over_n(tmp_path, rng):
+    clip = read_bvh(bvh_file(tmp_path, "0.0333333", printed(random_frames(rng, 10, ["ZXY"]), 4)))
+    t = np.array([k / 30 for k in range(1, 4)])
+    assert float(t[-1] - t[0]) / 2 != 1 / 30  # the spacing itself carries rounding
+    assert resample_motion(clip, t).frame_time == 1 / 30
+
+
+def test_channels_parsed_by_one_function(tmp_path):
+    """Lower-case channel names give the same Euler sequence to the joint and to rotation_groups."""
+    path = tmp_path / "lower.bvh"
+    path.write_text(ONE_JOINT.replace("Zrotation", "zrotation") + "MOTION\nFrames: 2\nFrame Time: 0.1\n"
+                    "0 0 0 10 20 30\n0 0 0 15 25 35\n")
+    clip = read_bvh(path)
+    assert clip.joints[0].rotation == ("ZXY", [3, 4, 5])
+    np.testing.assert_array_equal(clip.rotation_groups()["ZXY"], [[3, 4, 5]])

@@ -457,3 +457,13 @@ def test_readme_says_clone_and_cd_first():
     section = readme_section("Two commands")
     first_pip = section.index("pip install")
     assert "git clone" in section[:first_pip] and "cd quatarray" in section[:first_pip]
+
+
+def test_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
+    def exhausted(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(cli, "resample_keyframes", exhausted)
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(tmp_path / "o.csv"), "--fps", "30"]) == 2
+    assert capsys.readouterr().err == f"quatarray: error: {example_path('arm.csv')}: out of memory (try a lower " \
+                                      "--fps or fewer --times)\n"
