@@ -435,3 +435,20 @@ def test_failed_rename_names_the_target(tmp_path, rng, monkeypatch):
     with pytest.raises(PermissionError) as info:
         write_npz(tmp_path / "k.npz", Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
     assert info.value.filename == str(tmp_path / "k.npz") and os.listdir(tmp_path) == []
+
+
+def test_file_modules_share_public_in_package_names_only():
+    """io, _bvh and cli import no `_private` name from another module; docstrings point at quatarray.io."""
+    import ast
+    import inspect
+    from quatarray import _bvh, cli
+    for module in (qio, _bvh, cli, _text):
+        source = inspect.getsource(module)
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.ImportFrom) and node.level and node.module:  # `from . import _mod` is a module
+                private = [a.name for a in node.names if a.name.startswith("_")]
+                assert not private, f"{module.__name__} imports {private} from {node.module}"
+        assert "quatarray._io" not in source and "quatarray._bvh import" not in source
+    assert set(qio.__all__) >= {"read_csv", "write_csv", "read_npz", "write_npz", "read_bvh", "write_bvh",
+                                "resample_motion", "resample_keyframes", "FormatError", "Keyframes", "Motion"}
+    assert all(hasattr(qio, name) for name in qio.__all__)
