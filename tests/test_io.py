@@ -452,3 +452,13 @@ def test_file_modules_share_public_in_package_names_only():
     assert set(qio.__all__) >= {"read_csv", "write_csv", "read_npz", "write_npz", "read_bvh", "write_bvh",
                                 "resample_motion", "resample_keyframes", "FormatError", "Keyframes", "Motion"}
     assert all(hasattr(qio, name) for name in qio.__all__)
+
+
+def test_fps_grid_reaches_a_last_key_rounded_at_clock_times():
+    """EuRoC-style absolute times: a last key one ulp below t0 + 20 s is still reached at 200 Hz."""
+    t0 = 1403636579.7635556
+    t1 = np.nextafter(t0 + 20.0, -np.inf)
+    assert (t1 - t0) * 200 < 4000
+    t = fps_times(t0, t1, 200)
+    assert len(t) == 4001 and t[-1] == t1
+    assert len(fps_times(t0, t0 + 20.0 - 1 / 400, 200)) == 4000  # half a frame short is really short
