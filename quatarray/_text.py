@@ -133,30 +133,49 @@ def token_decimals(data):
 def measure_style(path, skip, ncols=None, delimiter=","):
     """The `TextStyle` of the numbers after the first `skip` lines of `path`.
 
-    With `ncols`, the first of every `ncols` numbers (a time column) is left
-    out of the count.  More than 17 decimals (a tiny value written with an
-    exponent) means shortest round-trip text (``decimals=None``).
+    With `ncols`, the first of every `ncols` numbers (a time column) is
+    counted apart.  More than 17 decimals (a tiny value written with an
+    exponent) means shortest round-trip text (``decimals=None``).  The file is
+    looked at in blocks of whole lines (about 4 MB), so the scratch stays
+    small for large files.
     """
     with open(path, "rb") as f:
         data = f.read()
-    b = np.frombuffer(data, np.uint8)
-    ends = np.flatnonzero(b == ord("\n"))
-    newline = "\r\n" if len(ends) and ends[0] > 0 and b[ends[0] - 1] == ord("\r") else "\n"
-    start = int(ends[skip - 1]) + 1 if skip and len(ends) >= skip else (0 if not skip else len(data))
-    decimals = token_decimals(data[start:])
-    times = np.zeros(0, np.int64)
-    if ncols and len(decimals) % ncols == 0:
-        table = decimals.reshape(-1, ncols)
-        times, decimals = table[:, 0], table[:, 1:].ravel()
-    return TextStyle(*_digits(decimals), newline, delimiter, *_digits(times))
+    first = data.find(b"\n")
+    newline = "\r\n" if first > 0 and data[first - 1:first] == b"\r" else "\n"
+    start = 0
+    for _ in range(skip):
+        start = data.find(b"\n", start) + 1
+        if not start:
+            start = len(data)
+            break
+    ranges = {"values": [], "times": []}  # (fewest, most) decimals per block
+    while start < len(data):
+        stop = data.find(b"\n", start + _MEASURE_BLOCK)
+        stop = len(data) if stop < 0 else stop + 1
+        decimals = token_decimals(data[start:stop])
+        parts = {"values": decimals}
+        if ncols and len(decimals) % ncols == 0:
+            table = decimals.reshape(-1, ncols)
+            parts = {"values": table[:, 1:], "times": table[:, 0]}
+        for kind, part in parts.items():
+            if part.size:
+                ranges[kind].append((int(part.min()), int(part.max())))
+        start = stop
+    return TextStyle(*_digits(ranges["values"]), newline, delimiter, *_digits(ranges["times"]))
 
 
-def _digits(decimals):
-    """``(decimals, trim)`` for numbers printed with these decimals each."""
-    if not len(decimals) or decimals.max() > 17:
+_MEASURE_BLOCK = 1 << 22
+
+
+def _digits(ranges):
+    """``(decimals, trim)`` for numbers printed with decimals in these (fewest, most) ranges."""
+    if not ranges:
         return None, False
-    top = int(decimals.max())
-    return top, bool(decimals.min() != top)
+    low, top = min(r[0] for r in ranges), max(r[1] for r in ranges)
+    if top > 17:
+        return None, False
+    return top, low != top
 
 
 def write_rows(f, rows, style=None, sep=None, first=None):

@@ -462,3 +462,14 @@ def test_fps_grid_reaches_a_last_key_rounded_at_clock_times():
     t = fps_times(t0, t1, 200)
     assert len(t) == 4001 and t[-1] == t1
     assert len(fps_times(t0, t0 + 20.0 - 1 / 400, 200)) == 4000  # half a frame short is really short
+
+
+def test_style_measured_in_blocks_of_lines_is_the_same(tmp_path, monkeypatch, rng):
+    """Looking at a file 64 bytes of whole lines at a time finds the same decimals as in one go."""
+    rows = ["time,a.w,a.x,a.y,a.z"] + [f"{k / 7:.{k % 3 + 1}f},{w:.6f},0,{x:.3f},1.5e-7"
+                                       for k, (w, x) in enumerate(rng.uniform(-1, 1, (50, 2)))]
+    path = write_text(tmp_path / "k.csv", "\r\n".join(rows) + "\r\n")
+    whole = _text.measure_style(path, 1, 5)
+    assert whole == _text.TextStyle(8, True, "\r\n", ",", 3, True)  # 1.5e-7 has 8 decimals
+    monkeypatch.setattr(_text, "_MEASURE_BLOCK", 64)
+    assert _text.measure_style(path, 1, 5) == whole
