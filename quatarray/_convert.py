@@ -31,6 +31,7 @@ import numpy as np
 
 from . import _blocks
 from ._kernels import _matrix_one
+from ._kernels import half_angle as _half_angle
 from ._validate import float_array
 
 __all__ = [
@@ -63,21 +64,6 @@ def _quat(q, name="quat"):
 
 def _vec3(v, name):
     return float_array(v, name, last=3)
-
-
-def _half_angle(angle, scale):
-    """(cos(a/2), sin(a/2)) of ``a = angle * 4 * scale`` from one tangent.
-
-    ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π (t ≈ 1) it keeps the
-    small cosine accurate to about one ulp of t.
-    """
-    t = np.tan(angle * scale)
-    d = 1.0 / (1.0 + t * t)
-    c = (1.0 - t) * (1.0 + t)
-    c *= d
-    d *= 2.0
-    d *= t
-    return c, d
 
 
 # --- quaternions ---------------------------------------------------------------------
