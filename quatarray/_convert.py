@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from . import _blocks
-from ._kernels import _matrix_one
+from ._kernels import _matrix_one, arctan2
 from ._kernels import half_angle as _half_angle
 from ._validate import float_array
 
@@ -366,7 +366,7 @@ def _flip_mask(w, x, y, z):
 def _k_as_rotvec(q, o, factor):
     w, x, y, z = q
     nv = np.sqrt(x * x + y * y + z * z)
-    half = np.arctan2(nv, np.abs(w))
+    half = arctan2(nv, np.abs(w))
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
     np.negative(scale, out=scale, where=_flip_mask(w, x, y, z))
@@ -452,7 +452,7 @@ def from_rotvec(rotvec, degrees=False):
 
 def _k_magnitude(q, o):
     w, x, y, z = q
-    np.arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w), out=o[0])
+    arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w), out=o[0])
     o[0] *= 2.0
 
 

@@ -18,10 +18,13 @@ tan(Omega / 2).  With tau = tan(h Omega / 2) the weights of
     w0 = cos(h Omega) - cos(Omega) w1
        = ((1 - tau^2) - (1 - rho^2) tau / rho) / (1 + tau^2)
 
-so one call to arctan and one to tan replace the two calls to sin that the
-textbook formula needs (on this hardware float64 sin costs ~8-12 ns per
-element, tan and arctan ~1.4 ns), and no 1 - cos cancellation appears:
-for tiny angles tau / rho -> h with full relative accuracy.
+so one call to arctan and one to tan replace the calls to sin that the
+textbook formula needs, and no 1 - cos cancellation appears: for tiny
+angles tau / rho -> h with full relative accuracy.  That is the float64
+route: float64 sin has no SIMD loop on AVX-512 CPUs, where tan and arctan
+are cheap.  float32 takes the textbook sines (w1 = sin(h Omega) /
+sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
+every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
 from math import prod
@@ -108,6 +111,41 @@ def slerp_weights(a2, b2, h, sign=None):
         np.maximum(a2, b2, out=b2)
     else:
         np.copyto(r2, a2)
+    if dtype == np.float32:
+        w0, w1 = _sine_weights(r2, b2, h, w0, tau, t2, rho)
+    else:
+        w0, w1 = _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2)
+    if sign is not None:
+        np.copysign(1, sign, out=sign)   # +1, or -1 to follow -B (x - x is +0: ties keep B)
+        w1 *= sign
+    return w0, w1
+
+
+def _sine_weights(r2, b2, h, w0, th, s2, w1):
+    """float32 weights sin((1 - h) Ω) / sin Ω and sin(h Ω) / sin Ω, Ω = 2θ with
+    sin θ = sqrt(r2 / (r2 + b2)) (θ <= π/4): float32 sin and arcsin are SIMD
+    loops, far cheaper than tan and arctan (benchmarks/README.md)."""
+    np.add(r2, b2, out=s2)
+    np.maximum(s2, _floor(r2.dtype), out=s2)
+    np.divide(r2, s2, out=th)
+    np.sqrt(th, out=th)
+    np.arcsin(th, out=th)
+    np.maximum(th, _tiny(r2.dtype), out=th)   # sin(2hθ) / sin(2θ) -> h at θ = 0
+    th *= 2                                   # Ω
+    np.sin(th, out=s2)
+    np.divide(1, s2, out=s2)                  # 1 / sin Ω
+    np.multiply(th, h, out=w1, casting="unsafe")
+    np.subtract(th, w1, out=w0)               # (1 - h) Ω
+    np.sin(w1, out=w1)
+    np.sin(w0, out=w0)
+    w1 *= s2
+    w0 *= s2
+    return w0, w1
+
+
+def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
+    """float64 weights from rho = tan(Ω/2) and tau = tan(h Ω/2) (module docstring)."""
+    dtype = r2.dtype
     # b² = 0 only for zero input (or B = -A followed as given, see `wide_arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
     np.maximum(b2, _floor(dtype), out=b2)
@@ -132,9 +170,6 @@ def slerp_weights(a2, b2, h, sign=None):
     np.add(r2, 1, out=w1)
     w1 *= v
     w1 *= g
-    if sign is not None:
-        np.copysign(1, sign, out=sign)   # +1, or -1 to follow -B (x - x is +0: ties keep B)
-        w1 *= sign
     return w0, w1
 
 
@@ -343,12 +378,17 @@ def frame_core(F, phi, u, O):
     CS = _rows(2, s, O.dtype)
     c, sn = CS
     np.multiply(phi, u, out=sn, casting="unsafe")
-    np.tan(sn, out=sn)                       # tau
-    np.multiply(sn, sn, out=c)
-    c += 1
-    np.divide(2, c, out=c)                   # 2 / (1 + tau²)
-    sn *= c                                  # sin
-    c -= 1                                   # cos
+    if O.dtype == np.float32:                # SIMD sin and cos (see `_kernels.cos_sin`)
+        sn *= 2
+        np.cos(sn, out=c)
+        np.sin(sn, out=sn)
+    else:
+        np.tan(sn, out=sn)                   # tau
+        np.multiply(sn, sn, out=c)
+        c += 1
+        np.divide(2, c, out=c)               # 2 / (1 + tau²)
+        sn *= c                              # sin
+        c -= 1                               # cos
     Fv = F.reshape((2, 4) + s)
     np.multiply(Fv, CS[:, None], out=Fv)
     np.add(Fv[0], Fv[1], out=O)

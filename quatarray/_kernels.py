@@ -13,7 +13,7 @@ import numpy as np
 from . import _blocks
 
 __all__ = [
-    "result_dtype", "half_angle", "arctan2", "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
+    "result_dtype", "cos_sin", "half_angle", "arctan2", "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
     "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
 ]
 
@@ -29,25 +29,39 @@ def result_dtype(*arrays):
     return np.result_type(*arrays, np.float32)
 
 
-def half_angle(angle, scale):
-    """(cos(a/2), sin(a/2)) of ``a = angle * 4 * scale`` from one tangent.
+def cos_sin(angle):
+    """(cos a, sin a) of an array of angles, by the cheaper exact route for its dtype.
 
-    With ``t = tan(a / 4)``: ``cos(a/2) = (1 - t)(1 + t) / (1 + t²)`` and
-    ``sin(a/2) = 2 t / (1 + t²)``: one transcendental call instead of two
-    (see benchmarks/README.md for their costs).  ``(1 - t)(1 + t)`` rather
-    than ``1 - t²``: near a = π (t ≈ 1) it keeps the small cosine accurate
-    to about one ulp of t.
+    float32: `np.cos` and `np.sin`, SIMD loops on every x86 NumPy build.
+    float64: one tangent, ``t = tan(a / 2)``, ``cos a = (1 - t)(1 + t) / (1 + t²)``
+    and ``sin a = 2 t / (1 + t²)``: one transcendental call instead of two,
+    the cheaper on AVX2 and much the cheaper on AVX-512, where float64 sin
+    and cos have no SIMD loop (costs in benchmarks/README.md).
+    ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
+    small cosine is accurate to about one ulp of t.
 
-    >>> [round(float(x), 12) for x in half_angle(np.pi / 2, 0.25)]
+    >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
     [0.707106781187, 0.707106781187]
     """
-    t = np.tan(angle * scale)
+    angle = np.asarray(angle)
+    if angle.dtype == np.float32:
+        return np.cos(angle), np.sin(angle)
+    t = np.tan(angle * 0.5)
     d = 1.0 / (1.0 + t * t)
     c = (1.0 - t) * (1.0 + t)
     c *= d
     d *= 2.0
     d *= t
     return c, d
+
+
+def half_angle(angle, scale):
+    """(cos(a/2), sin(a/2)) of ``a = angle * 4 * scale`` (see `cos_sin`).
+
+    >>> [round(float(x), 12) for x in half_angle(np.array(np.pi / 2), 0.25)]
+    [0.707106781187, 0.707106781187]
+    """
+    return cos_sin(angle * (2 * scale))
 
 
 def arctan2(y, x, out=None):
@@ -70,8 +84,10 @@ def arctan2(y, x, out=None):
         np.copyto(out, y, where=nan & (x == 0))
     np.arctan(out, out=out)
     neg = np.signbit(x)
-    if neg.any():
-        np.add(out, np.copysign(np.pi, y, dtype=out.dtype), out=out, where=neg)
+    if neg.any():   # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan
+        turn = np.copysign(np.pi, y, dtype=out.dtype)
+        turn *= neg
+        out += turn
     return out
 
 
