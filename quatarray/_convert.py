@@ -17,12 +17,12 @@ component, so that every ufunc runs on contiguous memory) and computed with
 whole-row ufuncs that write into the preallocated output.  No per-element
 Python, no ``(N, 4, 4)`` temporaries.
 
-Half-angle sines and cosines come from one tangent: with ``t = tan(a / 4)``,
-``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and ``sin(a / 2) = 2 t / (1 + t²)``.  NumPy's
-float64 ``tan`` is SIMD-vectorised (about 1.4 ns per element on AVX2) while
-``sin`` and ``cos`` are not (about 10 ns each), so this halves the cost of
-`from_rotvec` and makes `from_euler` several times cheaper.  Angles come back
-through ``arctan2`` (accurate at 0 and at π), never ``arccos``.
+Half-angle sines and cosines come from `_kernels.cos_sin`: in float64 one
+tangent, ``t = tan(a / 4)``, gives ``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and
+``sin(a / 2) = 2 t / (1 + t²)`` (one transcendental call instead of two); float32
+uses its SIMD sin and cos.  Angles come back through `_kernels.arctan2` (one
+arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
+costs behind these choices are in benchmarks/README.md.
 """
 
 import math
@@ -103,7 +103,7 @@ def from_quat(quat, scalar_first=False):
     """
     q = _quat(quat)
     order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
-    if q.ndim == 1:  # one quaternion: Python floats (a few µs instead of a block run)
+    if q.ndim == 1:  # one quaternion: Python floats (no block run)
         c = q.tolist()
         n = math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])
         if 0 < n < math.inf:
@@ -177,7 +177,7 @@ def as_matrix(q):
            [ 0.,  0.,  1.]])
     """
     q = _quat(q)
-    if q.shape == (4,):  # one rotation: Python floats (about 2 µs instead of 20)
+    if q.shape == (4,):  # one rotation: Python floats (no block run)
         return _matrix_one(q, q.dtype)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)])
