@@ -114,6 +114,9 @@ def from_euler(seq, angles, degrees=False):
     -----
     The elementary quaternions are multiplied in closed form, skipping their
     zero components: a 3-axis sequence costs 3 tangents and 16 products.
+    float64 results are within 5 ulp of the largest component (scipy: 2,
+    against 40-digit references): separate sin and cos of each half angle
+    would gain about two ulp for twice the transcendental cost.
 
     Examples
     --------
