@@ -42,6 +42,20 @@ _MODULES = {"quatarray": "quatarray", "scipy": "scipy.spatial.transform",
             "numpy-quaternion": "quaternion", "quaternionic": "quaternionic"}
 
 
+def _preload():
+    """Import every installed library now: asv's forkserver imports the suite once and
+    forks a child per benchmark, which then inherits them (the peers' numba imports
+    cost seconds each)."""
+    for mod in _MODULES.values():
+        try:
+            importlib.import_module(mod)
+        except ImportError:
+            pass
+
+
+_preload()
+
+
 def installed(lib):
     """True when `lib` (one of `LIBS`) can be imported."""
     try:

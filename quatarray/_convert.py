@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from . import _blocks
-from ._kernels import _matrix_one, arctan2
+from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2
 from ._kernels import half_angle as _half_angle
 from ._validate import float_array
 
@@ -38,9 +38,6 @@ __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
     "as_mrp", "from_mrp", "canonical", "magnitude",
 ]
-
-_TINY = {np.dtype(np.float32): 1e-30, np.dtype(np.float64): 1e-300}
-"""A positive floor for rotation angles: tan(θ/4)/θ is then exactly 1/4 at θ = 0."""
 
 _POLAR_MAXITER = 60
 """Newton steps allowed for the polar factor before falling back to an SVD."""
@@ -411,7 +408,7 @@ def _k_from_rotvec(v, q, factor):
     theta = np.sqrt(x * x + y * y + z * z)
     if factor != 1.0:
         theta *= factor
-    np.maximum(theta, _TINY[theta.dtype], out=theta)
+    np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
     cos_half, sin_half = _half_angle(theta, 0.25)
     np.copyto(q[0], cos_half)
     # sin(θ/2) / θ, times the degree factor that converts v itself

@@ -13,7 +13,8 @@ import numpy as np
 from . import _blocks
 
 __all__ = [
-    "result_dtype", "cos_sin", "half_angle", "arctan2", "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
+    "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
+    "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
     "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
 ]
 
@@ -27,6 +28,11 @@ def result_dtype(*arrays):
     dtype('float64')
     """
     return np.result_type(*arrays, np.float32)
+
+
+#: A positive floor for angles divided into their sines (exp, from_rotvec): sin(a) / a
+#: then comes out exactly 1 at a = 0.
+ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
 
 
 def cos_sin(angle):
@@ -369,16 +375,12 @@ def _k_exp(q, o):
     np.sqrt(vn, out=vn)
     ew = np.exp(q[0])
     # cos|v| and sin|v| / |v| (limit 1 at |v| = 0) from one tangent
-    np.maximum(vn, _ANGLE_FLOOR[vn.dtype], out=vn)
+    np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
     c, s = half_angle(vn, 0.5)
     s /= vn
     s *= ew
     np.multiply(q[1:], s, out=o[1:])
     np.multiply(c, ew, out=o[0])
-
-
-#: A positive floor for |v| in exp: sin|v| / |v| then comes out exactly 1 at |v| = 0.
-_ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
 
 
 def exp(q):
