@@ -306,7 +306,8 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
     n = np.sqrt(IK.vdot(keys, keys))
     if not (n > 0).all():
         raise ValueError(f"expected non-zero {name}, got a zero quaternion")
-    keys = IK.unflip(keys / n[..., None].astype(keys.dtype, copy=False), 0)
+    # unflipped before normalising: the signs follow the dot products of the keys as given
+    keys = IK.unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
