@@ -22,6 +22,8 @@ import numpy as np
 from . import _blocks
 from . import _convert as C
 from . import _kernels as Kn
+from . import _track as TR
+from ._blocks import soa
 
 MAX_ITER = 10
 TOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 4 * float(np.finfo(np.float32).eps)}
@@ -217,35 +219,117 @@ def coefficients(times, keys):
     return coeff
 
 
-def segments(times, t):
-    """Segment index of each query as scipy's PPoly picks it (the end segments extend)."""
-    idx = np.searchsorted(times, t, side="right") - 1
-    return np.clip(idx, 0, len(times) - 2)
+ROWS = 25   # key q (4), q (0, c_k) for k = 0, 1, 2 (12), c_0, c_1, c_2 (9)
+_TINY = {np.dtype(np.float64): 1e-300, np.dtype(np.float32): 1e-30}
 
 
-def evaluate(times, keys, coeff, t, order=0):
-    """The spline at query times ``t`` (shape (M,)): quaternions, rates or accelerations.
+def table(keys, coeff):
+    """Per-segment evaluation table (25, K - 1, B), components first, in the keys' dtype.
 
-    Returns shape (M, *batch, 4) for ``order=0`` and (M, *batch, 3) otherwise;
-    queries are processed in blocks so temporaries stay cache-sized.
+    With ``r(s) = ((c0 s + c1) s + c2) s`` the spline is ``q exp(r/2)`` =
+    ``cos(θ/2) q + sin(θ/2)/θ · q (0, r)`` (θ = |r|), and ``q (0, r)`` is
+    the same cubic in s with coefficients ``q (0, c_k)``: those products are
+    made here, once per segment, so that a query costs two cubics, one
+    tangent and no quaternion product.
     """
-    batch = keys.shape[1:-1]
-    dtype = keys.dtype
-    width = 4 if order == 0 else 3
-    out = np.empty(t.shape + batch + (width,), dtype)
-    per = max(1, _blocks.BLOCK // max(1, int(np.prod(batch, dtype=np.int64))))
-    for start in range(0, len(t), per):
-        tb = t[start:start + per]
-        idx = segments(times, tb)
-        s = (tb - times[idx]).astype(dtype).reshape((-1,) + (1,) * (len(batch) + 1))
-        c0, c1, c2 = coeff[0][idx], coeff[1][idx], coeff[2][idx]
-        r = ((c0 * s + c1) * s + c2) * s
-        if order == 0:
-            Kn.multiply(keys[idx], C.from_rotvec(r), out=out[start:start + per])
-            continue
-        r1 = (3 * c0 * s + 2 * c1) * s + c2
-        if order == 1:
-            out[start:start + per] = angular_rate(r, r1)
-        else:
-            out[start:start + per] = angular_acceleration(r, r1, 6 * c0 * s + 2 * c1)
+    K1 = coeff.shape[1]
+    B = int(np.prod(keys.shape[1:-1], dtype=np.int64))
+    out = np.empty((ROWS, K1, B), keys.dtype)
+    q = keys[:-1]
+    out[0:4] = soa(q.reshape(K1, B, 4))
+    for k in range(3):
+        c = coeff[k]
+        pure = np.concatenate([np.zeros(c.shape[:-1] + (1,), c.dtype), c], axis=-1)
+        out[4 + 4 * k:8 + 4 * k] = soa(Kn.multiply(q, pure).reshape(K1, B, 4))
+        out[16 + 3 * k:19 + 3 * k] = soa(c.reshape(K1, B, 3))
     return out
+
+
+def _rotation_rows(G, s, O):
+    """O (4, m, b) = q exp(r(s)/2) from gathered table rows G (25, m, b) and s (m, 1).
+
+    G is used as scratch (overwritten); O may be a strided view of the output.
+    """
+    shape = O.shape[1:]
+    work = _blocks.scratch()
+    r = work.rows(3, shape, O.dtype)
+    theta, tmp = work.rows(2, shape, O.dtype)
+    np.multiply(G[16:19], s, out=r)
+    r += G[19:22]
+    r *= s
+    r += G[22:25]
+    r *= s
+    np.multiply(r[0], r[0], out=theta)
+    np.multiply(r[1], r[1], out=tmp)
+    theta += tmp
+    np.multiply(r[2], r[2], out=tmp)
+    theta += tmp
+    np.sqrt(theta, out=theta)
+    np.maximum(theta, _TINY[O.dtype], out=theta)
+    tau, d, cos_half = r                      # r is no longer needed
+    np.multiply(theta, 0.25, out=tau)
+    np.tan(tau, out=tau)                      # τ = tan(θ/4)
+    np.multiply(tau, tau, out=d)
+    d += 1
+    np.divide(1, d, out=d)                    # 1 / (1 + τ²)
+    np.subtract(1, tau, out=cos_half)
+    np.add(1, tau, out=tmp)
+    cos_half *= tmp
+    cos_half *= d                             # cos(θ/2) = (1 - τ)(1 + τ) / (1 + τ²)
+    np.multiply(tau, d, out=tmp)
+    tmp *= 2
+    tmp /= theta                              # sin(θ/2) / θ
+    V = G[4:8]                                # q (0, r(s)), in place of its first coefficient
+    V *= s
+    V += G[8:12]
+    V *= s
+    V += G[12:16]
+    np.multiply(tmp, s, out=tmp)              # the last factor s joins sin(θ/2) / θ
+    V *= tmp
+    Q = G[0:4]
+    Q *= cos_half
+    np.add(V, Q, out=O)                       # the only write to the (strided) output
+
+
+def _rate_rows(G, s, order, O):
+    """Angular rate (order 1) or acceleration (order 2) (3, m, b) into O."""
+    c0, c1, c2 = G[16:19], G[19:22], G[22:25]
+    r = ((c0 * s + c1) * s + c2) * s
+    r1 = (3 * c0 * s + 2 * c1) * s + c2
+    last = (lambda a: np.moveaxis(a, 0, -1))
+    if order == 1:
+        res = angular_rate(last(r), last(r1))
+    else:
+        res = angular_acceleration(last(r), last(r1), last(6 * c0 * s + 2 * c1))
+    O[...] = np.moveaxis(res, -1, 0)
+
+
+def evaluate(index, times, tab, t, order, batch):
+    """The spline at query times ``t`` (M,): quaternions (order 0), rates (1) or accelerations (2).
+
+    `index` is the `SegmentIndex` of `times` and `tab` the `table`.  Returns
+    shape (M, *batch, 4) for ``order=0`` and (M, *batch, 3) otherwise.  The
+    end segments extend beyond the key times, as scipy's ``PPoly``.
+    """
+    M, K1, B = t.size, tab.shape[1], tab.shape[2]
+    dtype = tab.dtype
+    width = 4 if order == 0 else 3
+    out = np.empty((M, B, width), dtype)
+
+    found = index.find_sorted(t) if M > _blocks.BLOCK else None
+
+    def block(qt):
+        sm, sb = qt
+        tb = t[sm]
+        i = index.find(tb) if found is None else found[sm].copy()
+        np.clip(i, 0, K1 - 1, out=i)
+        s = np.subtract(tb, np.take(times, i, mode="clip")).astype(dtype, copy=False)[:, None]
+        G = TR.gather(tab, i, sb)
+        O = soa(out[sm, sb])
+        if order == 0:
+            _rotation_rows(G, s, O)
+        else:
+            _rate_rows(G, s, order, O)
+
+    _blocks.run(block, TR.qt_blocks(M, B), M * B)
+    return out.reshape(t.shape + tuple(batch) + (width,))

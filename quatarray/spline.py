@@ -9,6 +9,7 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
+from ._interp_lookup import SegmentIndex
 from ._validate import float_array
 
 __all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
@@ -127,7 +128,8 @@ class RotationSpline:
         self.times = times
         self.rotations = QuatArray.from_quat(keys, scalar_first=True)
         self._keys = keys
-        self._coeff = S.coefficients(times, keys)
+        self._table = S.table(keys, S.coefficients(times, keys))
+        self._index = SegmentIndex(times)
 
     def __call__(self, times, order=0):
         """Interpolated rotations (order 0), angular rate (1, rad/s) or acceleration (2, rad/s²).
@@ -148,7 +150,7 @@ class RotationSpline:
         if t.ndim > 1:
             raise ValueError("`times` must be at most 1-dimensional.")
         single = t.ndim == 0
-        res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
+        res = S.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
         if single:
             res = res[0]
-        return QuatArray.from_quat(res, scalar_first=True) if order == 0 else res
+        return QuatArray._wrap(res) if order == 0 else res   # already unit: no second normalisation
