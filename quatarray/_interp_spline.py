@@ -108,46 +108,80 @@ def angular_acceleration(rotvecs, rotvecs_dot, rotvecs_ddot):
     return angular_rate(rotvecs, rotvecs_ddot) + acceleration_term(rotvecs, rotvecs_dot)
 
 
+def inv3(m):
+    """Inverses of 3x3 matrices (..., 3, 3) in closed form: the adjugate over the determinant.
+
+    The rows of the adjugate's transpose are cross products of the rows of
+    ``m``; no LAPACK call per matrix (``np.linalg.inv`` on stacks of 3x3
+    matrices spends its time in per-matrix overhead).
+    """
+    r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
+    adj = np.stack([np.cross(r1, r2), np.cross(r2, r0), np.cross(r0, r1)], axis=-1)
+    det = np.sum(r0 * adj[..., :, 0], axis=-1)
+    return adj / det[..., None, None]
+
+
 def _pad(a):
     z = np.zeros((1,) + a.shape[1:], a.dtype)
     return np.concatenate([z, a, z])
 
 
-def block_tridiagonal_solve(lower, diag, upper, rhs):
-    """Solve ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i`` by cyclic reduction.
+def block_tridiagonal_factor(lower, diag, upper):
+    """Cyclic-reduction factorisation of ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i``.
 
     ``lower``, ``diag``, ``upper`` have shape (n, *batch, 3, 3) (``lower[0]``
-    and ``upper[-1]`` are ignored), ``rhs`` (n, *batch, 3).  Each level
-    removes the odd rows, so the recursion depth is ``log2(n)``.
+    and ``upper[-1]`` are ignored).  Each level removes the odd rows, so
+    there are ``log2(n)`` levels, each vectorised over rows and batch.  The
+    matrices are reduced once; `block_tridiagonal_apply` then solves for any
+    right-hand side with matrix-vector products only (the spline's
+    fixed-point iteration changes only the right-hand side).
     """
-    n = len(diag)
-    if n == 1:
-        return np.linalg.solve(diag[0], rhs[0][..., None])[..., 0][None]
-    lower = lower.copy()
-    upper = upper.copy()
-    lower[0] = 0
-    upper[-1] = 0
-    odd_inv = np.linalg.inv(diag[1::2])
+    levels = []
+    while len(diag) > 1:
+        n = len(diag)
+        lower = lower.copy()
+        upper = upper.copy()
+        lower[0] = 0
+        upper[-1] = 0
+        odd_inv = inv3(diag[1::2])
+        m = (n + 1) // 2
+        # padded so that index i of the padded array is odd row i - 1 of the original
+        inv_p = _pad(np.zeros_like(diag))
+        inv_p[2:-1:2] = odd_inv
+        low_p, up_p = _pad(lower), _pad(upper)
+        prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
+        alpha = lower[0::2] @ inv_p[prev]
+        beta = upper[0::2] @ inv_p[nxt]
+        levels.append((lower[1::2], upper[1::2], odd_inv, alpha, beta))
+        diag, lower, upper = (diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt],
+                              -(alpha @ low_p[prev]), -(beta @ up_p[nxt]))
+    levels.append(inv3(diag[0]))
+    return levels
+
+
+def block_tridiagonal_apply(levels, rhs, level=0):
+    """Solution (n, *batch, 3) for ``rhs`` (n, *batch, 3) of a `block_tridiagonal_factor`."""
+    if level == len(levels) - 1:
+        return _mv(levels[level], rhs[0])[None]
+    low_odd, up_odd, odd_inv, alpha, beta = levels[level]
+    n = len(rhs)
     m = (n + 1) // 2
-    # padded so that index i of the padded array is odd row i - 1 of the original
-    inv_p = _pad(np.zeros_like(diag))
-    inv_p[2:-1:2] = odd_inv
-    low_p, up_p, rhs_p = _pad(lower), _pad(upper), _pad(rhs)
+    rhs_p = _pad(rhs)
     prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
-    alpha = lower[0::2] @ inv_p[prev]
-    beta = upper[0::2] @ inv_p[nxt]
-    new_diag = diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt]
-    new_low = -(alpha @ low_p[prev])
-    new_up = -(beta @ up_p[nxt])
     new_rhs = rhs[0::2] - _mv(alpha, rhs_p[prev]) - _mv(beta, rhs_p[nxt])
-    even = block_tridiagonal_solve(new_low, new_diag, new_up, new_rhs)
+    even = block_tridiagonal_apply(levels, new_rhs, level + 1)
     x = np.empty_like(rhs)
     x[0::2] = even
     ev_p = np.concatenate([even, np.zeros((1,) + even.shape[1:], even.dtype)])
     left = even[: n // 2]
     right = ev_p[1 : n // 2 + 1]
-    x[1::2] = _mv(odd_inv, rhs[1::2] - _mv(lower[1::2], left) - _mv(upper[1::2], right))
+    x[1::2] = _mv(odd_inv, rhs[1::2] - _mv(low_odd, left) - _mv(up_odd, right))
     return x
+
+
+def block_tridiagonal_solve(lower, diag, upper, rhs):
+    """Solve ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i`` by cyclic reduction."""
+    return block_tridiagonal_apply(block_tridiagonal_factor(lower, diag, upper), rhs)
 
 
 def relative_rotvecs(keys):
@@ -174,10 +208,11 @@ def _solve_rates(dt, rates, rotvecs):
     b0[0] -= 2 / dtb[0] * _mv(a_inv[0], first)
     b0[-1] -= 2 / dtb[-1] * _mv(a[-1], rates[-1])
     tol = TOL[np.dtype(dtype)]
+    levels = block_tridiagonal_factor(lower, diag, upper)
     for _ in range(MAX_ITER):
         rotvecs_dot = _mv(a, rates)
         rhs = b0 - acceleration_term(rotvecs[:-1], rotvecs_dot[:-1])
-        new = block_tridiagonal_solve(lower, diag, upper, rhs)
+        new = block_tridiagonal_apply(levels, rhs)
         delta = np.abs(new - rates[:-1])
         rates[:-1] = new
         if np.all(delta < tol * (1 + np.abs(new))):
