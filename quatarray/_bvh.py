@@ -62,7 +62,7 @@ class Motion:
         One row per frame, one column per channel (joints' channels in order).
     style : TextStyle or None
         How the file printed its frame values (decimals) and ended its lines;
-        `write_bvh` writes the same way.  None: shortest exact text, ``\n``.
+        `write_bvh` writes the same way.  None: shortest exact text, ``\\n``.
     frame_time_text : str or None
         ``Frame Time`` as printed in the file read; written back unchanged
         while it still reads as `frame_time`.

@@ -57,7 +57,7 @@ class Keyframes:
     style : TextStyle or None
         How the CSV file they came from printed its values (decimals, line
         endings, separator); `write_csv` writes the same way.  None: values
-        with the shortest text that reads back exactly, ``\n``, commas.
+        with the shortest text that reads back exactly, ``\\n``, commas.
     """
 
     times: np.ndarray

@@ -10,6 +10,7 @@ import numpy as np
 from . import _interp_spline as S
 from ._array import QuatArray
 from ._interp_lookup import SegmentIndex
+from ._rotation import Rotation
 from ._validate import float_array
 
 __all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
@@ -69,6 +70,8 @@ def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
 
 
 def _keys(rotations):
+    if isinstance(rotations, Rotation):
+        return rotations.as_quatarray().view(np.ndarray)
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
         # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
         q = np.asarray(rotations.as_quat())
@@ -126,7 +129,7 @@ class RotationSpline:
             keys = keys.astype(np.float64)
         keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
         self.times = times
-        self.rotations = QuatArray.from_quat(keys, scalar_first=True)
+        self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys
         self._table = S.table(keys, S.coefficients(times, keys))
         self._index = SegmentIndex(times)
@@ -153,4 +156,6 @@ class RotationSpline:
         res = S.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
         if single:
             res = res[0]
-        return QuatArray._wrap(res) if order == 0 else res   # already unit: no second normalisation
+        if order:
+            return res
+        return Rotation(res, normalize=False, copy=False, scalar_first=True)   # already unit
