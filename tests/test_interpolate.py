@@ -918,6 +918,9 @@ def test_segment_index_equals_searchsorted(rng, kind):
     expected = np.searchsorted(times, t, side="right") - 1
     np.testing.assert_array_equal(index.find(t), expected)
     np.testing.assert_array_equal(SegmentIndex(times).find(t), expected)
+    order = np.argsort(t, kind="stable")
+    np.testing.assert_array_equal(index.find_sorted(t[order]), expected[order])   # sorted: runs per key
+    assert index.find_sorted(t) is None                                              # unsorted: refused
 
 
 # ---------------------------------------------------------------------------
