@@ -428,7 +428,7 @@ class Track:
     ----------
     times : array_like, shape (K,)
         Key times: finite, strictly increasing, K >= 2.
-    keys : array_like, shape (K, ..., 4)
+    keys : array_like, shape (K, ..., 4), or Rotation of shape (K, ...)
         K keyframes of any batch of tracks, e.g. ``(K, joints, 4)``.  They
         are normalised and unflipped along the key axis (so negating any key
         changes nothing; outputs follow the sign of the first key).
@@ -476,6 +476,9 @@ class Track:
     """
 
     def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
+        from ._rotation import Rotation
+        if isinstance(keys, Rotation):  # its quaternions, scalar-first, without a copy
+            keys = keys.as_quatarray()
         self._setup(times, keys, method, extrapolate, "times", "keys")
 
     def _setup(self, times, keys, method, extrapolate, times_name, keys_name):
@@ -623,48 +626,64 @@ class Track:
         return w.reshape(tshape + self._batch + (3,))
 
 
-def _as_quats(rotations):
-    """Quaternions (scalar first) from a QuatArray, array_like, or a scipy Rotation."""
-    if not isinstance(rotations, np.ndarray) and hasattr(rotations, "as_quat"):
-        try:
-            return rotations.as_quat(scalar_first=True)
-        except TypeError:
-            pass
-    return rotations
-
-
 class Slerp(Track):
-    """scipy's ``Slerp(times, rotations)``, returning `QuatArray` and allowing batches of tracks.
+    """scipy's ``Slerp(times, rotations)``: spherical linear interpolation returning `Rotation`.
 
-    Same behaviour and errors as `scipy.spatial.transform.Slerp` (times not
-    strictly increasing, fewer than 2 rotations, mismatched lengths, 2-D
-    times, and queries outside [times[0], times[-1]] raise ValueError), but
-    `rotations` may be a `QuatArray` or array_like of shape (K, ..., 4)
-    (scalar-first; any batch of tracks, where scipy allows one leading
-    dimension only) or a scipy ``Rotation`` of length K.  Equivalent to
-    ``Track(times, rotations, method='slerp', extrapolate='raise')``.
+    Same behaviour, attributes and errors as
+    ``scipy.spatial.transform.Slerp``.  A scipy ``Rotation`` is accepted as
+    well (converted with `Rotation.from_scipy`).  Beyond scipy,
+    ``batched=True`` accepts rotations of shape ``(K, *batch)``: a batch of
+    tracks sharing the key times, interpolated in one call.
 
     Parameters
     ----------
     times : array_like, shape (K,)
-    rotations : QuatArray, array_like of shape (K, ..., 4), or scipy Rotation
+        Strictly increasing key times.
+    rotations : Rotation, shape (K,) (or (K, *batch) with `batched`)
+    batched : bool, default False, keyword only
+        Allow more than one leading dimension (scipy refuses them).
 
     Examples
     --------
-    >>> from quatarray.interpolate import Slerp
-    >>> keys = [[1, 0, 0, 0], [0, 0, 0, 1]]            # identity, 180° about z
+    >>> from quatarray import Rotation, Slerp
+    >>> keys = Rotation.from_euler("z", [[0], [90]], degrees=True)
     >>> s = Slerp([0, 2], keys)
-    >>> s([0.5, 1.0])
-    QuatArray([[0.92387953, 0.        , 0.        , 0.38268343],
-               [0.70710678, 0.        , 0.        , 0.70710678]])
+    >>> np.round(s([0.5, 1.0]).as_euler("zyx", degrees=True), 9) + 0.0
+    array([[22.5,  0. ,  0. ],
+           [45. ,  0. ,  0. ]])
     >>> s(3.0)
     Traceback (most recent call last):
     ...
-    ValueError: expected times within the range [0.0, 2.0], both inclusive (extrapolate='raise'), got 3.0
+    ValueError: Interpolation times must be within the range [0.0, 2.0], both inclusive.
+    >>> tracks = Rotation.from_euler("z", [[[0], [0]], [[90], [180]]], degrees=True)  # (K, 2)
+    >>> Slerp([0, 1], tracks, batched=True)(0.5).shape
+    (2,)
     """
 
-    def __init__(self, times, rotations):
-        self._setup(times, _as_quats(rotations), "slerp", "raise", "times", "rotations")
+    def __init__(self, times, rotations, *, batched=False):
+        from ._rotation import Rotation, _is_scipy_rotation
+        if _is_scipy_rotation(rotations):
+            rotations = Rotation.from_scipy(rotations)
+        if not isinstance(rotations, Rotation):
+            raise TypeError(f"`rotations` must be a `Rotation` instance, got {type(rotations).__name__} "
+                            f"(Track interpolates arrays of quaternions)")
+        if rotations.single or len(rotations) <= 1:
+            raise ValueError(f"`rotations` must be a sequence of at least 2 rotations, got shape "
+                             f"{rotations.shape}.")
+        if len(rotations.shape) > 1 and not batched:
+            raise ValueError(f"Rotations with more than 1 leading dimension are not supported "
+                             f"(as in scipy; pass batched=True for a batch of tracks), got shape "
+                             f"{rotations.shape}.")
+        t = float_array(times, "times", dtype=np.float64)
+        if t.ndim != 1:
+            raise ValueError(f"Expected times to be specified in a 1 dimensional array, got "
+                             f"{t.ndim} dimensions.")
+        if t.shape[0] != len(rotations):
+            raise ValueError(f"Expected number of rotations to be equal to number of timestamps "
+                             f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
+        if np.any(np.diff(t) <= 0):
+            raise ValueError("Times must be in strictly increasing order.")
+        self._setup(t, rotations.as_quatarray(), "slerp", "raise", "times", "rotations")
 
     @property
     def timedelta(self):
@@ -672,15 +691,20 @@ class Slerp(Track):
         return np.diff(self.times)
 
     def __call__(self, times):
-        """Interpolated rotations at `times` (scalar or 1-D), as a `QuatArray`.
+        """Interpolated rotations at `times` (scalar or 1-D), as a `Rotation`.
 
-        Returns shape ``(M, ..., 4)`` for M times, ``(..., 4)`` for a scalar.
+        Shape ``(M, *batch)`` for M times, ``batch`` (single for 1-D keys) for a scalar.
 
-        >>> from quatarray.interpolate import Slerp
-        >>> Slerp([0, 1], [[1, 0, 0, 0], [0, 0, 1, 0]])(0.5)
-        QuatArray([0.70710678, 0.        , 0.70710678, 0.        ])
+        >>> from quatarray import Rotation, Slerp
+        >>> s = Slerp([0, 1], Rotation.from_rotvec([[0, 0, 0], [0, 0, 1]]))
+        >>> s(0.25).as_rotvec()
+        array([0.  , 0.  , 0.25])
         """
+        from ._rotation import Rotation
         t = float_array(times, "times")
         if t.ndim > 1:
-            raise ValueError(f"expected times at most 1-dimensional, got shape {t.shape}")
-        return self._evaluate(t, "times")
+            raise ValueError(f"`times` must be at most 1-dimensional. Got shape {t.shape}")
+        t0, t1 = self.times[0], self.times[-1]
+        if t.size and not ((t >= t0).all() and (t <= t1).all()):
+            raise ValueError(f"Interpolation times must be within the range [{t0}, {t1}], both inclusive.")
+        return Rotation._wrap(self._evaluate(t, "times").view(np.ndarray))
