@@ -35,6 +35,7 @@ __all__ = ["EXTEND_LIMIT", "Timeline", "components_first", "qt_blocks", "frame_r
 #: (last) segment before the first (after the last) key.  squad, Bézier and
 #: spline curves are polynomials in time; further out they overflow, and
 #: already here their angle keeps few correct digits (in float32, none).
+#: Extrapolated rotations are renormalised, so they stay unit.
 EXTEND_LIMIT = 1e4
 
 
@@ -97,13 +98,13 @@ def components_first(q, K, B):
     return out
 
 
-def qt_blocks(M, B):
-    """(query slice, track slice) blocks of at most BLOCK elements each."""
+def qt_blocks(M, B, block=None):
+    """(query slice, track slice) blocks of at most `block` (default BLOCK) elements each."""
     def as_slice(ix):
         return slice(ix, ix + 1) if isinstance(ix, int) else ix
 
     return [tuple(as_slice(ix) for ix in idx) + (slice(None),) * (2 - len(idx))
-            for idx in _blocks.split((M, B))]
+            for idx in _blocks.split((M, B), block or _blocks.BLOCK)]
 
 
 def frame_rows(pieces, last):

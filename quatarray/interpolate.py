@@ -305,10 +305,15 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
         raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
                          f"(a sequence of at least 2 rotations), got {keys.shape}")
     finite(keys, name)
-    n = Kn.norm(keys)   # no overflow or underflow for keys of extreme magnitude
+    # each key times a power of two near 1/its largest component: exact (the same
+    # directions and dot-product signs), and no overflow or underflow at any magnitude
+    _, e = np.frexp(np.abs(keys).max(axis=-1, keepdims=True))
+    keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
+    n = Kn.norm(keys)
     if not (n > 0).all():
         raise ValueError(f"expected non-zero {name}, got a zero quaternion")
-    keys = IK.unflip(keys / n[..., None].astype(keys.dtype, copy=False), 0)
+    # unflipped before normalising: the signs follow the dot products of the keys as given
+    keys = IK.unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
@@ -499,7 +504,7 @@ class Track:
         self._controls = None
         if self._method == "spline":
             # scipy's RotationSpline: its own evaluator, no frame table
-            self._spline = ISp.coefficients(times, keys)
+            self._spline = ISp.table(keys, ISp.coefficients(times, keys))
             self._table = None
             return
         self._table, controls = TR.rotation_table(self._method, times, keys)
@@ -581,11 +586,17 @@ class Track:
     def _evaluate(self, t, name):
         tshape, flat, _ = self._timeline.queries(t, name)
         if self._method == "spline":
-            out = ISp.evaluate(self.times, self._keys, self._spline, flat, 0)
+            out = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch)
         else:
             method = self._method
             out = TR.evaluate(self._timeline, self._table, flat,
                               lambda G, u, O: TR.rotation_block(method, G, u, O), 4)
+        if self._timeline.extrapolate == "extend" and flat.size:
+            # far out, squad's and Bézier's rounding grows like eps u² off the unit sphere
+            far = (flat < self.times[0]) | (flat > self.times[-1])
+            if far.any():
+                rows = out.reshape(flat.size, -1, 4)
+                rows[far] = Kn.normalize(rows[far])
         return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
 
     def angular_velocity(self, t, *, frame="world"):
@@ -620,9 +631,9 @@ class Track:
         tshape, flat, outside = self._timeline.queries(t, "t")
         if self._method == "spline":
             # the spline's rate (scipy's order=1) is in the body frame
-            w = ISp.evaluate(self.times, self._keys, self._spline, flat, 1)
+            w = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 1, self._batch)
             if frame == "world":
-                w = Kn.rotate(ISp.evaluate(self.times, self._keys, self._spline, flat, 0), w)
+                w = Kn.rotate(ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch), w)
             if outside is not None:
                 w[outside] = 0
         else:
