@@ -130,17 +130,9 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
-def _guarded(q):
-    """Squared norms of a block's scratch copy `q`, rescaling it in place where
-    they would over- or underflow (`_scale.guard`)."""
-    n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    _scale.guard(q, n2)
-    return n2
-
-
 def _k_as_matrix(q, o):
     w, x, y, z = q
-    s = np.divide(2.0, _guarded(q))
+    s = np.divide(2.0, _scale.guarded_sqnorm(q))
     xs, ys, zs = x * s, y * s, z * s
     wx, wy, wz = w * xs, w * ys, w * zs
     xx, xy, xz = x * xs, x * ys, x * zs
@@ -539,7 +531,7 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
-    n = np.sqrt(_guarded(q))
+    n = np.sqrt(_scale.guarded_sqnorm(q))
     w, x, y, z = q
     k = 1.0 / (n + np.abs(w))
     np.negative(k, out=k, where=w < 0)

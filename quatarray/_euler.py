@@ -13,7 +13,8 @@ import warnings
 
 import numpy as np
 
-from ._convert import _blockwise, _guarded, _half_angle
+from . import _scale
+from ._convert import _blockwise, _half_angle
 from ._kernels import arctan2, multiply_rows
 from ._validate import finite, float_array, quat_array
 
@@ -172,7 +173,7 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
-    _guarded(q)
+    _scale.guarded_sqnorm(q)
     w = q[0]
     qi, qj, qk = q[i + 1], q[j + 1], q[k + 1]
     qk = qk if sign > 0 else -qk
@@ -318,7 +319,7 @@ def from_davenport(axes, order, angles, degrees=False):
 
 
 def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
-    _guarded(abcd)
+    _scale.guarded_sqnorm(abcd)
     gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
     if flip:
         np.negative(o[1], out=o[1])

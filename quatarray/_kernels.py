@@ -313,8 +313,7 @@ _ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quater
 
 
 def _k_normalize(q, o):
-    n = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    _scale.guard(q, n)   # q is the block's scratch copy: rescaled in place if needed
+    n = _scale.guarded_sqnorm(q)   # q is the block's scratch copy: rescaled in place if needed
     np.sqrt(n, out=n)
     if not (n > 0).all():
         raise ValueError(_ZERO_NORMALIZE)
@@ -578,8 +577,7 @@ def _rotate_scalar(q, u, dtype, inverse=False):
 
 
 def _rotate_block(q, u, o, wsign):
-    n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    _scale.guard(q, n2)
+    n2 = _scale.guarded_sqnorm(q)
     w, x, y, z = q[0] * wsign, q[1], q[2], q[3]
     ux, uy, uz = u
     s = np.divide(2.0, n2, out=n2)

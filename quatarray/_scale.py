@@ -23,7 +23,10 @@ import math
 
 import numpy as np
 
-__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guard_one", "unscale"]
+from . import _blocks
+
+__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "guard_one",
+           "unscale"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 
@@ -104,6 +107,14 @@ def guard(q, n2, start=0):
     e = rescale(q)
     sum_squares(q, n2, start)
     return e
+
+
+def guarded_sqnorm(q):
+    """Squared norms of a block's scratch copy `q` (in a row of the thread's
+    scratch), rescaling `q` in place where they would over- or underflow."""
+    n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    guard(q, n2)
+    return n2
 
 
 def guard_one(c):
