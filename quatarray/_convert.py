@@ -389,13 +389,14 @@ def _flip_mask(w, x, y, z):
 def _vector_norm(q):
     """|v| of a block's scratch copy `q`, rescaled in place first where |q|² would
     over- or underflow (|v|² + w² is checked: two more ufuncs than |v| alone)."""
-    w, x, y, z = q
-    v2 = x * x + y * y + z * z
-    n2 = w * w
+    work = _blocks.scratch()
+    v2, n2 = work.rows(2, q.shape[1:], q.dtype)
+    _scale.sum_squares(q, v2, 1)
+    np.multiply(q[0], q[0], out=n2)
     n2 += v2
     if not _scale.fits(n2):
         _scale.guard(q, n2)
-        v2 = x * x + y * y + z * z
+        _scale.sum_squares(q, v2, 1)
     return np.sqrt(v2, out=v2)
 
 

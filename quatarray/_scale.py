@@ -66,8 +66,11 @@ def sum_squares(q, out, start=0):
     Squares may overflow (that is what `guard` looks for): callers run under
     ``np.errstate(over="ignore")``, once per call rather than once per block."""
     np.multiply(q[start], q[start], out=out)
-    for k in range(start + 1, len(q)):
-        out += q[k] * q[k]
+    with _blocks.scratch().frame() as work:
+        t = work.rows(1, out.shape, out.dtype)[0]   # no temporary allocated per component
+        for k in range(start + 1, len(q)):
+            np.multiply(q[k], q[k], out=t)
+            out += t
     return out
 
 
