@@ -61,13 +61,18 @@ class Timeline:
                 raise ValueError(f"expected finite {name} to extrapolate (extrapolate='extend'), got {lo!r} .. {hi!r}")
         return t.shape, flat, outside
 
-    def segments(self, tb, velocity):
+    def find_all(self, flat):
+        """Segments of all queries at once when they are sorted and many (else None)."""
+        return self.index.find_sorted(flat) if flat.size > _blocks.BLOCK else None
+
+    def segments(self, tb, velocity, found=None):
         """Segment index i and parameter u (float64) of the queries tb.
 
         Without `velocity`, a query at (or, with 'clamp', past) the last key
         gets the phantom segment K-1; with it, the last real segment.
+        `found` is this block's part of `find_all`, if any.
         """
-        i = self.index.find(tb)
+        i = self.index.find(tb) if found is None else found.copy()
         K = len(self.times)
         if velocity or self.extrapolate == "extend":
             np.clip(i, 0, K - 2, out=i)
@@ -212,10 +217,11 @@ def evaluate(timeline, table, flat, block_fn, width):
     """
     M, B = flat.size, table.shape[2]
     out = np.empty((M, B, width), table.dtype)
+    found = timeline.find_all(flat)
 
     def block(qt):
         sm, sb = qt
-        i, u = timeline.segments(flat[sm], False)
+        i, u = timeline.segments(flat[sm], False, None if found is None else found[sm])
         G = gather(table, i, sb)
         uu = u.astype(table.dtype)[:, None]
         block_fn(G, uu, soa(out[sm, sb]))
@@ -231,9 +237,10 @@ def angular_velocity(timeline, method, table, flat, outside, frame):
     """
     M, B = flat.size, table.shape[2]
     out = np.empty((M, B, 3), np.float64)
+    found = timeline.find_all(flat)
     for sm, sb in qt_blocks(M, B):
         tb = flat[sm]
-        i, u = timeline.segments(tb, True)
+        i, u = timeline.segments(tb, True, None if found is None else found[sm])
         tab = table[:, :, sb]
         G = np.take(tab, i, axis=1, mode="clip").astype(np.float64, copy=False)
         uu = u[:, None]
