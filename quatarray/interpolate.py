@@ -690,6 +690,19 @@ class Slerp(Track):
         """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
         return np.diff(self.times)
 
+    @property
+    def rotations(self):
+        """The key rotations but the last, a `Rotation` of shape (K - 1, ...) (scipy's attribute)."""
+        from ._rotation import Rotation
+        return Rotation._wrap(self._keys[:-1].copy())
+
+    @property
+    def rotvecs(self):
+        """Rotation vectors from each key to the next, shape (K - 1, ..., 3) (scipy's attribute)."""
+        from ._rotation import Rotation
+        keys = Rotation._wrap(self._keys)
+        return (keys[:-1].inv() * keys[1:]).as_rotvec()
+
     def __call__(self, times):
         """Interpolated rotations at `times` (scalar or 1-D), as a `Rotation`.
 
