@@ -306,7 +306,8 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
     n = np.sqrt(IK.vdot(keys, keys))
     if not (n > 0).all():
         raise ValueError(f"expected non-zero {name}, got a zero quaternion")
-    keys = IK.unflip(keys / n[..., None].astype(keys.dtype, copy=False), 0)
+    # unflipped before normalising: the signs follow the dot products of the keys as given
+    keys = IK.unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
@@ -495,7 +496,7 @@ class Track:
         self._controls = None
         if self._method == "spline":
             # scipy's RotationSpline: its own evaluator, no frame table
-            self._spline = ISp.coefficients(times, keys)
+            self._spline = ISp.table(keys, ISp.coefficients(times, keys))
             self._table = None
             return
         self._table, controls = TR.rotation_table(self._method, times, keys)
@@ -577,7 +578,7 @@ class Track:
     def _evaluate(self, t, name):
         tshape, flat, _ = self._timeline.queries(t, name)
         if self._method == "spline":
-            out = ISp.evaluate(self.times, self._keys, self._spline, flat, 0)
+            out = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch)
         else:
             method = self._method
             out = TR.evaluate(self._timeline, self._table, flat,
@@ -616,9 +617,9 @@ class Track:
         tshape, flat, outside = self._timeline.queries(t, "t")
         if self._method == "spline":
             # the spline's rate (scipy's order=1) is in the body frame
-            w = ISp.evaluate(self.times, self._keys, self._spline, flat, 1)
+            w = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 1, self._batch)
             if frame == "world":
-                w = Kn.rotate(ISp.evaluate(self.times, self._keys, self._spline, flat, 0), w)
+                w = Kn.rotate(ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch), w)
             if outside is not None:
                 w[outside] = 0
         else:
