@@ -805,7 +805,7 @@ class Rotation:
     def __getitem__(self, indexer):
         if self._q.ndim == 1:
             raise TypeError("Single rotation is not subscriptable.")
-        return type(self)._wrap(np.array(self._q[_batch_key(indexer)], copy=True))
+        return type(self)._wrap(np.array(self._q[_batch_key(indexer, self.shape)], copy=True))
 
     def __setitem__(self, indexer, value):
         if self._q.ndim == 1:
@@ -814,7 +814,7 @@ class Rotation:
             value = Rotation.from_scipy(value)
         if not isinstance(value, Rotation):
             raise TypeError(f"value must be a Rotation object, got {type(value).__name__}")
-        self._q[_batch_key(indexer)] = value._q
+        self._q[_batch_key(indexer, self.shape)] = value._q
 
     def __getstate__(self):
         return self._q
@@ -873,10 +873,16 @@ def _broadcastable(a, b):
     return True
 
 
-def _batch_key(indexer):
+def _batch_key(indexer, shape):
     """An index into the batch axes of a (..., 4) array (the component axis stays whole)."""
     key = indexer if isinstance(indexer, tuple) else (indexer,)
     key = tuple(k._q if isinstance(k, Rotation) else k for k in key)
+    used = sum(0 if k is None or k is Ellipsis else
+               np.ndim(k) if isinstance(k, (np.ndarray, list)) and np.asarray(k).dtype == bool else 1
+               for k in key)
+    if used > len(shape):
+        raise IndexError(f"too many indices for rotations of shape {shape}: {used} batch axes "
+                         f"indexed, {len(shape)} present")
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
 
 

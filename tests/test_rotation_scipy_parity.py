@@ -217,6 +217,20 @@ def test_getitem_and_setitem_like_scipy(index):
     same_as_scipy(lambda R, **_: assign(R, (2,)))
 
 
+def test_index_with_more_axes_than_the_batch_raises_index_error():
+    # A tuple indexes batch axes (an N-D extension).  scipy instead reads a tuple
+    # as one index array along the first axis (r[0, 0] -> two rotations); here
+    # it must never reach the quaternion components and return a broken rotation.
+    r, n = qa.Rotation.random(5, rng=1), qa.Rotation.random(shape=(2, 3), rng=1)
+    for rot, key in [(r, (0, 0)), (r, (0, slice(1, 3))), (n, (0, 1, 2)), (r, (None, 0, 0))]:
+        with pytest.raises(IndexError, match="too many indices"):
+            rot[key]
+        with pytest.raises(IndexError, match="too many indices"):
+            rot[key] = qa.Rotation.identity()
+    assert n[0, 1].single and n[np.ones((2, 3), bool)].shape == (6,) and n[None, 0].shape == (1, 3)
+    np.testing.assert_array_equal(n[1, 2].as_quat(), n.as_quat()[1, 2])
+
+
 def test_single_rotation_protocol_errors_like_scipy():
     same_as_scipy(lambda R, **_: _random(R, (), 1)[0], match="not subscriptable")
     same_as_scipy(lambda R, **_: _random(R, (), 1).__setitem__(0, R.identity()), match="not subscriptable")
