@@ -627,6 +627,23 @@ class Track:
         return w.reshape(tshape + self._batch + (3,))
 
 
+def _scipy_ties(keys):
+    """Keys (K, ..., 4) signed so that a pair exactly 90° apart in S³ (a half turn between
+    keys, dot product 0) turns the way scipy's Slerp does: the relative rotation
+    ``conj(q[k]) q[k+1]`` canonical (first non-zero of its vector part positive).
+    Other pairs are left to `unflip` (the same choice as scipy's)."""
+    keys = np.asarray(keys)   # raw array (the kernels' arguments)
+    d = IK.vdot(keys[1:].astype(np.float64), keys[:-1])
+    if not (d == 0).any():
+        return keys
+    from ._convert import _flip_mask
+    rel = Kn.multiply(Kn.conjugate(keys[:-1]), keys[1:])
+    x, y, z = rel[..., 1], rel[..., 2], rel[..., 3]
+    step = np.where((d < 0) | ((d == 0) & _flip_mask(np.zeros_like(x), x, y, z)), -1, 1)
+    sign = np.concatenate([np.ones_like(step[:1]), np.cumprod(step, axis=0)])
+    return keys * sign[..., None].astype(keys.dtype)
+
+
 class Slerp(Track):
     """scipy's ``Slerp(times, rotations)``: spherical linear interpolation returning `Rotation`.
 
@@ -684,12 +701,25 @@ class Slerp(Track):
                              f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
         if np.any(np.diff(t) <= 0):
             raise ValueError("Times must be in strictly increasing order.")
-        self._setup(t, rotations.as_quatarray(), "slerp", "raise", "times", "rotations")
+        self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations")
 
     @property
     def timedelta(self):
         """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
         return np.diff(self.times)
+
+    @property
+    def rotations(self):
+        """The key rotations but the last, a `Rotation` of shape (K - 1, ...) (scipy's attribute)."""
+        from ._rotation import Rotation
+        return Rotation._wrap(self._keys[:-1].copy())
+
+    @property
+    def rotvecs(self):
+        """Rotation vectors from each key to the next, shape (K - 1, ..., 3) (scipy's attribute)."""
+        from ._rotation import Rotation
+        keys = Rotation._wrap(self._keys)
+        return (keys[:-1].inv() * keys[1:]).as_rotvec()
 
     def __call__(self, times):
         """Interpolated rotations at `times` (scalar or 1-D), as a `Rotation`.
