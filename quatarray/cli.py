@@ -217,6 +217,8 @@ def build_parser():
     p.add_argument("--extrapolate", choices=EXTRAPOLATE, default="raise",
                    help="query times outside the keys: raise (default), clamp or extend")
     p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Zarr stores: run on this distributed scheduler")
+    p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
     p.set_defaults(run=_run_resample)
 
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",
@@ -229,8 +231,16 @@ def build_parser():
 
 def _run_resample(args):
     start = time.perf_counter()
-    nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
-                                   extrapolate=args.extrapolate, scalar_last=args.scalar_last)
+    from ._zarr import is_zarr, resample_zarr   # Dask and Zarr are imported only for .zarr stores
+    if is_zarr(args.input) or is_zarr(args.output):
+        if not (is_zarr(args.input) and is_zarr(args.output)):
+            raise FormatError("Zarr stores resample to Zarr stores only (both IN and OUT end in .zarr)", args.output)
+        nkeys, nframes = resample_zarr(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
+                                       extrapolate=args.extrapolate, scheduler=args.scheduler,
+                                       progress=False if args.quiet else None)
+    else:
+        nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
+                                       extrapolate=args.extrapolate, scalar_last=args.scalar_last)
     print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
           f"({args.method}, {time.perf_counter() - start:.2f} s)")
     return 0
@@ -256,6 +266,8 @@ def main(argv=None):
         message = f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc)
     except ValueError as exc:
         message = f"{args.input if args.command == 'resample' else args.output}: {exc}"
+    except ImportError as exc:   # an optional dependency (Zarr stores need the dask extra)
+        message = str(exc)
     except KeyboardInterrupt:
         return 130
     print("quatarray: error: " + " ".join(message.split()), file=sys.stderr)

@@ -512,9 +512,7 @@ class Track:
         B = prod(self._batch)
         self._B = B
         self._dtype = keys.dtype
-        self._index = SegmentIndex(times)
-        dt = np.diff(times)
-        self._dt = np.append(dt, np.inf)     # phantom segment after the last key: u = 0
+        self._lookup()
         Q = _components_first(keys, K, B)        # (4, K, B), C-contiguous float64
         self._controls = None
         if self._method == "spline":
@@ -598,6 +596,19 @@ class Track:
     def control_points(self):
         """None for 'linear' / 'slerp'; s (K, ..., 4) for 'squad'; (a, b) for 'bezier'."""
         return self._controls
+
+    def _lookup(self):
+        """Segment index and interval lengths, derived from the times."""
+        self._index = SegmentIndex(self._times)
+        self._dt = np.append(np.diff(self._times), np.inf)   # phantom segment after the last key: u = 0
+
+    def __getstate__(self):
+        # pickles (e.g. shipped to Dask workers) carry the tables, not what the times give again
+        return {k: v for k, v in self.__dict__.items() if k not in ("_index", "_dt")}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lookup()
 
     def __len__(self):
         """Number of keys K."""

@@ -9,11 +9,13 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
+from ._validate import in_memory
 
 __all__ = ["RotationSpline"]
 
 
 def _keys(rotations):
+    in_memory(rotations, "rotations")
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
         # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
         q = np.asarray(rotations.as_quat())
@@ -59,7 +61,7 @@ class RotationSpline:
             raise ValueError("`rotations` must be a sequence of rotations.")
         if len(keys) == 1:
             raise ValueError("`rotations` must contain at least 2 rotations.")
-        times = np.asarray(times, dtype=float)
+        times = np.asarray(in_memory(times, "times"), dtype=float)
         if times.ndim != 1:
             raise ValueError("`times` must be 1-dimensional.")
         if len(times) != len(keys):
@@ -90,7 +92,7 @@ class RotationSpline:
         """
         if order not in (0, 1, 2):
             raise ValueError("`order` must be 0, 1 or 2.")
-        t = np.asarray(times, dtype=float)
+        t = np.asarray(in_memory(times, "times"), dtype=float)
         if t.ndim > 1:
             raise ValueError("`times` must be at most 1-dimensional.")
         single = t.ndim == 0
