@@ -6,7 +6,7 @@ Messages name the argument, what was expected and what came, e.g.
 
 import numpy as np
 
-__all__ = ["float_array", "real_array", "finite", "batch_shape", "in_memory"]
+__all__ = ["float_array", "real_array", "finite", "batch_shape", "in_memory", "batch_axis"]
 
 
 def in_memory(x, name):
@@ -109,3 +109,18 @@ def batch_shape(num, shape):
         raise ValueError(f"`shape` must be an int or a tuple of ints or None: expected a tuple of "
                          f"non-negative ints, got {shape!r}")
     return tuple(int(n) for n in shape)
+
+
+def batch_axis(axis, batch, name="q"):
+    """`axis` as an index into the batch shape `batch` of `name` (negative counts from the end).
+
+    >>> batch_axis(-1, (5, 3))
+    1
+    """
+    nb = len(batch)
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
+    if not -nb <= axis < nb:
+        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of {name} with batch shape "
+                         f"{tuple(batch)}), got {axis}")
+    return int(axis) % nb

@@ -38,8 +38,8 @@ Pickling
 Tasks reference module-level kernels (pickled by name).  An interpolator
 enters the graph once, as one `dask.delayed` object that every task of an
 evaluation depends on, so it is shipped to a worker once, not once per
-chunk; a `Track` pickles to its key tables (about 90 bytes per key and
-track for squad in float32).
+chunk; a `Track` pickles to its tables, keys and times (112 bytes per key
+and track for squad in float32; the segment index is rebuilt on arrival).
 
 Requires the ``dask`` extra (``pip install 'quatarray[dask]'``).
 """
@@ -60,6 +60,7 @@ from . import _convert as Cv
 from . import _euler as Eu
 from . import _interp_kernels as IK
 from . import _kernels as Kn
+from ._validate import batch_axis
 from .interpolate import Track as _MemoryTrack
 
 __all__ = [
@@ -451,6 +452,8 @@ def _unflip_carries(s, axis):
 
 def _unflip_apply(q, g, axis):
     u = IK.unflip(q, axis)
+    if (g > 0).all():   # nothing to carry into this chunk
+        return u
     qa = np.moveaxis(q, axis, 0)
     n = qa.shape[0]
     carried = np.ones(qa.shape[:-1], bool)   # before the chunk's first zero dot product
@@ -488,12 +491,7 @@ def unflip(q, axis=0):
     """
     q = _quat(q, "q")
     nb = q.ndim - 1
-    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
-        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
-    if not -nb <= axis < nb:
-        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of q with batch shape "
-                         f"{q.shape[:-1]}), got {axis}")
-    axis = int(axis) % nb
+    axis = batch_axis(axis, q.shape[:-1])
     dtype = Kn.result_dtype(q.dtype)
     nblocks = len(q.chunks[axis])
     if nblocks == 1 or 0 in q.shape:
@@ -638,7 +636,9 @@ class Track:
 
     Each chunk of tracks is an independent set of tracks: its `Track` is
     built and evaluated inside the task, so no chunk of keys meets another.
-    With keys in memory, this is `evaluate` of one in-memory `Track`.
+    With keys in memory, this is `evaluate` of one in-memory `Track`.  With
+    Dask keys, the times, options and the first track's keys are checked
+    here (computing those K keys); the other tracks when their chunk is.
 
     Parameters
     ----------

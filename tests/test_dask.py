@@ -239,8 +239,10 @@ def test_track_and_tasks_pickle_small(rng):
     assert len(pickle.dumps(qd.slerp(keys[:4], keys[4:8], da.ones(4, chunks=2)).__dask_graph__())) < 20_000
 
 
-def test_local_cluster_two_processes(rng):
+def test_local_cluster_two_processes(rng, tmp_path):
     distributed = pytest.importorskip("distributed", reason="distributed is not installed (the dask extra)")
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    from quatarray._zarr import resample_zarr
     times = np.cumsum(rng.uniform(0.1, 1, 30))
     keys = unit(rng, (30, 2), np.float64)
     track = Track(times, keys, method="squad")
@@ -255,6 +257,13 @@ def test_local_cluster_two_processes(rng):
                 da.zeros(8, chunks=2).map_blocks(lambda b: np.full(b.shape, quatarray.get_num_threads()), dtype=int)]
         got = client.compute(lazy, sync=True)
         assert len(client.scheduler_info()["workers"]) == 2
+        # the CLI's Zarr path on the cluster (--scheduler ADDRESS): workers write the chunks
+        g = zarr.open_group(str(tmp_path / "in.zarr"), mode="w")
+        g["times"], g["keys"] = times, keys
+        assert resample_zarr(str(tmp_path / "in.zarr"), str(tmp_path / "out.zarr"), times=t, method="squad",
+                             scheduler=cluster.scheduler_address, progress=False) == (30, 200)
+    np.testing.assert_allclose(zarr.open_group(str(tmp_path / "out.zarr"), mode="r")["keys"][...],
+                               np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
     np.testing.assert_allclose(got[0], np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
     np.testing.assert_array_equal(got[1], np.asarray(qi.unflip(q)))
     np.testing.assert_allclose(got[2], np.asarray(Rotation(q).mean()), rtol=0, atol=100 * np.finfo(float).eps)
