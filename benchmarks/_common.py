@@ -182,11 +182,15 @@ class Quatarray(Lib):
     def conjugate(self, q):
         return q.conj()
 
+    def _rotation(self, q):
+        """The scipy-surface `Rotation` over the same quaternions (no copy)."""
+        return self.qa.Rotation.from_quatarray(q)
+
     def inv(self, q):
-        return self._method(q, "inv")()
+        return self._rotation(q).inv()
 
     def magnitude(self, q):
-        return self._method(q, "magnitude")()
+        return self._rotation(q).magnitude()
 
     def normalize(self, q):
         return q.normalized()
@@ -205,7 +209,7 @@ class Quatarray(Lib):
         return q.rotate(v)
 
     def apply(self, q, v):
-        return self._method(q, "apply")(v)
+        return self._rotation(q).apply(v)
 
     # conversions
     def as_matrix(self, q):
@@ -237,7 +241,7 @@ class Quatarray(Lib):
         return self._interp("Track")(times, keys, method=method)(t)
 
     def slerp_class(self, times, keys):
-        return self._interp("Slerp")(times, keys)
+        return self._interp("Slerp")(times, self._rotation(keys))
 
 
 class Scipy(Lib):

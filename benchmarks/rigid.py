@@ -17,8 +17,8 @@ class Spline:
     def setup(self, k, m, dtype, lib):
         times, keys, t = make_track(k, m, np.dtype(dtype))
         if lib == "quatarray":
-            from quatarray import QuatArray, RotationSpline
-            self.cls, self.rot = RotationSpline, QuatArray.from_quat(keys, scalar_first=True)
+            from quatarray import Rotation, RotationSpline
+            self.cls, self.rot = RotationSpline, Rotation.from_quat(keys, scalar_first=True)
         else:
             from scipy.spatial.transform import Rotation, RotationSpline
             self.cls, self.rot = RotationSpline, Rotation.from_quat(keys, scalar_first=True)

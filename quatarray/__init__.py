@@ -9,18 +9,17 @@ threads long batches use.
 
 from . import testing
 from ._array import QuatArray
+from ._rotation import Rotation
 from ._blocks import get_num_threads, num_threads, set_num_threads
 from ._rigid_transform import RigidTransform
-from .rigid import dual_quaternion_blend, normalize_dual_quaternion, sclerp
+from .rigid import RigidTrack, dual_quaternion_blend, normalize_dual_quaternion, sclerp
 from .spline import RotationSpline
 from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
-
-Rotation = QuatArray
 
 __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
-    "RotationSpline", "RigidTransform", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
+    "RotationSpline", "RigidTransform", "RigidTrack", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
     "set_num_threads", "get_num_threads", "num_threads",
     "testing",
 ]

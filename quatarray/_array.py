@@ -17,8 +17,9 @@ result.  Three policies keep it from surprising a NumPy user:
 
 import numpy as np
 
+from . import _convert as C
+from . import _euler as E
 from . import _kernels as K
-from ._rotation import RotationMixin
 from ._validate import batch_shape, float_array
 
 __all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS"]
@@ -111,7 +112,7 @@ def _touches_last(key, shape):
     return False
 
 
-class QuatArray(RotationMixin, np.ndarray):
+class QuatArray(np.ndarray):
     """Array of quaternions, shape (..., 4), components scalar-first (w, x, y, z).
 
     Parameters
@@ -166,17 +167,6 @@ class QuatArray(RotationMixin, np.ndarray):
     y = property(lambda self: _raw(self)[..., 2], doc="j components (plain view, batch shape).")
     z = property(lambda self: _raw(self)[..., 3], doc="k components (plain view, batch shape).")
     vec = property(lambda self: _raw(self)[..., 1:], doc="Vector parts (plain view, shape (..., 3)).")
-
-    def __len__(self):
-        if self.ndim < 2:
-            raise TypeError("len() of a single quaternion (shape (4,)) is undefined; it has no batch axis")
-        return self.shape[0]
-
-    def __iter__(self):
-        if self.ndim < 2:
-            raise TypeError("iteration over a single quaternion (shape (4,)) is undefined; it has no batch axis")
-        cls = type(self)
-        return (row.view(cls) for row in _raw(self))
 
     def __getitem__(self, key):
         res = _raw(self)[key]
@@ -335,6 +325,95 @@ class QuatArray(RotationMixin, np.ndarray):
         out = np.zeros(batch_shape(num, shape) + (4,), dtype)
         out[..., 0] = 1
         return cls._wrap(out)
+
+    # --- conversions (scalar-first; `Rotation` has scipy's surface) ------------------
+    def as_matrix(self):
+        """Rotation matrices of q/|q|, shape (..., 3, 3).
+
+        >>> QuatArray([0, 0, 0, 1]).as_matrix() + 0.0
+        array([[-1.,  0.,  0.],
+               [ 0., -1.,  0.],
+               [ 0.,  0.,  1.]])
+        """
+        return C.as_matrix(_raw(self))
+
+    @classmethod
+    def from_matrix(cls, matrix, *, assume_valid=False):
+        """Unit quaternions of rotation matrices (..., 3, 3) (non-orthogonal ones projected).
+
+        >>> QuatArray.from_matrix(np.eye(3))
+        QuatArray([1., 0., 0., 0.])
+        """
+        return cls._wrap(C.from_matrix(matrix, assume_valid=assume_valid))
+
+    def as_rotvec(self, degrees=False):
+        """Rotation vectors (axis × angle, angle in [0, π]) of q/|q|, shape (..., 3).
+
+        >>> QuatArray([0, 0, 0, 1]).as_rotvec()
+        array([0.        , 0.        , 3.14159265])
+        """
+        return C.as_rotvec(_raw(self), degrees=degrees)
+
+    @classmethod
+    def from_rotvec(cls, rotvec, degrees=False):
+        """Unit quaternions of rotation vectors (..., 3).
+
+        >>> np.allclose(QuatArray.from_rotvec([0, 0, 180], degrees=True), [0, 0, 0, 1])
+        True
+        """
+        return cls._wrap(C.from_rotvec(rotvec, degrees=degrees))
+
+    def as_mrp(self):
+        """Modified Rodrigues parameters ``axis · tan(angle / 4)`` of q/|q|, shape (..., 3).
+
+        >>> QuatArray([0, 0, 0, 1]).as_mrp()
+        array([0., 0., 1.])
+        """
+        return C.as_mrp(_raw(self))
+
+    @classmethod
+    def from_mrp(cls, mrp):
+        """Unit quaternions of modified Rodrigues parameters (..., 3).
+
+        >>> QuatArray.from_mrp([0, 0, 1])
+        QuatArray([0., 0., 0., 1.])
+        """
+        return cls._wrap(C.from_mrp(mrp))
+
+    def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
+        """Euler angles (..., 3) of q/|q|, scipy's conventions ('xyz' extrinsic, 'XYZ' intrinsic).
+
+        >>> QuatArray.from_euler("ZXY", [30, 20, 10], degrees=True).as_euler("ZXY", degrees=True).round(9)
+        array([30., 20., 10.])
+        """
+        return E.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
+
+    @classmethod
+    def from_euler(cls, seq, angles, degrees=False):
+        """Unit quaternions of Euler angles (..., len(seq)).
+
+        >>> np.allclose(QuatArray.from_euler("z", 180, degrees=True), [0, 0, 0, 1])
+        True
+        """
+        return cls._wrap(E.from_euler(seq, angles, degrees=degrees))
+
+    def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
+        """Davenport angles (..., 3) of q/|q| about three axes (3, 3).
+
+        >>> q = QuatArray.from_euler("zxz", [10, 20, 30], degrees=True)
+        >>> q.as_davenport(np.eye(3)[[2, 0, 2]], "e", degrees=True).round(9)
+        array([10., 20., 30.])
+        """
+        return E.as_davenport(_raw(self), axes, order, degrees=degrees, suppress_warnings=suppress_warnings)
+
+    @classmethod
+    def from_davenport(cls, axes, order, angles, degrees=False):
+        """Unit quaternions of Davenport angles about 1 to 3 axes (n, 3).
+
+        >>> np.allclose(QuatArray.from_davenport([0, 0, 1], "e", 180, degrees=True), [0, 0, 0, 1])
+        True
+        """
+        return cls._wrap(E.from_davenport(axes, order, angles, degrees=degrees))
 
     # --- operators (direct calls: cheaper than the ufunc protocol for small inputs) ---
     def __mul__(self, other):

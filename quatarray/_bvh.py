@@ -7,14 +7,21 @@ angles in degrees, applied as intrinsic rotations in the declared order:
 degrees=True)``.  Resampling converts each joint's angles to quaternions,
 interpolates them and converts back in the same channel order; position
 channels are interpolated linearly.
+
+A ``Frame Time`` printed rounded from 1/n s (``0.0333333``, ``.0083333``) is
+read as exactly 1/n (see `read_frame_time`), so frame k is at k/n s and a
+resample at the file's own rate lands on every frame.  Values are written back
+with the input's decimals and line endings.  Use them through `quatarray.io`.
 """
 
 import dataclasses
+import decimal
 
 import numpy as np
 
 from . import _euler
-from ._io import FormatError, _ROWS, _atomic, _check_query, _load_table, _row_line, _write_rows
+from ._text import (ROWS, FormatError, TextStyle, atomic_write, check_query, check_size, echo, load_table,
+                    measure_style, row_line, write_rows)
 from .interpolate import Track
 
 __all__ = ["Joint", "Motion", "read_bvh", "write_bvh", "resample_motion"]
@@ -29,6 +36,12 @@ class Joint:
     name: str
     channels: tuple
     offset: tuple
+
+    @property
+    def rotation(self):
+        """``(seq, positions)``: the Euler sequence of the rotation channels (``"ZXY"``, or ``""``)
+        and their positions among the joint's channels."""
+        return _split_channels(self.channels)[1:]
 
 
 @dataclasses.dataclass
@@ -47,16 +60,27 @@ class Motion:
         Seconds between frames.
     frames : ndarray, shape (K, C)
         One row per frame, one column per channel (joints' channels in order).
+    style : TextStyle or None
+        How the file printed its frame values (decimals) and ended its lines;
+        `write_bvh` writes the same way.  None: shortest exact text, ``\\n``.
+    frame_time_text : str or None
+        ``Frame Time`` as printed in the file read; written back unchanged
+        while it still reads as `frame_time`.
     """
 
     hierarchy: str
     joints: tuple
     frame_time: float
     frames: np.ndarray
+    style: TextStyle = None
+    frame_time_text: str = None
 
     @property
     def times(self):
-        """Frame times ``k * frame_time``, shape (K,)."""
+        """Frame times, shape (K,): ``k / n`` when `frame_time` is 1/n for a whole n, else ``k * frame_time``."""
+        n = round(1 / self.frame_time)
+        if n >= 1 and 1 / n == self.frame_time:
+            return np.arange(len(self.frames)) / n
         return np.arange(len(self.frames)) * self.frame_time
 
     def rotation_groups(self):
@@ -72,14 +96,26 @@ class Motion:
         """
         groups, col = {}, 0
         for joint in self.joints:
-            rot = [(col + i, ch[0].upper()) for i, ch in enumerate(joint.channels) if ch[1:].lower() == "rotation"]
-            if rot:
-                groups.setdefault("".join(a for _, a in rot), []).append([c for c, _ in rot])
+            seq, positions = joint.rotation
+            if seq:
+                groups.setdefault(seq, []).append([col + i for i in positions])
             col += len(joint.channels)
         return {seq: np.array(cols, dtype=np.intp) for seq, cols in groups.items()}
 
 
 _CHANNELS = {f"{a}{k}": f"{a.upper()}{k}" for a in "XYZxyz" for k in ("position", "rotation")}
+
+
+def _split_channels(channels):
+    """The one parser of channel names: ``(canonical names, Euler sequence, rotation positions)``.
+
+    ``("Xposition", "zrotation", "Xrotation", "Yrotation")`` gives
+    ``(("Xposition", "Zrotation", ...), "ZXY", [1, 2, 3])``.  An unknown name
+    raises KeyError.
+    """
+    canon = tuple(_CHANNELS[ch] for ch in channels)
+    positions = [i for i, ch in enumerate(canon) if ch.endswith("rotation")]
+    return canon, "".join(canon[i][0] for i in positions), positions
 
 
 def _parse_hierarchy(lines, path):
@@ -94,10 +130,10 @@ def _parse_hierarchy(lines, path):
             if word == "HIERARCHY" and len(tokens) == 1:
                 seen_root = True
                 continue
-            raise FormatError(f"expected 'HIERARCHY', got {text.strip()!r}", path, number)
+            raise FormatError(f"expected 'HIERARCHY', got {echo(text.strip())}", path, number)
         if pending is not None:
             if word != "{":
-                raise FormatError(f"expected '{{' after {pending}, got {word!r}", path, number)
+                raise FormatError(f"expected '{{' after {pending}, got {echo(word)}", path, number)
             tokens = tokens[1:]
             pending = None
             if not tokens:
@@ -131,7 +167,7 @@ def _parse_hierarchy(lines, path):
             except ValueError:
                 offset = ()
             if len(offset) != 3:
-                raise FormatError(f"expected 3 numbers after OFFSET, got {' '.join(tokens[1:])!r}", path, number)
+                raise FormatError(f"expected 3 numbers after OFFSET, got {echo(' '.join(tokens[1:]))}", path, number)
             if stack[-1] >= 0:
                 joints[stack[-1]]["offset"] = offset
         elif word == "CHANNELS":
@@ -139,22 +175,22 @@ def _parse_hierarchy(lines, path):
                 raise FormatError("CHANNELS outside a joint", path, number)
             joint = joints[stack[-1]]
             if not (len(tokens) >= 2 and tokens[1].isdigit() and int(tokens[1]) == len(tokens) - 2):
-                raise FormatError(f"expected 'CHANNELS n' and n channel names, got {text.strip()!r}", path, number)
+                raise FormatError(f"expected 'CHANNELS n' and n channel names, got {echo(text.strip())}", path, number)
             for ch in tokens[2:]:
                 if ch not in _CHANNELS:
-                    raise FormatError(f"unknown channel {ch!r} in joint {joint['name']!r} (expected "
+                    raise FormatError(f"unknown channel {echo(ch)} in joint {echo(joint['name'])} (expected "
                                       "Xposition, Yposition, Zposition, Xrotation, Yrotation or Zrotation)",
                                       path, number)
-            canon = [_CHANNELS[ch] for ch in tokens[2:]]
+            canon, _, rotations = _split_channels(tokens[2:])
             if len(set(canon)) != len(canon):
-                raise FormatError(f"repeated channel in joint {joint['name']!r}", path, number)
-            nrot = sum(ch.endswith("rotation") for ch in canon)
+                raise FormatError(f"repeated channel in joint {echo(joint['name'])}", path, number)
+            nrot = len(rotations)
             if nrot not in (0, 3):
-                raise FormatError(f"joint {joint['name']!r} has {nrot} rotation channels; "
+                raise FormatError(f"joint {echo(joint['name'])} has {nrot} rotation channels; "
                                   "only 0 or 3 (a full Euler triple) are supported", path, number)
             joint["channels"] = tuple(tokens[2:])
         else:
-            raise FormatError(f"unexpected {word!r} in HIERARCHY", path, number)
+            raise FormatError(f"unexpected {echo(word)} in HIERARCHY", path, number)
     if not seen_root:
         raise FormatError("empty file (expected 'HIERARCHY')", path)
     if not joints:
@@ -164,17 +200,60 @@ def _parse_hierarchy(lines, path):
     return tuple(Joint(j["name"], j["channels"], j["offset"] or (0.0, 0.0, 0.0)) for j in joints)
 
 
+def read_frame_time(text):
+    """Seconds between frames from a ``Frame Time`` as printed: exactly 1/n when it was 1/n, rounded.
+
+    Exporters print 1/30 s as ``0.0333333``, ``0.033333`` or ``0.03333``, and
+    1/120 s as ``.0083333`` or ``0.008333``: slightly below 1/n, so frame k
+    would drift to ``k * 0.0333333`` and a resample at 30 fps would miss the
+    last frame.  The rule: if exactly one whole n has ``|text - 1/n|`` within
+    one unit of the last printed digit (a rounded or truncated print of 1/n),
+    the frame time is 1/n; otherwise it is the number as printed.  Needing a
+    single n keeps short prints such as ``0.3`` or ``0.04`` as written.
+
+    >>> read_frame_time("0.0333333") == 1 / 30, read_frame_time(".0083333") == 1 / 120
+    (True, True)
+    >>> read_frame_time("0.3"), read_frame_time("0.0345")
+    (0.3, 0.0345)
+    """
+    value = float(text)
+    if not (0 < value <= 1):
+        return value
+    unit = 10.0 ** decimal.Decimal(text.strip()).as_tuple().exponent
+    n = round(1 / value)
+    near = [k for k in (n - 1, n, n + 1) if k >= 1 and abs(value - 1 / k) <= unit * (1 + 1e-9)]
+    return 1 / near[0] if len(near) == 1 else value
+
+
+def frame_time_text(frame_time, like=None):
+    """``Frame Time`` text for `frame_time` s: `like` (as read) while it still reads as `frame_time`.
+
+    Otherwise 1/n for a whole n is printed with the significant digits of
+    `like` (at least 6: ``0.0166667``), which `read_frame_time` reads back as
+    exactly 1/n; any other frame time as the shortest text that reads back.
+    """
+    if like is not None and read_frame_time(like) == frame_time:
+        return like.strip()
+    n = round(1 / frame_time)
+    if n >= 1 and 1 / n == frame_time:
+        digits = len("".join(c for c in (like or "").lower().partition("e")[0] if c.isdigit()).lstrip("0"))
+        text = f"{frame_time:.{max(6, digits)}g}"
+        if read_frame_time(text) == frame_time:
+            return text
+    return repr(float(frame_time))
+
+
 def _header_value(line, key, path, number, kind):
     text = line.strip()
     if not text.startswith(key):
-        raise FormatError(f"expected '{key} ...', got {text!r}", path, number)
+        raise FormatError(f"expected '{key} ...', got {echo(text)}", path, number)
     try:
         value = kind(text[len(key):].strip())
-    except ValueError:
+    except (ValueError, decimal.InvalidOperation):
         value = None
-    if value is None or not np.isfinite(value) or value < 0 or (kind is float and value == 0):
-        raise FormatError(f"bad {key} {text[len(key):].strip()!r} (expected a "
-                          f"{'positive number' if kind is float else 'count'})", path, number)
+    if value is None or not np.isfinite(value) or value < 0 or (kind is not int and value == 0):
+        raise FormatError(f"bad {key} {echo(text[len(key):].strip())} (expected a "
+                          f"{'count' if kind is int else 'positive number'})", path, number)
     return value
 
 
@@ -197,8 +276,8 @@ def read_bvh(path):
 
     Examples
     --------
-    >>> from quatarray._io import example_path
-    >>> from quatarray._bvh import read_bvh
+    >>> from quatarray.io import example_path
+    >>> from quatarray.io import read_bvh
     >>> clip = read_bvh(example_path("walk.bvh"))
     >>> clip.joints[0].name, clip.joints[0].channels[3:]
     ('Hips', ('Zrotation', 'Xrotation', 'Yrotation'))
@@ -228,30 +307,36 @@ def read_bvh(path):
                 head.append((number, text))
         frames_line = head[0][0]
         nframes = _header_value(head[0][1], "Frames:", path, frames_line, int)
-        frame_time = _header_value(head[1][1], "Frame Time:", path, head[1][0], float)
+        frame_time = _header_value(head[1][1], "Frame Time:", path, head[1][0], read_frame_time)
+        time_text = head[1][1].strip()[len("Frame Time:"):].strip()
         skip = number
     nch = sum(len(j.channels) for j in joints)
     names = [f"{j.name}.{c}" for j in joints for c in j.channels]
-    frames = _load_table(path, skip, nch, None, names, "values in the frame line")
+    frames = load_table(path, skip, nch, None, names, "values in the frame line")
     if len(frames) != nframes:
         raise FormatError(f"'Frames: {nframes}' but the file has {len(frames)} frame lines", path, frames_line)
     bad = ~np.isfinite(frames)
     if bad.any():
         i, c = np.unravel_index(np.argmax(bad), bad.shape)
-        raise FormatError(f"non-finite value in channel {names[c]!r}", path, _row_line(path, skip, int(i), None))
+        raise FormatError(f"non-finite value in channel {echo(names[c])}", path, row_line(path, skip, int(i), None))
     if not len(frames):
         raise FormatError("no frames ('Frames: 0')", path, frames_line)
-    return Motion("".join(hierarchy), joints, frame_time, frames)
+    style = measure_style(path, skip, None, " ")
+    return Motion("".join(hierarchy), joints, frame_time, frames, style, time_text)
 
 
 def write_bvh(path, motion):
     """Write a BVH file: the hierarchy verbatim, then ``MOTION``, atomically.
 
+    Values are written in ``motion.style`` (the decimals and line endings of
+    the file read; shortest exact text without one), ``Frame Time`` as
+    `frame_time_text` gives it.
+
     Examples
     --------
     >>> import os, tempfile
-    >>> from quatarray._io import example_path
-    >>> from quatarray._bvh import read_bvh, write_bvh
+    >>> from quatarray.io import example_path
+    >>> from quatarray.io import read_bvh, write_bvh
     >>> clip = read_bvh(example_path("walk.bvh"))
     >>> tmp = tempfile.TemporaryDirectory()
     >>> path = os.path.join(tmp.name, "copy.bvh")
@@ -262,10 +347,12 @@ def write_bvh(path, motion):
     """
     frames = np.asarray(motion.frames)
     hierarchy = motion.hierarchy if motion.hierarchy.endswith("\n") else motion.hierarchy + "\n"
-    with _atomic(path) as f:
+    style = motion.style or TextStyle()
+    with atomic_write(path, newline=style.newline) as f:
         f.write(hierarchy)
-        f.write(f"MOTION\nFrames: {len(frames)}\nFrame Time: {float(motion.frame_time)!r}\n")
-        _write_rows(f, frames, " ")
+        f.write(f"MOTION\nFrames: {len(frames)}\n"
+                f"Frame Time: {frame_time_text(float(motion.frame_time), motion.frame_time_text)}\n")
+        write_rows(f, frames, style, sep=" ")
 
 
 # --------------------------------------------------------------------------- resampling
@@ -273,24 +360,16 @@ def write_bvh(path, motion):
 def _lerp_rows(times, values, t, extrapolate):
     """Piecewise-linear interpolation of the rows of `values` (K, C) at `t` (M,)."""
     out = np.empty((len(t), values.shape[1]))
-    for start in range(0, len(t), _ROWS):
-        tt = t[start:start + _ROWS]
+    for start in range(0, len(t), ROWS):
+        tt = t[start:start + ROWS]
         i = np.clip(np.searchsorted(times, tt, side="right") - 1, 0, len(times) - 2)
         u = (tt - times[i]) / (times[i + 1] - times[i])
         if extrapolate == "clamp":
             u = np.clip(u, 0.0, 1.0)
-        block = out[start:start + _ROWS]
+        block = out[start:start + ROWS]
         np.multiply(values[i + 1], u[:, None], out=block)
         block += values[i] * (1.0 - u)[:, None]
     return out
-
-
-def _unflip(q):
-    """Flip signs along axis 0 so consecutive quaternions have dot >= 0 (same rotations)."""
-    dots = np.einsum("k...i,k...i->k...", q[1:], q[:-1])
-    sign = np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)
-    q[1:] *= sign[..., None]
-    return q
 
 
 def _nearest_euler(angles, ref, proper):
@@ -330,8 +409,8 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
 
     Examples
     --------
-    >>> from quatarray._io import example_path
-    >>> from quatarray._bvh import read_bvh, resample_motion
+    >>> from quatarray.io import example_path
+    >>> from quatarray.io import read_bvh, resample_motion
     >>> clip = read_bvh(example_path("walk.bvh"))
     >>> fine = resample_motion(clip, np.arange(91) / 60, method="squad", frame_time=1 / 60)
     >>> fine.frames.shape, fine.frame_time
@@ -339,7 +418,7 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
     """
     t = np.asarray(t, dtype=np.float64)
     times = motion.times
-    _check_query(times, t, extrapolate)
+    check_query(times, t, extrapolate)
     if len(t) > 1:
         step = np.diff(t)
         spacing = float(t[-1] - t[0]) / (len(t) - 1)
@@ -348,14 +427,15 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
                              f"{float(step.min())!r} to {float(step.max())!r}")
     if frame_time is None:
         frame_time = spacing if len(t) > 1 else motion.frame_time
+    check_size(len(t), motion.frames.shape[1], f"{len(t):,} frame times")
     frames = _lerp_rows(times, motion.frames, t, extrapolate)  # positions, and reference angles
     for seq, cols in motion.rotation_groups().items():
-        quats = _unflip(np.array(_euler.from_euler(seq, motion.frames[:, cols], degrees=True), np.float64))
-        track = Track(times, quats, method=method, extrapolate=extrapolate)
+        quats = _euler.from_euler(seq, motion.frames[:, cols], degrees=True)
+        track = Track(times, quats, method=method, extrapolate=extrapolate)  # Track unflips
         rows = max(1, _BLOCK // len(cols))  # output frames per block: temporaries stay small
         for start in range(0, len(t), rows):
             block = frames[start:start + rows]
             angles = _euler.as_euler(np.asarray(track(t[start:start + rows])), seq, degrees=True,
                                        suppress_warnings=True)
             block[:, cols] = _nearest_euler(angles, block[:, cols], seq[0] == seq[2])
-    return Motion(motion.hierarchy, motion.joints, frame_time, frames)
+    return Motion(motion.hierarchy, motion.joints, frame_time, frames, motion.style, motion.frame_time_text)

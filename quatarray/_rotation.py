@@ -1,18 +1,17 @@
-"""The scipy-compatible rotation surface of `QuatArray` (``quatarray.Rotation``).
+"""`Rotation`: scipy 1.17's ``scipy.spatial.transform.Rotation``, over a `QuatArray`.
 
-`RotationMixin` gives `QuatArray` the names, arguments, defaults, angle
-ranges, warnings and error types of ``scipy.spatial.transform.Rotation``
-(scipy 1.17): ``from_*`` / ``as_*`` conversions, `apply`, `inv`, `magnitude`,
-`approx_equal`, `mean`, `random`, `concatenate`, `align_vectors`, `single`,
-and `from_scipy` / `to_scipy`.  Each method validates, calls a raw-array
-kernel from `_convert` or `_kernels`, and wraps the result with
-``cls._wrap``; the mixin never imports the class itself.
-
-Storage stays scalar-first ``(w, x, y, z)``; the scipy-named methods keep
-scipy's scalar-last default for ``from_quat`` / ``as_quat``.  A quaternion is
-read as the rotation by ``q / |q|``.
+A `Rotation` holds unit quaternions, scalar-first ``(w, x, y, z)``, in an
+array of shape ``(*shape, 4)`` (`as_quatarray` returns it as a `QuatArray`
+without copying), the way scipy's `Rotation` holds ``_quat``.  Every method
+validates its arguments, calls a raw-array function from `_convert`,
+`_euler` or `_kernels`, and wraps the result; no conversion is written here.
+Names, arguments, defaults, angle ranges, warnings, exception types and the
+messages scipy's tests match on are scipy's.  Beyond scipy: float32 stays
+float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
+the batch shape (one per rotation).
 """
 
+import math
 import warnings
 
 import numpy as np
@@ -20,13 +19,16 @@ import numpy as np
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
+from ._array import QuatArray
+from ._rotation_groups import group_quats
 from ._validate import batch_shape, float_array
 
-__all__ = ["RotationMixin"]
+__all__ = ["Rotation"]
 
 
-def _raw(x):
-    return x.view(np.ndarray)
+def _is_scipy_rotation(x):
+    t = type(x)
+    return t.__name__ == "Rotation" and t.__module__.startswith("scipy.spatial.transform")
 
 
 def _scalar_last(q):
@@ -37,176 +39,260 @@ def _scalar_last(q):
     return out
 
 
-def _default_atol(*dtypes):
-    """1e-8 rad (scipy's default) in float64; 1e-5 rad (about 80 eps) if float32 is involved."""
-    return 1e-8 if all(np.dtype(d) == np.float64 for d in dtypes) else 1e-5
+def _first(a):
+    """A 0-d result as a NumPy scalar (scipy's type for one rotation)."""
+    return a[()] if a.ndim == 0 else a
 
 
-class RotationMixin:
-    """scipy ``Rotation`` methods for `QuatArray` (see the module docstring)."""
+def _broadcast(p, q, message):
+    try:
+        return np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
+    except ValueError:
+        raise ValueError(message) from None
 
-    # --- quaternions -----------------------------------------------------------------
+
+class Rotation:
+    """Rotations in 3 dimensions: scipy 1.17's ``Rotation``, any batch shape.
+
+    Create rotations with the ``from_*`` class methods (`from_quat`,
+    `from_matrix`, `from_rotvec`, `from_mrp`, `from_euler`,
+    `from_davenport`), `identity`, `random`, `align_vectors`, `concatenate`,
+    `create_group`, or from a `QuatArray` (`from_quatarray`) or a scipy
+    ``Rotation`` (`from_scipy`).
+
+    Parameters
+    ----------
+    quat : array_like, shape (..., 4)
+        Quaternions, ``(x, y, z, w)``, or ``(w, x, y, z)`` with
+        ``scalar_first=True``.  float32 stays float32; other input becomes
+        float64.
+    normalize : bool, default True
+        Divide each quaternion by its norm (a zero quaternion raises
+        `ValueError`).  With False the quaternions must already be unit.
+    copy : bool, default True
+        Only with ``normalize=False``: copy `quat` (scalar-first float input
+        is otherwise used as it is).
+    scalar_first : bool, default False
+
+    Attributes
+    ----------
+    shape : tuple
+        The batch shape: ``()`` for a single rotation.
+    single : bool
+
+    Notes
+    -----
+    ``*`` composes (``p * q`` applies ``q`` first), broadcasting batch shapes;
+    ``r ** t`` turns by ``t`` times the angle about the same axis; ``==``
+    compares identity, as in scipy (use `approx_equal`).  Indexing, ``len``,
+    iteration, pickling and `copy` behave as in scipy.
+
+    Examples
+    --------
+    >>> from quatarray import Rotation
+    >>> r = Rotation.from_euler("z", [[0], [90]], degrees=True)
+    >>> r.shape, len(r), r[1].single
+    ((2,), 2, True)
+    >>> np.round(r[1].apply([1, 0, 0]), 12) + 0.0
+    array([0., 1., 0.])
+    >>> np.round((r[1] * r[1]).as_rotvec(degrees=True), 9) + 0.0
+    array([  0.,   0., 180.])
+    """
+
+    __slots__ = ("_q", "__weakref__")
+
+    def __init__(self, quat, normalize=True, copy=True, *, scalar_first=False):
+        q = float_array(quat, "quat")
+        if q.ndim == 0 or q.shape[-1] != 4:
+            raise ValueError(f"Expected `quat` to have shape (..., 4), got {q.shape}.")
+        if normalize:
+            q = C.from_quat(q, scalar_first=scalar_first)
+        elif not scalar_first:
+            q = q[..., [3, 0, 1, 2]]
+        elif copy and (q is quat or isinstance(quat, np.ndarray) and np.may_share_memory(q, quat)):
+            q = q.copy()
+        self._q = q
+
+    @classmethod
+    def _wrap(cls, q):
+        """A rotation holding the raw unit scalar-first array `q` (no checks, no copy)."""
+        r = object.__new__(cls)
+        r._q = q
+        return r
+
+    # --- the stored quaternions -----------------------------------------------------------
+    @property
+    def _quat(self):
+        """The stored quaternions as a `QuatArray` view (scalar-first)."""
+        return self._q.view(QuatArray)
+
+    @classmethod
+    def from_quatarray(cls, q):
+        """The rotations of a `QuatArray` of unit quaternions, sharing its memory.
+
+        Zero-copy: the rotation holds `q`'s data (later changes to `q` show).
+        The quaternions are not normalised or checked; use
+        ``Rotation(q.ndarray, scalar_first=True)`` for a normalised copy.
+
+        >>> from quatarray import QuatArray, Rotation
+        >>> q = QuatArray([[1, 0, 0, 0], [0, 0, 0, 1]])
+        >>> r = Rotation.from_quatarray(q)
+        >>> r.shape, np.shares_memory(r.as_quatarray(), q)
+        ((2,), True)
+        """
+        if not isinstance(q, QuatArray):
+            raise TypeError(f"expected q to be a QuatArray, got {type(q).__name__}")
+        return cls._wrap(q.view(np.ndarray))
+
+    def as_quatarray(self):
+        """The stored unit quaternions as a `QuatArray` (scalar-first), without copying.
+
+        Writing into the result changes this rotation.
+
+        >>> from quatarray import Rotation
+        >>> Rotation.from_euler("x", 0).as_quatarray()
+        QuatArray([1., 0., 0., 0.])
+        """
+        return self._q.view(QuatArray)
+
+    @classmethod
+    def from_scipy(cls, r):
+        """A `Rotation` from a ``scipy.spatial.transform.Rotation`` (float64, same shape).
+
+        >>> from scipy.spatial.transform import Rotation as ScipyRotation
+        >>> from quatarray import Rotation
+        >>> Rotation.from_scipy(ScipyRotation.from_rotvec([0, 0, 1])).as_rotvec()
+        array([0., 0., 1.])
+        """
+        if not _is_scipy_rotation(r):
+            raise TypeError(f"expected a scipy.spatial.transform.Rotation, got {type(r).__name__}")
+        return cls._wrap(np.asarray(r.as_quat(scalar_first=True), dtype=np.float64))
+
+    def to_scipy(self):
+        """This rotation as a ``scipy.spatial.transform.Rotation`` (float64).
+
+        >>> from quatarray import Rotation
+        >>> Rotation.from_euler("x", 30, degrees=True).to_scipy().as_euler("xyz", degrees=True)
+        array([30.,  0.,  0.])
+        """
+        from scipy.spatial.transform import Rotation as ScipyRotation
+        return ScipyRotation.from_quat(self._q.astype(np.float64), scalar_first=True)
+
+    # --- quaternions ---------------------------------------------------------------------
     @classmethod
     def from_quat(cls, quat, *, scalar_first=False):
-        """Rotations from quaternions, normalised (scipy's scalar-last default).
+        """Rotations from quaternions ``(x, y, z, w)`` (or ``(w, x, y, z)``), normalised.
 
         Parameters
         ----------
         quat : array_like, shape (..., 4)
-            Quaternions ``(x, y, z, w)``, or ``(w, x, y, z)`` with
-            ``scalar_first=True``; float32 stays float32.
         scalar_first : bool, default False
-
-        Returns
-        -------
-        QuatArray, shape (..., 4)
-            Unit quaternions, stored scalar-first.
 
         Raises
         ------
         ValueError
-            For a zero quaternion, NaN or infinite components, or a last axis
-            other than 4.
+            For zero, NaN or infinite quaternions, or a last axis other than 4.
 
-        Examples
-        --------
         >>> from quatarray import Rotation
-        >>> Rotation.from_quat([0, 0, 1, 1])  # (x, y, z, w): 90° about z
-        QuatArray([0.70710678, 0.        , 0.        , 0.70710678])
+        >>> Rotation.from_quat([0, 0, 1, 1]).as_quat()  # 90° about z
+        array([0.        , 0.        , 0.70710678, 0.70710678])
         """
-        return cls._wrap(C.from_quat(quat, scalar_first=scalar_first))
+        return cls(quat, scalar_first=scalar_first)
 
     def as_quat(self, canonical=False, *, scalar_first=False):
-        """The quaternions as a plain array (scipy's scalar-last default).
+        """The quaternions, shape (..., 4), ``(x, y, z, w)`` unless `scalar_first` (a new array).
 
         Parameters
         ----------
         canonical : bool, default False
-            Return the representative with w ≥ 0 (for w = 0, the first
-            non-zero of x, y, z positive).
+            The representative with w ≥ 0 (for w = 0, the first non-zero of
+            x, y, z positive).
         scalar_first : bool, default False
-            ``(w, x, y, z)`` instead of ``(x, y, z, w)``.
 
-        Returns
-        -------
-        ndarray, shape (..., 4)
-            A new array with the stored components (not renormalised).
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_quat([0, 0, 0, -1])
-        >>> r.as_quat(), r.as_quat(canonical=True)
-        (array([ 0.,  0.,  0., -1.]), array([0., 0., 0., 1.]))
-        >>> r.as_quat(scalar_first=True)
-        array([-1.,  0.,  0.,  0.])
+        >>> r.as_quat(), r.as_quat(canonical=True), r.as_quat(scalar_first=True)
+        (array([ 0.,  0.,  0., -1.]), array([0., 0., 0., 1.]), array([-1.,  0.,  0.,  0.]))
         """
-        q = _raw(self)
-        if canonical:
-            q = C.canonical(q)
-            return q if scalar_first else _scalar_last(q)
-        return q.copy() if scalar_first else _scalar_last(q)
+        q = C.canonical(self._q) if canonical else self._q
+        if scalar_first:
+            return q if canonical else q.copy()
+        return _scalar_last(q)
 
-    # --- matrices, rotation vectors, MRPs -------------------------------------------------
+    # --- matrices, rotation vectors, MRPs ------------------------------------------------
     @classmethod
     def from_matrix(cls, matrix, *, assume_valid=False):
-        """Rotations from rotation matrices (non-orthogonal ones projected to the nearest rotation).
+        """Rotations from rotation matrices, shape (..., 3, 3).
 
-        Parameters
-        ----------
-        matrix : array_like, shape (..., 3, 3)
-        assume_valid : bool, default False
-            Skip the determinant and orthogonality checks.
+        A matrix that is not orthogonal is replaced by the nearest rotation
+        matrix, as in scipy; `assume_valid` skips that check.
 
-        Returns
-        -------
-        QuatArray, shape (..., 4)
-
-        Raises
-        ------
-        ValueError
-            For det ≤ 0, NaN or inf, or a wrong shape.
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_matrix([[0, -1, 0], [1, 0, 0], [0, 0, 1]])
         >>> np.round(r.as_rotvec(degrees=True), 9)
         array([ 0.,  0., 90.])
         """
-        return cls._wrap(C.from_matrix(matrix, assume_valid=assume_valid))
+        m = float_array(matrix, "matrix")
+        if m.ndim < 2 or m.shape[-2:] != (3, 3):
+            raise ValueError(f"Expected `matrix` to have shape (3, 3) or (..., 3, 3), got {m.shape}")
+        return cls._wrap(C.from_matrix(m, assume_valid=assume_valid))
 
     def as_matrix(self):
         """Rotation matrices, shape (..., 3, 3).
 
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_euler("z", 90, degrees=True).as_matrix(), 12) + 0.0
         array([[ 0., -1.,  0.],
                [ 1.,  0.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return C.as_matrix(_raw(self))
+        return C.as_matrix(self._q)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
-        """Rotations from rotation vectors (axis × angle).
+        """Rotations from rotation vectors (axis × angle), shape (..., 3).
 
-        Parameters
-        ----------
-        rotvec : array_like, shape (..., 3)
-        degrees : bool, default False
-
-        Returns
-        -------
-        QuatArray, shape (..., 4)
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_quat(), 6)
         array([0.      , 0.      , 0.707107, 0.707107])
         """
-        return cls._wrap(C.from_rotvec(rotvec, degrees=degrees))
+        v = float_array(rotvec, "rotvec")
+        if v.ndim == 0 or v.shape[-1] != 3:
+            raise ValueError(f"Expected `rot_vec` to have shape (3,) or (..., 3), got {v.shape}")
+        return cls._wrap(C.from_rotvec(v, degrees=degrees))
 
     def as_rotvec(self, degrees=False):
         """Rotation vectors, shape (..., 3), angle (the norm) in [0, π].
 
-        Accurate for angles down to 1e-12 rad and up to π.
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> Rotation.from_euler("x", 1e-9).as_rotvec()
         array([1.e-09, 0.e+00, 0.e+00])
         """
-        return C.as_rotvec(_raw(self), degrees=degrees)
+        return C.as_rotvec(self._q, degrees=degrees)
 
     @classmethod
     def from_mrp(cls, mrp):
-        """Rotations from modified Rodrigues parameters ``axis · tan(angle / 4)``.
+        """Rotations from modified Rodrigues parameters ``axis · tan(angle / 4)``, shape (..., 3).
 
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_mrp([0, 0, 1]).as_rotvec(), 12)
         array([0.        , 0.        , 3.14159265])
         """
-        return cls._wrap(C.from_mrp(mrp))
+        p = float_array(mrp, "mrp")
+        if p.ndim == 0 or p.shape[-1] != 3:
+            raise ValueError(f"Expected `mrp` to have shape (3,) or (..., 3), got {p.shape}")
+        return cls._wrap(C.from_mrp(p))
 
     def as_mrp(self):
         """Modified Rodrigues parameters, shape (..., 3), norm ≤ 1.
 
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
         """
-        return C.as_mrp(_raw(self))
+        return C.as_mrp(self._q)
 
-    # --- Euler and Davenport angles ------------------------------------------------------
+    # --- Euler and Davenport angles -----------------------------------------------------
     @classmethod
     def from_euler(cls, seq, angles, degrees=False):
         """Rotations from Euler angles.
@@ -214,114 +300,131 @@ class RotationMixin:
         Parameters
         ----------
         seq : str
-            1 to 3 axes: ``'xyz'`` extrinsic (fixed axes) or ``'XYZ'``
-            intrinsic (rotating axes); no mixing, no axis twice in a row.
-        angles : array_like, shape (..., len(seq))
+            1 to 3 axes, ``'xyz'`` extrinsic or ``'XYZ'`` intrinsic.
+        angles : float or array_like, shape (..., len(seq))
         degrees : bool, default False
 
-        Returns
-        -------
-        QuatArray, shape (..., 4)
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("zyx", [[90, 0, 0], [0, 45, 0]], degrees=True)
         >>> np.round(r.as_rotvec(degrees=True), 9) + 0.0
         array([[ 0.,  0., 90.],
                [ 0., 45.,  0.]])
         """
-        return cls._wrap(E.from_euler(seq, angles, degrees=degrees))
+        _check_euler_seq(seq)
+        a = float_array(angles, "angles")
+        if a.ndim == 0:
+            a = a.reshape(1)
+        if a.shape[-1] != len(seq):
+            raise ValueError(f"Expected last dimension of `angles` to match number of sequence "
+                             f"axes specified, got {a.shape[-1]}: expected angles of shape "
+                             f"(..., {len(seq)}) for seq {seq!r}, got {a.shape}")
+        return cls._wrap(E.from_euler(seq, a, degrees=degrees))
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
-        """Euler angles, shape (..., 3), in scipy's ranges and with its gimbal-lock warning.
+        """Euler angles, shape (..., 3), in scipy's ranges, with its gimbal-lock warning.
 
-        Parameters
-        ----------
-        seq : str
-            3 axes, ``'xyz'`` extrinsic or ``'XYZ'`` intrinsic.
-        degrees : bool, default False
-        suppress_warnings : bool, default False
-
-        Returns
-        -------
-        ndarray, shape (..., 3)
-            First and third angles in [-π, π]; the second in [0, π]
-            (symmetric sequences such as ``'zxz'``) or [-π/2, π/2].
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("ZXY", [30, 20, 10], degrees=True)
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
         array([30., 20., 10.])
         """
-        return E.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        _check_euler_seq(seq, 3)
+        return E.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
-        """Rotations from Davenport angles (Euler angles about any orthogonal-consecutive axes).
+        """Rotations from Davenport angles: turns about any 1 to 3 axes, consecutive ones orthogonal.
 
         Parameters
         ----------
-        axes : array_like, shape (3,) or (n, 3), n ≤ 3
+        axes : array_like, shape (3,), (n, 3) or (..., n, 3)
+            Batched axes broadcast with the angles' batch shape.
         order : {'e', 'extrinsic', 'i', 'intrinsic'}
-        angles : array_like, shape (..., n)
+        angles : float or array_like, shape (..., n)
         degrees : bool, default False
 
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_davenport([[0, 0, 1], [1, 0, 0]], "e", [90, 45], degrees=True)
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        return cls._wrap(E.from_davenport(axes, order, angles, degrees=degrees))
+        extrinsic = _check_order(order)
+        ax = float_array(axes, "axes")
+        if ax.ndim == 0 or ax.shape[-1] != 3:
+            raise ValueError("Axes must be vectors of length 3.")
+        ax2 = ax if ax.ndim > 1 else ax[None]
+        n = ax2.shape[-2]
+        if not 1 <= n <= 3:
+            raise ValueError(f"Expected up to 3 axes, got {n}")
+        a = float_array(angles, "angles")
+        if a.ndim == 0:
+            a = a.reshape(1)
+        if a.shape[-1] != n or (ax2.ndim > 2 and not _broadcastable(ax2.shape[:-2], a.shape[:-1])):
+            raise ValueError(f"Expected `angles` to match number of axes, got {a.shape} angles "
+                             f"and {ax2.shape} axes.")
+        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
+        dots = np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1))
+        if (dots > 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
+        if ax2.ndim == 2:
+            return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees))
+        # axes with a batch shape: one elementary turn per axis, composed in order
+        dtype = np.result_type(a.dtype, ax2.dtype)
+        angle = np.deg2rad(a) if degrees else a
+        q = None
+        for i in range(n):
+            qi = C.from_rotvec((angle[..., i, None] * unit[..., i, :]).astype(dtype))
+            q = qi if q is None else (K.multiply(qi, q) if extrinsic else K.multiply(q, qi))
+        return cls._wrap(q)
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
-        """Davenport angles about three axes (the middle one orthogonal to the others).
+        """Davenport angles about three axes (the middle one orthogonal to the others), shape (..., 3).
 
-        Parameters
-        ----------
-        axes : array_like, shape (3, 3)
-        order : {'e', 'extrinsic', 'i', 'intrinsic'}
-        degrees : bool, default False
-        suppress_warnings : bool, default False
-
-        Returns
-        -------
-        ndarray, shape (..., 3)
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> ez, ex, ey = [0, 0, 1], [1, 0, 0], [0, 1, 0]
         >>> r = Rotation.from_davenport([ez, ex, ey], "e", [90, 30, 10], degrees=True)
         >>> np.round(r.as_davenport([ez, ex, ey], "e", degrees=True), 9)
         array([90., 30., 10.])
         """
-        return E.as_davenport(_raw(self), axes, order, degrees=degrees,
-                              suppress_warnings=suppress_warnings)
+        _check_order(order)
+        ax = float_array(axes, "axes")
+        if ax.ndim < 2 or ax.shape[-2] != 3:
+            raise ValueError(f"Expected 3 axes, got {ax.shape}.")
+        if ax.shape[-1] != 3:
+            raise ValueError("Axes must be vectors of length 3.")
+        if ax.ndim > 2 and not _broadcastable(ax.shape[:-2], self._q.shape[:-1]):
+            raise ValueError(f"Expected `axes` to match number of rotations, got {ax.shape} axes "
+                             f"and {self._q.shape} rotations.")
+        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
+        dots = np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)
+        if (dots >= 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
+        if ax.ndim == 2:
+            return E.as_davenport(self._q, ax, order, degrees=degrees,
+                                  suppress_warnings=suppress_warnings)
+        # one set of axes per rotation: each distinct set read by the raw function
+        batch = np.broadcast_shapes(ax.shape[:-2], self._q.shape[:-1])
+        qb = np.broadcast_to(self._q, batch + (4,)).reshape(-1, 4)
+        axb = np.broadcast_to(ax, batch + (3, 3)).reshape(-1, 3, 3)
+        uniq, inverse = np.unique(axb.reshape(-1, 9), axis=0, return_inverse=True)
+        out = np.empty((qb.shape[0], 3), self._q.dtype)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for k, u in enumerate(uniq):
+                sel = inverse.ravel() == k
+                out[sel] = E.as_davenport(qb[sel], u.reshape(3, 3), order, degrees=degrees,
+                                          suppress_warnings=suppress_warnings)
+        if caught:
+            warnings.warn(caught[0].message, caught[0].category, stacklevel=2)
+        return out.reshape(batch + (3,))
 
-    # --- acting on vectors, inverting, measuring -------------------------------------------
+    # --- acting on vectors, composing, inverting, measuring -------------------------------
     def apply(self, vectors, inverse=False):
-        """Rotate vectors, broadcasting batch shapes as scipy 1.17 does.
+        """Rotate vectors, shape (..., 3); batch shapes broadcast as in scipy 1.17.
 
-        Parameters
-        ----------
-        vectors : array_like, shape (..., 3)
-            The rotations' batch shape and the vectors' batch shape broadcast
-            (one rotation and many vectors, many rotations and one vector,
-            N and N pairwise, or any NumPy broadcast).
-        inverse : bool, default False
-            Apply the inverse rotations.
+        One rotation and one vector give shape (3,); otherwise the result has
+        the broadcast batch shape of rotations and vectors.
 
-        Returns
-        -------
-        ndarray, shape (broadcast batch, 3)
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("z", [[0], [90]], degrees=True)
         >>> np.round(r.apply([1, 0, 0]), 12) + 0.0
@@ -329,90 +432,132 @@ class RotationMixin:
                [0., 1., 0.]])
         """
         v = float_array(vectors, "vectors")
-        q = _raw(self)
-        if v.shape == (3,) and q.shape == (4,):
-            return K.rotate(q, v, inverse)
         if v.ndim == 0 or v.shape[-1] != 3:
-            raise ValueError(f"Expected input of shape (..., 3): expected vectors of shape (..., 3), got {v.shape}")
-        try:
-            np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
-        except ValueError:
-            raise ValueError(f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape[:-1]} vectors: "
-                             f"expected batch shapes that broadcast") from None
-        return K.rotate(q, v, inverse=inverse)
+            raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
+        q = self._q
+        if q.ndim > 1 or v.ndim > 1:
+            _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[:-1]} rotations to "
+                                      f"{v.shape[:-1]} vectors.")
+        return K.rotate(q, v, inverse)
 
-    def inv(self):
-        """Inverse rotations (the conjugates; norms are kept).
+    def __mul__(self, other):
+        """Composition ``self * other``: apply `other`, then `self` (batch shapes broadcast)."""
+        if isinstance(other, Rotation):
+            q = other._q
+        elif _is_scipy_rotation(other):
+            q = Rotation.from_scipy(other)._q
+        else:
+            return NotImplemented
+        p = self._q
+        if p.ndim > 1 or q.ndim > 1:
+            _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
+                             f"{q.shape[:-1]} rotations in second object.")
+        return type(self)._wrap(K.normalize(K.multiply(p, q)))
 
-        Examples
-        --------
+    def __rmul__(self, other):
+        if _is_scipy_rotation(other):
+            return Rotation.from_scipy(other) * self
+        return NotImplemented
+
+    def __pow__(self, n, modulus=None):
+        """The rotation about the same axis by `n` times the angle (scipy's ``**``).
+
+        ``n = -1`` is `inv`, ``n = 0`` the identity.  `n` is a real number
+        (or an array of shape () or (1,)), as in scipy; beyond scipy, an array
+        that broadcasts with the batch shape gives one exponent per rotation.
+        The angle of ``r ** n`` is ``n · r.magnitude()`` taken modulo 2π
+        into [0, π] (so ``(r ** 0.5) ** 2 == r``, but not the other way round).
+
         >>> from quatarray import Rotation
         >>> r = Rotation.from_rotvec([0, 0, 1])
-        >>> r.inv().as_rotvec() + 0.0
+        >>> (r ** 2).as_rotvec(), (r ** 0.5).as_rotvec()
+        (array([0., 0., 2.]), array([0. , 0. , 0.5]))
+        """
+        if modulus is not None:
+            raise NotImplementedError("modulus not supported")
+        q = self._q
+        if isinstance(n, np.ndarray) or not isinstance(n, (int, float, np.number)):
+            t = float_array(n, "n")
+            if t.shape == (1,):
+                t = t[0]
+            elif t.ndim != 0:
+                if t.ndim > q.ndim - 1 or not _broadcastable(t.shape, q.shape[:-1]):
+                    raise ValueError(f"Array exponent must be a scalar, or (an extension of "
+                                     f"scipy's) broadcast with the rotations' shape "
+                                     f"{q.shape[:-1]}: got shape {t.shape}")
+                t = t.astype(np.result_type(t.dtype, q.dtype), copy=False)
+                return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * t[..., None]))
+            n = float(t)
+        if n == 0:
+            return type(self).identity(shape=q.shape[:-1], dtype=q.dtype)
+        if n == -1:
+            return self.inv()
+        if n == 1:
+            return type(self)._wrap(q.copy())
+        return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * n))
+
+    def inv(self):
+        """The inverse rotations.
+
+        >>> from quatarray import Rotation
+        >>> Rotation.from_rotvec([0, 0, 1]).inv().as_rotvec() + 0.0
         array([ 0.,  0., -1.])
         """
-        return self._wrap(K.conjugate(_raw(self)))
+        return type(self)._wrap(K.conjugate(self._q))
 
     def magnitude(self):
-        """Rotation angles in [0, π] (a NumPy scalar for a single rotation).
+        """Rotation angles in [0, π], batch shape (a NumPy float for one rotation).
 
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> Rotation.from_rotvec([[0, 0, 1], [0, 4, 0]]).magnitude()
         array([1.        , 2.28318531])
         """
-        out = C.magnitude(_raw(self))
-        return out[()] if out.ndim == 0 else out
+        return _first(C.magnitude(self._q))
 
     def approx_equal(self, other, atol=None, degrees=False):
-        """Whether the angle between each pair of rotations is below `atol`.
+        """Whether the angle between each pair of rotations is below `atol` (batch shapes broadcast).
 
         Parameters
         ----------
-        other : QuatArray
-            Rotations whose batch shape broadcasts with this one's.
+        other : Rotation
         atol : float, optional
-            Default 1e-8 rad (float64; 1e-5 rad when either side is
-            float32).  With ``degrees=True`` and no `atol`, the default is
-            used and a `UserWarning` issued, as in scipy.
+            Default 1e-8 rad (1e-5 rad when either side is float32).  With
+            ``degrees=True`` and no `atol` the default is used and a
+            `UserWarning` issued, as in scipy.
         degrees : bool, default False
 
         Returns
         -------
-        ndarray of bool (batch shape), or a NumPy bool for single rotations
+        ndarray of bool
+            Shape (1,) for two single rotations, as in scipy.
 
-        Examples
-        --------
         >>> from quatarray import Rotation
-        >>> r = Rotation.from_rotvec([0, 0, 1])
+        >>> r = Rotation.from_rotvec([[0, 0, 1], [0, 0, 2]])
         >>> r.approx_equal(Rotation.from_rotvec([0, 0, 1 + 1e-10]))
-        np.True_
-        >>> r.approx_equal(Rotation.from_rotvec([0, 0, 1.1]), atol=5, degrees=True)
-        np.False_
+        array([ True, False])
         """
-        if not isinstance(other, RotationMixin):
-            raise TypeError(f"expected other to be a Rotation (QuatArray), got {type(other).__name__}")
-        p, q = _raw(self), _raw(other)
+        if isinstance(other, Rotation):
+            q = other._q
+        elif _is_scipy_rotation(other):
+            q = Rotation.from_scipy(other)._q
+        else:
+            raise TypeError(f"expected other to be a Rotation, got {type(other).__name__}")
+        p = self._q
         if atol is None:
             if degrees:
                 warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.",
                               UserWarning, stacklevel=2)
-            atol = _default_atol(p.dtype, q.dtype)
+            atol = 1e-8 if p.dtype == q.dtype == np.float64 else 1e-5
         elif degrees:
             atol = np.deg2rad(atol)
-        try:
-            np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
-        except ValueError:
-            raise ValueError(f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
-                             f"rotations in first and {q.shape[:-1]} rotations in second object") from None
-        angle = C.magnitude(K.multiply(q, K.conjugate(p)))
-        res = angle < atol
-        return res[()] if res.ndim == 0 else res
+        _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
+                         f"rotations in first and {q.shape[:-1]} rotations in second object.")
+        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
+        return res.reshape(1) if res.ndim == 0 else res
 
-    # --- averaging, sampling, stacking, fitting ---------------------------------------------
+    # --- averaging and reducing ---------------------------------------------------------
     def mean(self, weights=None, axis=None):
-        """Chordal L2 mean: the dominant eigenvector of Σ wᵢ qᵢ qᵢᵀ (one 4x4 eigh per mean).
+        """Chordal L2 mean: the dominant eigenvector of Σ wᵢ qᵢ qᵢᵀ.
 
         Parameters
         ----------
@@ -421,26 +566,12 @@ class RotationMixin:
         axis : None, int or tuple of ints, optional
             Batch axes to average over (default: all).
 
-        Returns
-        -------
-        QuatArray
-            The mean rotations (canonical sign, w ≥ 0); a single rotation
-            when every axis is reduced.
-
-        Raises
-        ------
-        ValueError
-            For an empty set, negative or non-finite weights, weights that do
-            not broadcast, or a bad `axis`.
-
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("z", [[0], [10], [20]], degrees=True)
         >>> np.round(r.mean().as_euler("zyx", degrees=True), 9) + 0.0
         array([10.,  0.,  0.])
         """
-        q = _raw(self)
+        q = self._q
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]
@@ -454,99 +585,162 @@ class RotationMixin:
         else:
             raise ValueError(f"`axis` must be None, int, or tuple of ints, got {axis!r}")
         if any(not -nb <= a < nb for a in axes):
-            raise ValueError(f"axis {axis} is out of bounds for rotation with shape {batch}")
+            raise ValueError(f"axis {axis} is out of bounds for rotation with shape {batch}.")
         axes = tuple(sorted({a % nb for a in axes}))
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")
         q64 = q.astype(np.float64, copy=False)
-        # Σ w q qᵀ / |q|²: the rotations q/|q|, with the normalisation folded into the weights
-        scale = 1.0 / np.einsum("...i,...i->...", q64, q64)
-        if weights is not None:
+        if weights is None:
+            wq = q64
+        else:
             w = float_array(weights, "weights").astype(np.float64)
-            if not np.isfinite(w).all():
-                raise ValueError("expected finite weights, got nan or inf")
             if (w < 0).any():
                 raise ValueError("`weights` must be non-negative.")
-            try:
-                if np.broadcast_shapes(w.shape, batch) != batch:
-                    raise ValueError
-            except ValueError:
-                raise ValueError(f"Expected `weights` to be broadcastable to rotation shape: "
-                                 f"got weights of shape {w.shape} for rotations of shape {batch}") from None
-            scale = scale * w
-        wq = q64 * scale[..., None]
+            if not np.isfinite(w).all():
+                raise ValueError("expected finite weights, got nan or inf")
+            if not _broadcastable(w.shape, batch) or np.broadcast_shapes(w.shape, batch) != batch:
+                raise ValueError(f"Expected `weights` to be broadcastable to rotation shape, got "
+                                 f"shape {w.shape} for {batch} rotations.")
+            wq = q64 * w[..., None]
         keep = tuple(a for a in range(nb) if a not in axes)
         order = keep + axes + (nb,)
         kshape = tuple(batch[a] for a in keep)
         qm = q64.transpose(order).reshape(kshape + (-1, 4))
-        wm = wq.transpose(order).reshape(kshape + (-1, 4))
-        k = np.matmul(np.swapaxes(wm, -1, -2), qm)
-        _, vectors = np.linalg.eigh(k)
-        return self._wrap(C.canonical(vectors[..., -1]).astype(q.dtype))
+        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))
+        _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
+        return type(self)._wrap(C.canonical(vectors[..., -1]).astype(q.dtype))
+
+    def reduce(self, left=None, right=None, return_indices=False):
+        """Reduce each rotation p to the smallest l · p · r over l in `left`, r in `right`.
+
+        Typically `left` and `right` are symmetry groups (`create_group`):
+        the result is the representative with the smallest angle.
+
+        Parameters
+        ----------
+        left, right : Rotation, optional
+            Candidate rotations (default: the identity only).
+        return_indices : bool, default False
+            Also return the chosen indices into `left` and `right` (None for
+            a side that was not given).
+
+        >>> from quatarray import Rotation
+        >>> g = Rotation.create_group("C4")
+        >>> r = Rotation.from_euler("z", 100, degrees=True)
+        >>> round(float(np.degrees(r.reduce(left=g).magnitude())), 9)
+        10.0
+        """
+        if left is None and right is None:
+            reduced = type(self)._wrap(self._q.copy())
+            return (reduced, None, None) if return_indices else reduced
+        p = self._q
+        eye = np.array([[1.0, 0.0, 0.0, 0.0]], p.dtype)
+        ls = _coerce(left, "left").reshape(-1, 4) if left is not None else eye
+        rs = _coerce(right, "right").reshape(-1, 4) if right is not None else eye
+        pf = p.reshape(-1, 4)
+        # |w| of l p r = |(l p) · conj(r)|: the largest gives the smallest angle
+        lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
+        score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
+        best = score.reshape(score.shape[0], -1).argmax(axis=1)
+        li, ri = np.divmod(best, rs.shape[0])
+        reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
+        rot = type(self)._wrap(reduced)
+        if not return_indices:
+            return rot
+        shape = p.shape[:-1]
+        return (rot, li.reshape(shape) if left is not None else None,
+                ri.reshape(shape) if right is not None else None)
 
     @classmethod
-    def random(cls, num=None, rng=None, *, shape=None):
-        """Rotations uniform on SO(3) (Haar measure): normalised Gaussian 4-vectors.
+    def create_group(cls, group, axis="Z"):
+        """A 3D rotation group: 'I' (icosahedral), 'O', 'T', 'Cn' (cyclic) or 'Dn' (dicyclic).
 
-        With the same `rng` seed, the same rotations as scipy's
-        ``Rotation.random``.
+        Parameters
+        ----------
+        group : str
+        axis : {'X', 'Y', 'Z'} (or lower case), default 'Z'
+            The main axis of 'Cn' and 'Dn'.
+
+        >>> from quatarray import Rotation
+        >>> Rotation.create_group("I").shape, Rotation.create_group("D3", "x").shape
+        ((60,), (6,))
+        """
+        if not isinstance(group, str):
+            raise ValueError(f"`group` argument must be a string, got {type(group).__name__}")
+        permitted = ["x", "y", "z", "X", "Y", "Z"]
+        if not isinstance(axis, str) or axis not in permitted:
+            raise ValueError("`axis` must be one of " + ", ".join(permitted) + f", got {axis!r}")
+        if group in ("I", "O", "T"):
+            symbol, order = group, 1
+        elif group[:1] in ("C", "D") and group[1:].isdigit():
+            symbol, order = group[:1], int(group[1:])
+        else:
+            raise ValueError(f"`group` must be one of 'I', 'O', 'T', 'Dn', 'Cn', got {group!r}")
+        if order < 1:
+            raise ValueError(f"Group order must be positive, got {group!r}")
+        return cls._wrap(group_quats(symbol, order, "xyz".index(axis.lower())))
+
+    # --- construction of many ---------------------------------------------------------------
+    @staticmethod
+    def identity(num=None, *, shape=None, dtype=np.float64):
+        """Identity rotations: one, ``num`` of them, or a batch of `shape`.
+
+        >>> from quatarray import Rotation
+        >>> Rotation.identity().single, Rotation.identity(3).shape, Rotation.identity(shape=(2, 5)).shape
+        (True, (3,), (2, 5))
+        """
+        q = np.zeros(_batch_shape(num, shape) + (4,), dtype)
+        q[..., 0] = 1
+        return Rotation._wrap(q)
+
+    @staticmethod
+    def random(*args, **kwargs):
+        """random(num=None, rng=None, *, shape=None): rotations uniform on SO(3): the same draws as scipy's for the same `rng`.
 
         Parameters
         ----------
         num : int, optional
-            Number of rotations (a batch of shape ``(num,)``); default one.
-        rng : numpy.random.Generator or seed, optional
+            A batch of shape ``(num,)`` (default: one rotation).
+        rng : None, int or numpy.random.Generator, optional
+            By keyword: passed to `numpy.random.default_rng`.  By position
+            (or as the legacy keyword `random_state`), scipy's old meaning: an
+            int seeds a `numpy.random.RandomState`, None is NumPy's global
+            generator, a Generator or RandomState is used as it is.
         shape : int or tuple of ints, optional
             Batch shape (instead of `num`).
 
-        Returns
-        -------
-        QuatArray, float64
-
-        Examples
-        --------
         >>> from quatarray import Rotation
-        >>> Rotation.random(3, rng=0).shape
-        (3, 4)
-        >>> Rotation.random(shape=(2, 5), rng=1).batch_shape
-        (2, 5)
+        >>> from scipy.spatial.transform import Rotation as ScipyRotation
+        >>> ours, theirs = Rotation.random(3, rng=7), ScipyRotation.random(3, rng=7)
+        >>> float(np.abs(ours.as_quat() - theirs.as_quat()).max()) < 1e-15  # same draws
+        True
         """
-        size = batch_shape(num, shape)
-        if not isinstance(rng, (np.random.Generator, np.random.RandomState)):
-            rng = np.random.default_rng(rng)
-        return cls.from_quat(rng.normal(size=size + (4,)))
+        return _random_entry(*args, **kwargs)
 
     @classmethod
     def concatenate(cls, rotations):
-        """Stack rotations along the first batch axis (single rotations count as one).
+        """Rotations stacked along the first batch axis (a single rotation counts as one).
 
-        Parameters
-        ----------
-        rotations : QuatArray or sequence of QuatArray
-
-        Returns
-        -------
-        QuatArray
-            A copy; float32 only if every input is float32.
-
-        Examples
-        --------
         >>> from quatarray import Rotation
-        >>> r = Rotation.concatenate([Rotation.identity(), Rotation.random(2, rng=0)])
-        >>> r.batch_shape
+        >>> Rotation.concatenate([Rotation.identity(), Rotation.random(2, rng=0)]).shape
         (3,)
         """
-        if isinstance(rotations, RotationMixin):
-            return cls._wrap(_raw(rotations).copy())
+        if isinstance(rotations, Rotation):
+            return cls._wrap(rotations._q.copy())
+        if _is_scipy_rotation(rotations):
+            return cls.from_scipy(rotations)
         rotations = list(rotations)
         for i, r in enumerate(rotations):
-            if not isinstance(r, RotationMixin):
-                raise TypeError(f"input must contain Rotation objects only: expected QuatArray "
-                                f"rotations, got {type(r).__name__} at position {i}")
+            if _is_scipy_rotation(r):
+                raise TypeError(f"input must contain Rotation objects only: got a scipy Rotation at "
+                                f"position {i}; convert it with quatarray.Rotation.from_scipy")
+            if not isinstance(r, Rotation):
+                raise TypeError(f"input must contain Rotation objects only, got "
+                                f"{type(r).__name__} at position {i}")
         if not rotations:
-            raise ValueError("expected at least one rotation to concatenate, got an empty sequence")
-        return cls._wrap(np.concatenate([np.atleast_2d(_raw(r)) for r in rotations]))
+            raise ValueError("need at least one rotation to concatenate, got an empty sequence")
+        return cls._wrap(np.concatenate([np.atleast_2d(r._q) for r in rotations]))
 
     @classmethod
     def align_vectors(cls, a, b, weights=None, return_sensitivity=False):
@@ -556,20 +750,15 @@ class RotationMixin:
         ----------
         a, b : array_like, shape (3,) or (N, 3)
         weights : array_like, shape (N,), optional
-            Non-negative; one infinite weight makes that pair exact (and
-            the others are fitted about it), as in scipy.
+            Non-negative; one infinite weight makes that pair exact.
         return_sensitivity : bool, default False
 
         Returns
         -------
-        rotation : QuatArray, single
+        rotation : Rotation (single)
         rssd : float
-            Root of the weighted sum of squared distances after alignment.
-        sensitivity : ndarray, shape (3, 3)
-            Only with ``return_sensitivity=True``.
+        sensitivity : ndarray, shape (3, 3), only with `return_sensitivity`
 
-        Examples
-        --------
         >>> from quatarray import Rotation
         >>> r, rssd = Rotation.align_vectors([[0, 1, 0], [-1, 0, 0]], [[1, 0, 0], [0, 1, 0]])
         >>> np.round(r.as_rotvec(degrees=True), 9) + 0.0, round(float(rssd), 9)
@@ -579,40 +768,146 @@ class RotationMixin:
         rot = cls._wrap(q)
         return (rot, rssd, sens) if return_sensitivity else (rot, rssd)
 
+    # --- container behaviour -----------------------------------------------------------------
     @property
     def single(self):
-        """True for a single rotation (shape (4,)), as scipy's ``single``.
+        """True for one rotation (shape ``()``)."""
+        return self._q.ndim == 1
 
-        >>> from quatarray import Rotation
-        >>> Rotation.identity().single, Rotation.identity(1).single
-        (True, False)
-        """
-        return self.ndim == 1
+    @property
+    def shape(self):
+        """The batch shape: ``()`` for a single rotation."""
+        return self._q.shape[:-1]
 
-    # --- scipy interoperability ---------------------------------------------------------------
-    @classmethod
-    def from_scipy(cls, r):
-        """A `QuatArray` from a ``scipy.spatial.transform.Rotation`` (float64, any shape).
+    @property
+    def dtype(self):
+        """float32 or float64: the precision the rotations are kept in (not in scipy, which is float64 only)."""
+        return self._q.dtype
 
-        >>> from scipy.spatial.transform import Rotation as R
-        >>> from quatarray import QuatArray
-        >>> QuatArray.from_scipy(R.from_rotvec([0, 0, np.pi]))
-        QuatArray([6.123234e-17, 0.000000e+00, 0.000000e+00, 1.000000e+00])
-        """
-        from scipy.spatial.transform import Rotation as ScipyRotation
-        if not isinstance(r, ScipyRotation):
-            raise TypeError(f"expected a scipy.spatial.transform.Rotation, got {type(r).__name__}")
-        return cls._wrap(np.array(r.as_quat(scalar_first=True), dtype=np.float64))
+    def __bool__(self):
+        return True
 
-    def to_scipy(self):
-        """This rotation as a ``scipy.spatial.transform.Rotation`` (float64, normalised by scipy).
+    def __len__(self):
+        if self._q.ndim == 1:
+            raise TypeError("Single rotation has no len().")
+        return self._q.shape[0]
 
-        >>> from quatarray import Rotation
-        >>> Rotation.from_euler("x", 30, degrees=True).to_scipy().as_euler("xyz", degrees=True)
-        array([30.,  0.,  0.])
-        """
-        from scipy.spatial.transform import Rotation as ScipyRotation
-        return ScipyRotation.from_quat(_raw(self).astype(np.float64), scalar_first=True)
+    def __iter__(self):
+        if self._q.ndim == 1:
+            raise TypeError("Single rotation is not iterable.")
+        cls = type(self)
+        return (cls._wrap(q) for q in self._q)
+
+    def __getitem__(self, indexer):
+        if self._q.ndim == 1:
+            raise TypeError("Single rotation is not subscriptable.")
+        return type(self)._wrap(np.array(self._q[_batch_key(indexer)], copy=True))
+
+    def __setitem__(self, indexer, value):
+        if self._q.ndim == 1:
+            raise TypeError("Single rotation is not subscriptable.")
+        if _is_scipy_rotation(value):
+            value = Rotation.from_scipy(value)
+        if not isinstance(value, Rotation):
+            raise TypeError(f"value must be a Rotation object, got {type(value).__name__}")
+        self._q[_batch_key(indexer)] = value._q
+
+    def __getstate__(self):
+        return self._q
+
+    def __setstate__(self, state):
+        self._q = np.array(state, copy=True)
+
+    def __repr__(self):
+        m = repr(self.as_matrix()).splitlines()
+        m[1:] = [" " * 21 + line for line in m[1:]]
+        return "Rotation.from_matrix(" + "\n".join(m) + ")"
+
+
+def _random(num=None, rng=None, *, shape=None, legacy=False):
+    size = _batch_shape(num, shape)
+    if legacy:
+        if rng is None:
+            rng = np.random.mtrand._rand
+        elif isinstance(rng, (int, np.integer)):
+            rng = np.random.RandomState(rng)
+        elif not isinstance(rng, (np.random.RandomState, np.random.Generator)):
+            rng = np.random.default_rng(rng)
+    else:
+        rng = np.random.default_rng(rng)
+    return Rotation(rng.normal(size=size + (4,)))
+
+
+_random.__name__ = _random.__qualname__ = "random"
+
+
+def _random_entry(*args, **kwargs):
+    """scipy's transition rule for the random generator argument (`_transition_to_rng`)."""
+    by_old, by_new, by_position = "random_state" in kwargs, "rng" in kwargs, len(args) >= 2
+    if by_old + by_new + by_position > 1:
+        raise TypeError("random() got multiple values for argument now known as `rng`. "
+                        "Specify one of `rng` or `random_state`.")
+    if by_old:
+        kwargs["rng"] = kwargs.pop("random_state")
+    legacy = by_old or by_position or not by_new
+    return _random(*args, legacy=legacy, **kwargs)
+
+
+def _batch_shape(num, shape):
+    if num is not None and shape is not None:
+        raise ValueError("Only one of `num` or `shape` can be specified.")
+    if shape is not None and not isinstance(shape, (int, np.integer, tuple)):
+        raise ValueError(f"`shape` must be an int or a tuple of ints or None, got {shape!r}")
+    return batch_shape(num, shape)
+
+
+def _broadcastable(a, b):
+    try:
+        np.broadcast_shapes(a, b)
+    except ValueError:
+        return False
+    return True
+
+
+def _batch_key(indexer):
+    """An index into the batch axes of a (..., 4) array (the component axis stays whole)."""
+    key = indexer if isinstance(indexer, tuple) else (indexer,)
+    key = tuple(k._q if isinstance(k, Rotation) else k for k in key)
+    return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
+
+
+def _coerce(r, name):
+    """Raw quaternions of a Rotation (or a scipy Rotation) argument."""
+    if isinstance(r, Rotation):
+        return r._q
+    if _is_scipy_rotation(r):
+        return Rotation.from_scipy(r)._q
+    raise TypeError(f"expected {name} to be a Rotation, got {type(r).__name__}")
+
+
+def _check_euler_seq(seq, n=None):
+    """scipy's checks and messages for an Euler sequence."""
+    if not isinstance(seq, str):
+        raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    if n is not None and len(seq) != n:
+        raise ValueError(f"Expected {n} axes, got {seq}.")
+    if not 1 <= len(seq) <= 3:
+        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
+                         f"characters, got {seq}")
+    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
+        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
+                         f"['X', 'Y', 'Z'], got {seq}")
+    if any(a == b for a, b in zip(seq, seq[1:])):
+        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
+
+
+def _check_order(order):
+    if order in ("e", "extrinsic"):
+        return True
+    if order in ("i", "intrinsic"):
+        return False
+    raise ValueError(f"order should be 'e'/'extrinsic' for extrinsic sequences or 'i'/'intrinsic' "
+                     f"for intrinsic sequences, got {order!r}")
 
 
 def _align(a, b, weights, return_sensitivity):
@@ -622,12 +917,15 @@ def _align(a, b, weights, return_sensitivity):
     dtype = np.result_type(a0.dtype, b0.dtype)
     a2 = np.atleast_2d(a0).astype(np.float64)
     b2 = np.atleast_2d(b0).astype(np.float64)
-    if a2.ndim != 2 or a2.shape[-1] != 3:
+    if a2.shape[-1] != 3:
         raise ValueError(f"Expected input `a` to have shape (3,) or (N, 3), got {a0.shape}")
-    if b2.ndim != 2 or b2.shape[-1] != 3:
+    if b2.shape[-1] != 3:
         raise ValueError(f"Expected input `b` to have shape (3,) or (N, 3), got {b0.shape}")
     if a2.shape != b2.shape:
         raise ValueError(f"Expected inputs `a` and `b` to have same shapes, got {a0.shape} and {b0.shape} respectively")
+    if a2.ndim > 2:
+        raise ValueError(f"Expected inputs `a` and `b` to have shape (3,) or (N, 3), got {a0.shape} "
+                         f"and {b0.shape} respectively")
     n = a2.shape[0]
     if n == 0:
         raise ValueError("expected at least one pair of vectors in a and b, got 0")

@@ -43,7 +43,7 @@ def is_zarr(path):
 
 def _open_group(path, what):
     import zarr
-    from ._io import FormatError
+    from ._text import FormatError
     try:
         return zarr.open_group(os.fspath(path), mode="r")
     except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
@@ -54,7 +54,7 @@ def _open_group(path, what):
 
 def _array(group, name, path):
     import dask.array as da
-    from ._io import FormatError
+    from ._text import FormatError
     if name not in group:
         raise FormatError(f"missing array {name!r} (found {', '.join(sorted(group.array_keys())) or 'none'})", path)
     return da.from_zarr(group[name])
@@ -62,7 +62,7 @@ def _array(group, name, path):
 
 def read_store(path):
     """``(times, keys)`` of a Zarr store: times in memory, keys a Dask array."""
-    from ._io import FormatError
+    from ._text import FormatError
     group = _open_group(path, "arrays 'times' and 'keys'")
     times = np.asarray(group["times"][...] if "times" in group else _array(group, "times", path), np.float64)
     keys = _array(group, "keys", path)
@@ -76,10 +76,10 @@ def read_store(path):
 def _query_times(key_times, fps, times, rows):
     """Query times as a Dask array chunked by `rows`, and whether they may leave the key range."""
     import dask.array as da
-    from ._io import read_times
+    from .io import read_times
     if fps is not None:
         t0, t1 = float(key_times[0]), float(key_times[-1])
-        span = (t1 - t0) * fps     # the same count and values as _io.fps_times
+        span = (t1 - t0) * fps     # the same count and values as io.fps_times
         n = int(np.floor(span + 1e-9 * max(1.0, span)))
         return da.minimum(t0 + da.arange(n + 1, chunks=rows, dtype=np.float64) / fps, t1), False
     if isinstance(times, (str, os.PathLike)) and is_zarr(times):
@@ -151,12 +151,12 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     from zarr.codecs import BloscCodec
 
     from . import dask as qd
+    from ._text import check_query
     from .interpolate import Track
     if (fps is None) == (times is None):
         raise ValueError("give exactly one of fps and times")
     key_times, keys = read_store(src)
-    if len(key_times) < 2:
-        raise ValueError(f"need at least 2 keyframes to interpolate, got {len(key_times)}")
+    check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
     rows = max(1, CHUNK_QUATS // max(1, int(np.prod(batch))))
     t, may_leave = _query_times(key_times, fps, times, rows)
@@ -165,12 +165,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
         out = qd.evaluate(track, t)
     else:
         out = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)(t)
-    if may_leave and extrapolate == "raise":
-        lo, hi = dask.compute(t.min(), t.max()) if t.size else (key_times[0], key_times[-1])
-        if lo < key_times[0] or hi > key_times[-1]:
-            bad = lo if lo < key_times[0] else hi
-            raise ValueError(f"query time {float(bad)!r} is outside the key times [{float(key_times[0])!r}, "
-                             f"{float(key_times[-1])!r}] and extrapolate is 'raise' (use 'clamp' or 'extend')")
+    if may_leave and extrapolate == "raise" and t.size:   # one pass over the times before any writing
+        check_query(key_times, np.array(dask.compute(t.min(), t.max())), extrapolate)
     show = sys.stderr.isatty() if progress is None else progress
     with _atomic_dir(dst) as tmp:
         group = zarr.open_group(tmp, mode="w")

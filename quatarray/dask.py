@@ -581,8 +581,15 @@ def _check_weights(w):
 
 # --------------------------------------------------------------------------- keyframe tracks
 
+def _quats(x):
+    """Raw scalar-first quaternions of an interpolator's result (QuatArray, Rotation or ndarray)."""
+    if not isinstance(x, np.ndarray) and hasattr(x, "as_quat"):
+        return x.as_quat(scalar_first=True)
+    return np.asarray(x)
+
+
 def _evaluate_block(interp, t):
-    out = np.asarray(interp(t.ravel()))
+    out = _quats(interp(t.ravel()))
     return out.reshape(t.shape + out.shape[1:])
 
 
@@ -618,7 +625,7 @@ def evaluate(interpolator, t):
     """
     t = _array(t, "t")
     t0 = np.asarray(interpolator.times[:1], np.float64)
-    probe = np.asarray(interpolator(t0))                  # batch shape and dtype of the output
+    probe = _quats(interpolator(t0))                      # batch shape and dtype of the output
     tail = probe.shape[1:]
     handle = dask.delayed(interpolator, pure=True)
     tix = _LETTERS[:t.ndim]

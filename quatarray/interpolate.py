@@ -5,8 +5,9 @@ Every function accepts `QuatArray` or array_like input of shape (..., 4)
 (scalar-first w, x, y, z), broadcasts batch shapes the NumPy way, keeps
 float32 as float32, never modifies its inputs and returns a `QuatArray`.
 The maths lives in `quatarray._interp_kernels` (blocked SLERP kernels),
-`quatarray._interp_curves` (control points, analytic derivatives) and
-`quatarray._interp_lookup` (segment lookup); this module validates and wraps.
+`quatarray._interp_curves` (control points, analytic derivatives),
+`quatarray._interp_lookup` (segment lookup) and `quatarray._track` (track
+tables and their blocked evaluation); this module validates and wraps.
 
 Conventions
 -----------
@@ -21,18 +22,15 @@ Conventions
   ``frame='body'`` gives ω_b = 2 vec(q* q̇) = q* ω q.
 """
 
-from math import prod
 
 import numpy as np
 
-from . import _blocks
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
 from . import _interp_spline as ISp
 from . import _kernels as Kn
+from . import _track as TR
 from ._array import QuatArray
-from ._blocks import soa
-from ._interp_lookup import SegmentIndex
 from ._validate import batch_axis, finite, float_array
 
 __all__ = [
@@ -417,23 +415,6 @@ def bezier_control_points(keys, times=None):
 # keyframe tracks
 # ---------------------------------------------------------------------------
 
-def _components_first(q, K, B):
-    """(K, ..., 4) -> C-contiguous float64 (4, K, B): long contiguous rows for the
-    construction-time maths (strided views make every NumPy call several times slower)."""
-    out = np.empty((4, K, B))
-    out[...] = soa(q.reshape(K, B, 4))
-    return out
-
-
-def _qt_blocks(M, B):
-    """(query slice, track slice) blocks of at most BLOCK quaternions each."""
-    def as_slice(ix):
-        return slice(ix, ix + 1) if isinstance(ix, int) else ix
-
-    return [tuple(as_slice(ix) for ix in idx) + (slice(None),) * (2 - len(idx))
-            for idx in _blocks.split((M, B))]
-
-
 class Track:
     """Rotation keyframes of a batch of tracks, interpolated in time.
 
@@ -441,7 +422,7 @@ class Track:
     ----------
     times : array_like, shape (K,)
         Key times: finite, strictly increasing, K >= 2.
-    keys : array_like, shape (K, ..., 4)
+    keys : array_like, shape (K, ..., 4), or Rotation of shape (K, ...)
         K keyframes of any batch of tracks, e.g. ``(K, joints, 4)``.  They
         are normalised and unflipped along the key axis (so negating any key
         changes nothing; outputs follow the sign of the first key).
@@ -489,77 +470,42 @@ class Track:
     """
 
     def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
+        from ._rotation import Rotation
+        if isinstance(keys, Rotation):  # its quaternions, scalar-first, without a copy
+            keys = keys.as_quatarray()
         self._setup(times, keys, method, extrapolate, "times", "keys")
 
     def _setup(self, times, keys, method, extrapolate, times_name, keys_name):
         self._method = _choice(method, "method", METHODS)
-        self._extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
+        extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
         keys, _ = _prepared_keys(keys, None, keys_name)
-        K = keys.shape[0]
-        times = _check_times(times, K, times_name, keys_name)
-        times = times.copy()
+        times = _check_times(times, keys.shape[0], times_name, keys_name).copy()
         times.flags.writeable = False
         keys.flags.writeable = False
-        self._times = times
+        self._timeline = TR.Timeline(times, extrapolate)
         self._keys = keys
         self._batch = keys.shape[1:-1]
-        B = prod(self._batch)
-        self._B = B
         self._dtype = keys.dtype
-        self._lookup()
-        Q = _components_first(keys, K, B)        # (4, K, B), C-contiguous float64
         self._controls = None
         if self._method == "spline":
             # scipy's RotationSpline: its own evaluator, no frame table
             self._spline = ISp.coefficients(times, keys)
             self._table = None
             return
-        if self._method == "linear":
-            table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
-        elif self._method == "slerp":
-            table = self._frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
-        elif self._method == "squad":
-            s = IC.squad_controls(keys, times)
-            self._controls = QuatArray._wrap(s)
-            S = _components_first(s, K, B)
-            table = self._frame_rows([(Q[:, :-1], Q[:, 1:]), (S[:, :-1], S[:, 1:])], Q[:, -1])
-        else:
-            a, b = IC.bezier_controls(keys, times)
-            self._controls = (QuatArray._wrap(a), QuatArray._wrap(b))
-            A = _components_first(a, K, B)
-            Bc = _components_first(b, K, B)
-            table = self._frame_rows([(Q[:, :-1], A[:, :-1]), (A[:, :-1], Bc[:, 1:]), (Bc[:, 1:], Q[:, 1:])], Q[:, -1])
-        self._table = np.ascontiguousarray(table, dtype=self._dtype)
+        self._table, controls = TR.rotation_table(self._method, times, keys)
+        if isinstance(controls, tuple):
+            self._controls = tuple(QuatArray._wrap(c) for c in controls)
+        elif controls is not None:
+            self._controls = QuatArray._wrap(controls)
         for c in (self._controls if isinstance(self._controls, tuple) else (self._controls,)):
             if c is not None:
                 c.flags.writeable = False
-
-    @staticmethod
-    def _frame_rows(pieces, last):
-        """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B) for the n
-        great-circle pieces (k0, k1) ((4, K-1, B) each) of every segment, plus a
-        phantom segment K-1 that stays at `last` (4, B) (so t = t_end is exact)."""
-        n = len(pieces)
-        K1, B = pieces[0][0].shape[1:]
-        table = np.empty((9 * n, K1 + 1, B))
-        Fv = table[:8 * n].reshape(n, 8, K1 + 1, B)
-        if n > 1 and n * K1 * B <= _blocks.BLOCK:   # small: one call on the stacked pieces
-            k0 = np.stack([p[0] for p in pieces], 1)
-            k1 = np.stack([p[1] for p in pieces], 1)
-            IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), table[8 * n:, :K1])
-        else:                                   # large: piece by piece, no stacked copies
-            for j, (k0, k1) in enumerate(pieces):
-                IK.frames(k0, k1, Fv[j, :, :K1], table[8 * n + j, :K1])
-        Fv[:, :4, K1] = last[None]
-        Fv[:, 4:, K1] = 0
-        table[8 * n:, K1] = 0
-        return table
 
     # --- properties ---------------------------------------------------------
     @property
     def times(self):
         """Key times, shape (K,) (read-only float64)."""
-        return self._times
+        return self._timeline.times
 
     @property
     def keys(self):
@@ -574,7 +520,7 @@ class Track:
     @property
     def extrapolate(self):
         """Behaviour outside the key times: 'raise', 'clamp' or 'extend'."""
-        return self._extrapolate
+        return self._timeline.extrapolate
 
     @property
     def batch_shape(self):
@@ -591,59 +537,15 @@ class Track:
         """None for 'linear' / 'slerp'; s (K, ..., 4) for 'squad'; (a, b) for 'bezier'."""
         return self._controls
 
-    def _lookup(self):
-        """Segment index and interval lengths, derived from the times."""
-        self._index = SegmentIndex(self._times)
-        self._dt = np.append(np.diff(self._times), np.inf)   # phantom segment after the last key: u = 0
-
-    def __getstate__(self):
-        # pickles (e.g. shipped to Dask workers) carry the tables, not what the times give again
-        return {k: v for k, v in self.__dict__.items() if k not in ("_index", "_dt")}
-
-    def __setstate__(self, state):
-        self.__dict__.update(state)
-        self._lookup()
-
     def __len__(self):
         """Number of keys K."""
-        return len(self._times)
+        return len(self._timeline.times)
 
     def __repr__(self):
-        return (f"{type(self).__name__}(K={len(self._times)}, batch_shape={self._batch}, "
-                f"method={self._method!r}, extrapolate={self._extrapolate!r}, dtype={self._dtype})")
+        return (f"{type(self).__name__}(K={len(self)}, batch_shape={self._batch}, "
+                f"method={self._method!r}, extrapolate={self.extrapolate!r}, dtype={self._dtype})")
 
     # --- evaluation ---------------------------------------------------------
-    def _queries(self, t, name):
-        """(shape of t, t as flat float64 (clamped with 'clamp'), mask of clamped queries or None)."""
-        t = float_array(t, name)
-        flat = np.ravel(t).astype(np.float64, copy=False)
-        outside = None
-        if flat.size:
-            lo, hi = float(flat.min()), float(flat.max())
-            if np.isnan(lo) or np.isnan(hi):
-                raise ValueError(f"expected {name} without nan, got nan")
-            t0, t1 = float(self._times[0]), float(self._times[-1])
-            if self._extrapolate == "raise" and (lo < t0 or hi > t1):
-                bad = lo if lo < t0 else hi
-                raise ValueError(f"expected {name} within the range [{t0!r}, {t1!r}], both inclusive "
-                                 f"(extrapolate='raise'), got {bad!r}")
-            if self._extrapolate == "clamp" and (lo < t0 or hi > t1):
-                outside = (flat < t0) | (flat > t1)
-                flat = np.clip(flat, t0, t1)
-            if self._extrapolate == "extend" and not (np.isfinite(lo) and np.isfinite(hi)):
-                raise ValueError(f"expected finite {name} to extrapolate (extrapolate='extend'), got {lo!r} .. {hi!r}")
-        return t.shape, flat, outside
-
-    def _segments(self, tb, velocity):
-        """Segment index i and parameter u (float64) of the queries tb."""
-        i = self._index.find(tb)
-        K = len(self._times)
-        if velocity or self._extrapolate == "extend":
-            np.clip(i, 0, K - 2, out=i)
-        u = np.subtract(tb, np.take(self._times, i, mode="clip"))
-        u /= np.take(self._dt, i, mode="clip")
-        return i, u
-
     def __call__(self, t):
         """Interpolated rotations at times `t`.
 
@@ -667,65 +569,14 @@ class Track:
         return self._evaluate(t, "t")
 
     def _evaluate(self, t, name):
-        tshape, flat, _ = self._queries(t, name)
+        tshape, flat, _ = self._timeline.queries(t, name)
         if self._method == "spline":
-            out = ISp.evaluate(self._times, self._keys, self._spline, flat, 0)
-            return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
-        M, B = flat.size, self._B
-        out = np.empty((M, B, 4), self._dtype)
-
-        def block(qt):
-            sm, sb = qt
-            i, u = self._segments(flat[sm], False)
-            G = self._gather(i, sb)
-            uu = u.astype(self._dtype)[:, None]
-            self._eval_block(G, uu, soa(out[sm, sb]))
-
-        _blocks.run(block, _qt_blocks(M, B), M * B)
-        return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
-
-    def _gather(self, i, sb):
-        """Table rows of segments `i` for tracks `sb`: (R, len(i), b), components first."""
-        R = self._table.shape[0]
-        work = _blocks.scratch()
-        if self._B == 1:   # 2-D take: one element per row and index (twice as fast)
-            G = work.rows(R, (len(i),), self._dtype)
-            np.take(self._table[:, :, 0], i, axis=1, mode="clip", out=G)
-            return G[:, :, None]
-        tab = self._table[:, :, sb]
-        G = work.rows(R, (len(i), tab.shape[2]), self._dtype)
-        np.take(tab, i, axis=1, mode="clip", out=G)
-        return G
-
-    def _eval_block(self, G, u, O):
-        s = O.shape[1:]
-        method = self._method
-        work = _blocks.scratch()
-        if method == "slerp":
-            IK.frame_core(G[:8], G[8], u, O)
-        elif method == "linear":
-            Gv = G.reshape((2, 4) + s)
-            W = work.rows(2, s, O.dtype)
-            np.subtract(1, u, out=W[0])
-            np.copyto(W[1], u)
-            np.multiply(Gv, W[:, None], out=Gv)
-            np.add(Gv[0], Gv[1], out=O)
-            n = work.rows(1, s, O.dtype)[0]
-            np.copyto(Gv[0], O)
-            IK.sqsum(Gv[0], n)
-            np.sqrt(n, out=n)
-            np.divide(O, n, out=O)
-        elif method == "squad":
-            P = work.rows(4, s, O.dtype)
-            S = work.rows(4, s, O.dtype)
-            IK.frame_core(G[:8], G[16], u, P)
-            IK.frame_core(G[8:16], G[17], u, S)
-            IK.squad_blend(P, S, u, O)
+            out = ISp.evaluate(self.times, self._keys, self._spline, flat, 0)
         else:
-            L = work.rows(12, s, O.dtype).reshape((4, 3) + s)
-            for j in range(3):
-                IK.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j])
-            IK.bezier_levels(L, u, O)
+            method = self._method
+            out = TR.evaluate(self._timeline, self._table, flat,
+                              lambda G, u, O: TR.rotation_block(method, G, u, O), 4)
+        return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
 
     def angular_velocity(self, t, *, frame="world"):
         """Angular velocity of the interpolated rotation, analytic (no finite differences).
@@ -756,104 +607,98 @@ class Track:
                [0. , 0.5, 0. ]])
         """
         frame = _choice(frame, "frame", FRAMES)
-        tshape, flat, outside = self._queries(t, "t")
+        tshape, flat, outside = self._timeline.queries(t, "t")
         if self._method == "spline":
             # the spline's rate (scipy's order=1) is in the body frame
-            w = ISp.evaluate(self._times, self._keys, self._spline, flat, 1)
+            w = ISp.evaluate(self.times, self._keys, self._spline, flat, 1)
             if frame == "world":
-                w = Kn.rotate(ISp.evaluate(self._times, self._keys, self._spline, flat, 0), w)
+                w = Kn.rotate(ISp.evaluate(self.times, self._keys, self._spline, flat, 0), w)
             if outside is not None:
                 w[outside] = 0
-            return w.reshape(tshape + self._batch + (3,))
-        M, B = flat.size, self._B
-        out = np.empty((M, B, 3), np.float64)
-        for sm, sb in _qt_blocks(M, B):
-            tb = flat[sm]
-            i, u = self._segments(tb, True)
-            tab = self._table[:, :, sb]
-            G = np.take(tab, i, axis=1, mode="clip").astype(np.float64, copy=False)
-            uu = u[:, None]
-            q, dq = self._deriv_block(G, uu)
-            w = IC.omega_from(q, dq, frame) / np.take(self._dt, i)[:, None]
-            if outside is not None:
-                w[:, outside[sm]] = 0
-            soa(out[sm, sb])[...] = w
-        return out.reshape(tshape + self._batch + (3,)).astype(self._dtype, copy=False)
-
-    def _deriv_block(self, G, u):
-        method = self._method
-        if method == "linear":
-            k0, k1 = G[:4], G[4:]
-            return (1 - u) * k0 + u * k1, k1 - k0
-        if method == "slerp":
-            return IC.frame_deriv(G[:8], G[8], u)
-        if method == "squad":
-            A, dA = IC.frame_deriv(G[:8], G[16], u)
-            S, dS = IC.frame_deriv(G[8:16], G[17], u)
-            return IC.slerp_deriv(A, dA, S, dS, IK.squad_param(u), 2 - 4 * u)
-        L = [IC.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
-        M = [IC.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
-        return IC.slerp_deriv(*M[0], *M[1], u, 1.0)
-
-
-def _as_quats(rotations):
-    """Quaternions (scalar first) from a QuatArray, array_like, or a scipy Rotation."""
-    if not isinstance(rotations, np.ndarray) and hasattr(rotations, "as_quat"):
-        try:
-            return rotations.as_quat(scalar_first=True)
-        except TypeError:
-            pass
-    return rotations
+        else:
+            w = TR.angular_velocity(self._timeline, self._method, self._table, flat, outside, frame)
+        return w.reshape(tshape + self._batch + (3,))
 
 
 class Slerp(Track):
-    """scipy's ``Slerp(times, rotations)``, returning `QuatArray` and allowing batches of tracks.
+    """scipy's ``Slerp(times, rotations)``: spherical linear interpolation returning `Rotation`.
 
-    Same behaviour and errors as `scipy.spatial.transform.Slerp` (times not
-    strictly increasing, fewer than 2 rotations, mismatched lengths, 2-D
-    times, and queries outside [times[0], times[-1]] raise ValueError), but
-    `rotations` may be a `QuatArray` or array_like of shape (K, ..., 4)
-    (scalar-first; any batch of tracks, where scipy allows one leading
-    dimension only) or a scipy ``Rotation`` of length K.  Equivalent to
-    ``Track(times, rotations, method='slerp', extrapolate='raise')``.
+    Same behaviour, attributes and errors as
+    ``scipy.spatial.transform.Slerp``.  A scipy ``Rotation`` is accepted as
+    well (converted with `Rotation.from_scipy`).  Beyond scipy,
+    ``batched=True`` accepts rotations of shape ``(K, *batch)``: a batch of
+    tracks sharing the key times, interpolated in one call.
 
     Parameters
     ----------
     times : array_like, shape (K,)
-    rotations : QuatArray, array_like of shape (K, ..., 4), or scipy Rotation
+        Strictly increasing key times.
+    rotations : Rotation, shape (K,) (or (K, *batch) with `batched`)
+    batched : bool, default False, keyword only
+        Allow more than one leading dimension (scipy refuses them).
 
     Examples
     --------
-    >>> from quatarray.interpolate import Slerp
-    >>> keys = [[1, 0, 0, 0], [0, 0, 0, 1]]            # identity, 180° about z
+    >>> from quatarray import Rotation, Slerp
+    >>> keys = Rotation.from_euler("z", [[0], [90]], degrees=True)
     >>> s = Slerp([0, 2], keys)
-    >>> s([0.5, 1.0])
-    QuatArray([[0.92387953, 0.        , 0.        , 0.38268343],
-               [0.70710678, 0.        , 0.        , 0.70710678]])
+    >>> np.round(s([0.5, 1.0]).as_euler("zyx", degrees=True), 9) + 0.0
+    array([[22.5,  0. ,  0. ],
+           [45. ,  0. ,  0. ]])
     >>> s(3.0)
     Traceback (most recent call last):
     ...
-    ValueError: expected times within the range [0.0, 2.0], both inclusive (extrapolate='raise'), got 3.0
+    ValueError: Interpolation times must be within the range [0.0, 2.0], both inclusive.
+    >>> tracks = Rotation.from_euler("z", [[[0], [0]], [[90], [180]]], degrees=True)  # (K, 2)
+    >>> Slerp([0, 1], tracks, batched=True)(0.5).shape
+    (2,)
     """
 
-    def __init__(self, times, rotations):
-        self._setup(times, _as_quats(rotations), "slerp", "raise", "times", "rotations")
+    def __init__(self, times, rotations, *, batched=False):
+        from ._rotation import Rotation, _is_scipy_rotation
+        if _is_scipy_rotation(rotations):
+            rotations = Rotation.from_scipy(rotations)
+        if not isinstance(rotations, Rotation):
+            raise TypeError(f"`rotations` must be a `Rotation` instance, got {type(rotations).__name__} "
+                            f"(Track interpolates arrays of quaternions)")
+        if rotations.single or len(rotations) <= 1:
+            raise ValueError(f"`rotations` must be a sequence of at least 2 rotations, got shape "
+                             f"{rotations.shape}.")
+        if len(rotations.shape) > 1 and not batched:
+            raise ValueError(f"Rotations with more than 1 leading dimension are not supported "
+                             f"(as in scipy; pass batched=True for a batch of tracks), got shape "
+                             f"{rotations.shape}.")
+        t = float_array(times, "times", dtype=np.float64)
+        if t.ndim != 1:
+            raise ValueError(f"Expected times to be specified in a 1 dimensional array, got "
+                             f"{t.ndim} dimensions.")
+        if t.shape[0] != len(rotations):
+            raise ValueError(f"Expected number of rotations to be equal to number of timestamps "
+                             f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
+        if np.any(np.diff(t) <= 0):
+            raise ValueError("Times must be in strictly increasing order.")
+        self._setup(t, rotations.as_quatarray(), "slerp", "raise", "times", "rotations")
 
     @property
     def timedelta(self):
         """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
-        return np.diff(self._times)
+        return np.diff(self.times)
 
     def __call__(self, times):
-        """Interpolated rotations at `times` (scalar or 1-D), as a `QuatArray`.
+        """Interpolated rotations at `times` (scalar or 1-D), as a `Rotation`.
 
-        Returns shape ``(M, ..., 4)`` for M times, ``(..., 4)`` for a scalar.
+        Shape ``(M, *batch)`` for M times, ``batch`` (single for 1-D keys) for a scalar.
 
-        >>> from quatarray.interpolate import Slerp
-        >>> Slerp([0, 1], [[1, 0, 0, 0], [0, 0, 1, 0]])(0.5)
-        QuatArray([0.70710678, 0.        , 0.70710678, 0.        ])
+        >>> from quatarray import Rotation, Slerp
+        >>> s = Slerp([0, 1], Rotation.from_rotvec([[0, 0, 0], [0, 0, 1]]))
+        >>> s(0.25).as_rotvec()
+        array([0.  , 0.  , 0.25])
         """
+        from ._rotation import Rotation
         t = float_array(times, "times")
         if t.ndim > 1:
-            raise ValueError(f"expected times at most 1-dimensional, got shape {t.shape}")
-        return self._evaluate(t, "times")
+            raise ValueError(f"`times` must be at most 1-dimensional. Got shape {t.shape}")
+        t0, t1 = self.times[0], self.times[-1]
+        if t.size and not ((t >= t0).all() and (t <= t1).all()):
+            raise ValueError(f"Interpolation times must be within the range [{t0}, {t1}], both inclusive.")
+        return Rotation._wrap(self._evaluate(t, "times").view(np.ndarray))

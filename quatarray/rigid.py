@@ -10,9 +10,11 @@ back; float32 stays float32.
 import numpy as np
 
 from . import _dualquat as D
+from . import _track as TR
+from ._interp_kernels import unflip
 from ._validate import finite, float_array
 
-__all__ = ["sclerp", "dual_quaternion_blend", "normalize_dual_quaternion"]
+__all__ = ["sclerp", "dual_quaternion_blend", "normalize_dual_quaternion", "RigidTrack"]
 
 _TO_FIRST = [3, 0, 1, 2, 7, 4, 5, 6]
 _TO_LAST = [1, 2, 3, 0, 5, 6, 7, 4]
@@ -47,10 +49,7 @@ def normalize_dual_quaternion(dual_quat, *, scalar_first=False):
     >>> normalize_dual_quaternion([0, 0, 0, 2, 0, 0, 0, 1])
     array([0., 0., 0., 1., 0., 0., 0., 0.])
     """
-    dq = _dual(dual_quat, "dual_quat", scalar_first).copy()
-    zero = np.all(dq[..., :4] == 0, axis=-1)
-    dq[..., 0] = np.where(zero, 1, dq[..., 0])
-    return _out(D.normalize(dq), scalar_first)
+    return _out(D.normalize(_dual(dual_quat, "dual_quat", scalar_first)), scalar_first)
 
 
 def sclerp(a, b, t, *, scalar_first=False):
@@ -128,3 +127,123 @@ def dual_quaternion_blend(dual_quats, weights, *, axis=0, scalar_first=False):
     if w.shape != (dq.shape[axis],):
         raise ValueError(f"expected weights of shape ({dq.shape[axis]},), got {w.shape}")
     return _out(D.blend(dq, w.astype(dq.dtype), axis=axis), scalar_first)
+
+
+class RigidTrack:
+    """Keyframes of rigid motions of a batch of bodies, interpolated in time by ScLERP.
+
+    Between neighbouring keys each body moves along the screw from one key
+    to the next at constant angular and linear speed (screw linear
+    interpolation, `sclerp`): its rotation is the SLERP of the keys'
+    rotations and its translation follows the screw, which is linear when
+    the rotation does not change.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+        Key times: finite, strictly increasing, K >= 2.
+    transforms : RigidTransform, shape (K, *batch)
+        The keys, e.g. ``(K, bodies)``; float32 stays float32.
+    extrapolate : {'raise', 'clamp', 'extend'}, default 'raise'
+        Queries outside [times[0], times[-1]]: ``'raise'`` a ValueError,
+        ``'clamp'`` to the end keys, or ``'extend'`` the first / last
+        segment's screw motion.
+
+    Notes
+    -----
+    Built on the same machinery as `quatarray.Track` (`_track`): one table
+    of per-segment constants at construction, then per block of queries and
+    bodies one segment lookup and a fixed number of batched kernels.
+
+    Examples
+    --------
+    A body turning a quarter turn about z while moving 2 along z (a screw):
+
+    >>> import numpy as np
+    >>> from quatarray import RigidTransform, Rotation
+    >>> from quatarray.rigid import RigidTrack
+    >>> keys = RigidTransform.from_components([[0, 0, 0], [0, 0, 2.0]],
+    ...                                       Rotation.from_euler('z', [[0], [90]], degrees=True))
+    >>> track = RigidTrack([0.0, 1.0], keys)
+    >>> pose = track(0.5)
+    >>> np.round(pose.translation, 6)
+    array([0., 0., 1.])
+    >>> np.round(pose.rotation.as_euler('zyx', degrees=True), 6)
+    array([45.,  0.,  0.])
+    """
+
+    def __init__(self, times, transforms, *, extrapolate="raise"):
+        from ._rigid_transform import RigidTransform
+        from .interpolate import EXTRAPOLATE, _check_times, _choice
+
+        if not isinstance(transforms, RigidTransform):
+            raise TypeError(f"expected transforms to be a RigidTransform, got {type(transforms).__name__}")
+        if transforms.single or len(transforms) < 2:
+            got = "a single transform" if transforms.single else f"shape {transforms.shape}"
+            raise ValueError(f"expected transforms of shape (K, ...) with K >= 2, got {got}")
+        extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
+        times = _check_times(times, len(transforms), "times", "transforms").copy()
+        times.flags.writeable = False
+        q = np.asarray(transforms.rotation.as_quat(scalar_first=True))
+        q = unflip(q / np.linalg.norm(q, axis=-1, keepdims=True), 0)
+        t = np.asarray(transforms.translation, q.dtype)
+        self._cls = RigidTransform
+        self._timeline = TR.Timeline(times, extrapolate)
+        self._batch = q.shape[1:-1]
+        self._table = TR.rigid_table(q, t)
+
+    @property
+    def times(self):
+        """Key times, shape (K,) (read-only float64)."""
+        return self._timeline.times
+
+    @property
+    def extrapolate(self):
+        """Behaviour outside the key times: 'raise', 'clamp' or 'extend'."""
+        return self._timeline.extrapolate
+
+    @property
+    def batch_shape(self):
+        """Batch shape of the bodies (the keys' shape after K)."""
+        return self._batch
+
+    @property
+    def dtype(self):
+        """float32 or float64: the dtype of the keys, and of every output."""
+        return self._table.dtype
+
+    def __len__(self):
+        """Number of keys K."""
+        return len(self._timeline.times)
+
+    def __repr__(self):
+        return (f"RigidTrack(K={len(self)}, batch_shape={self._batch}, "
+                f"extrapolate={self.extrapolate!r}, dtype={self.dtype})")
+
+    def __call__(self, t):
+        """Interpolated transforms at times `t`.
+
+        Parameters
+        ----------
+        t : array_like
+            Query times, scalar or any shape.
+
+        Returns
+        -------
+        RigidTransform, shape ``t.shape + batch_shape``
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from quatarray import RigidTransform
+        >>> from quatarray.rigid import RigidTrack
+        >>> keys = RigidTransform.from_translation([[0, 0, 0], [1.0, 0, 0], [1.0, 2, 0]])
+        >>> RigidTrack([0, 1, 2], keys)([0.5, 1.5]).translation
+        array([[0.5, 0. , 0. ],
+               [1. , 1. , 0. ]])
+        """
+        tshape, flat, _ = self._timeline.queries(t, "t")
+        out = TR.evaluate(self._timeline, self._table, flat, TR.rigid_block, 7)
+        shape = tshape + self._batch
+        return self._cls._from_parts(out[..., :4].reshape(shape + (4,)), out[..., 4:].reshape(shape + (3,)),
+                                     len(shape) == 0)

@@ -9,13 +9,69 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
-from ._validate import in_memory
+from ._rotation import Rotation
+from ._validate import float_array, in_memory
 
-__all__ = ["RotationSpline"]
+__all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
+           "angular_acceleration_nonlinear_term"]
+
+
+def _rotvecs(x, name):
+    return float_array(x, name, last=3)
+
+
+def angular_rate_to_rotvec_dot_matrix(rotvecs):
+    """Matrices ``A(r)`` (..., 3, 3) with ``dr/dt = A(r) w``: angular rate to rotation-vector rate.
+
+    scipy keeps this private (``_angular_rate_to_rotvec_dot_matrix``); it
+    is the Jacobian the spline's rate equations are written with.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = np.array([0.0, 0, 1.0])
+    >>> np.allclose(angular_rate_to_rotvec_dot_matrix(r) @ r, r)   # rate along r: dr/dt = w
+    True
+    """
+    return S.rate_to_rotvec_dot(_rotvecs(rotvecs, "rotvecs"))
+
+
+def rotvec_dot_to_angular_rate_matrix(rotvecs):
+    """Matrices ``A(r)⁻¹`` (..., 3, 3) with ``w = A(r)⁻¹ dr/dt`` (closed form, no inversion).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = np.array([0.3, -0.2, 0.9])
+    >>> np.allclose(rotvec_dot_to_angular_rate_matrix(r) @ angular_rate_to_rotvec_dot_matrix(r), np.eye(3))
+    True
+    """
+    return S.rotvec_dot_to_rate(_rotvecs(rotvecs, "rotvecs"))
+
+
+def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
+    """The part of the angular acceleration quadratic in ``dr/dt`` (..., 3).
+
+    The angular acceleration is ``A(r)⁻¹ d²r/dt² +`` this term (scipy's
+    private ``_angular_acceleration_nonlinear_term``); it vanishes when
+    ``dr/dt`` is parallel to ``r``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = np.array([0.1, 0.2, 0.3])
+    >>> np.allclose(angular_acceleration_nonlinear_term(r, 2 * r), 0)
+    True
+    """
+    r = _rotvecs(rotvecs, "rotvecs")
+    rd = _rotvecs(rotvecs_dot, "rotvecs_dot")
+    return S.acceleration_term(*np.broadcast_arrays(r, rd))
 
 
 def _keys(rotations):
     in_memory(rotations, "rotations")
+    if isinstance(rotations, Rotation):
+        return rotations.as_quatarray().view(np.ndarray)
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
         # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
         q = np.asarray(rotations.as_quat())
@@ -73,7 +129,7 @@ class RotationSpline:
             keys = keys.astype(np.float64)
         keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
         self.times = times
-        self.rotations = QuatArray.from_quat(keys, scalar_first=True)
+        self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys
         self._coeff = S.coefficients(times, keys)
 
@@ -99,4 +155,4 @@ class RotationSpline:
         res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
         if single:
             res = res[0]
-        return QuatArray.from_quat(res, scalar_first=True) if order == 0 else res
+        return Rotation.from_quat(res, scalar_first=True) if order == 0 else res

@@ -67,11 +67,9 @@ def test_explicit_dtype():
 def test_batch_shape_len_iter(rng, batch_shape, dtype):
     q = qa(rng, batch_shape, dtype)
     assert q.batch_shape == q.shape[:-1] == batch_shape
-    if not batch_shape:
-        with pytest.raises(TypeError, match="len\\(\\) of a single quaternion"):
-            len(q)
-        with pytest.raises(TypeError, match="iteration over a single quaternion"):
-            iter(q)
+    if not batch_shape:  # one quaternion: an ordinary 1-D array of its 4 components
+        assert len(q) == 4
+        assert_array_equal(list(q), q.ndarray)
         return
     assert len(q) == batch_shape[0]
     items = list(q)

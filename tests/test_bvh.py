@@ -1,4 +1,4 @@
-"""BVH motion-capture files: parsing, writing, Shoemake resampling (quatarray._bvh)."""
+"""BVH motion-capture files: parsing, writing, Shoemake resampling (quatarray.io, quatarray._bvh)."""
 
 import itertools
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from quatarray._bvh import Motion, read_bvh, resample_motion, write_bvh
-from quatarray._io import FormatError, example_path
+from quatarray.io import Motion, read_bvh, resample_motion, write_bvh
+from quatarray.io import FormatError, example_path
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 METHODS = ("slerp", "squad", "bezier", "linear")

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation as R
 
-from quatarray import QuatArray
+from quatarray import Rotation
 from quatarray import _convert as C
 from quatarray import _euler as E
 from quatarray import _kernels as K
@@ -352,7 +352,7 @@ def test_float32_kept_and_ints_become_float64(rng, name):
     (lambda: C.as_rotvec(np.ones((2, 5))), ValueError, r"expected quat of shape \(\.\.\., 4\), got \(2, 5\)"),
     (lambda: C.from_rotvec([1, 2]), ValueError, r"expected rotvec of shape \(\.\.\., 3\), got \(2,\)"),
     (lambda: C.from_mrp(np.ones((3, 4))), ValueError, r"expected mrp of shape \(\.\.\., 3\)"),
-    (lambda: QuatArray.identity().apply(np.ones(2)), ValueError, r"expected vectors of shape \(\.\.\., 3\)"),
+    (lambda: Rotation.identity().apply(np.ones(2)), ValueError, r"Expected input of shape \(\.\.\., 3\), got \(2,\)"),
     (lambda: K.rotate(np.ones((3, 4)), np.ones((2, 3))), ValueError, "shape mismatch|broadcast"),
     (lambda: C.as_matrix(np.ones(4, complex)), TypeError, "real numbers"),
     (lambda: C.from_rotvec(["a", "b", "c"]), TypeError, "real numbers"),

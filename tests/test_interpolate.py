@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation as SciRotation
 from scipy.spatial.transform import Slerp as SciSlerp
 
-from quatarray import QuatArray
+from quatarray import QuatArray, Rotation
 from quatarray import _interp_kernels as IK
 from quatarray._blocks import BLOCK
 from quatarray._interp_lookup import SegmentIndex
@@ -532,33 +532,42 @@ def test_slerp_tracks_equal_scipy(rng, unequal):
     assert (np.sum(keys[1:] * keys[:-1], -1) < 0).any()
     t = np.concatenate([rng.uniform(times[0], times[-1], 300), times])
     ref = SciSlerp(times, SciRotation.from_quat(keys, scalar_first=True))(t).as_quat(scalar_first=True)
-    for got in (Track(times, keys)(t), Slerp(times, keys)(t), Slerp(times, QuatArray(keys))(t),
-                Slerp(times, SciRotation.from_quat(keys, scalar_first=True))(t)):
+    rot = Rotation.from_quat(keys, scalar_first=True)
+    for got in (Track(times, keys)(t), Track(times, rot)(t)):
         assert isinstance(got, QuatArray)
         assert_allclose(got, ref, atol=tol(np.float64, 20), double_cover=True)
+    for got in (Slerp(times, rot)(t), Slerp(times, Rotation.from_quatarray(QuatArray(keys)))(t),
+                Slerp(times, SciRotation.from_quat(keys, scalar_first=True))(t)):
+        assert isinstance(got, Rotation)
+        assert_allclose(got.as_quat(scalar_first=True), ref, atol=tol(np.float64, 20), double_cover=True)
 
 
 def test_slerp_class_batches_equal_scipy_per_track(rng):
     times, keys = random_track(rng, 6, (2, 3), step=1.5)
     t = rng.uniform(times[0], times[-1], 25)
-    got = plain(Slerp(times, keys)(t))
+    rot = Rotation.from_quat(keys, scalar_first=True)
+    with pytest.raises(ValueError, match="more than 1 leading dimension"):
+        Slerp(times, rot)   # scipy's rule; batches of tracks are opt-in
+    got = Slerp(times, rot, batched=True)(t).as_quat(scalar_first=True)
     assert got.shape == (25, 2, 3, 4)
     for i in range(2):
         for j in range(3):
             ref = SciSlerp(times, SciRotation.from_quat(keys[:, i, j], scalar_first=True))(t)
             assert_allclose(got[:, i, j], ref.as_quat(scalar_first=True), atol=tol(np.float64, 20), double_cover=True)
-    one = Slerp(times, keys)(t[3])
-    assert one.shape == (2, 3, 4)
-    assert_allclose(one, got[3], atol=0)
+    one = Slerp(times, rot, batched=True)(t[3])
+    assert one.shape == (2, 3)
+    assert_allclose(one.as_quat(scalar_first=True), got[3], atol=0)
 
 
 def test_slerp_class_errors_like_scipy():
-    keys = random_quats(np.random.default_rng(0), (3,))
+    keys = Rotation.from_quat(random_quats(np.random.default_rng(0), (3,)), scalar_first=True)
+    with pytest.raises(TypeError, match="must be a `Rotation` instance"):
+        Slerp([0, 1, 2], keys.as_quat())
     with pytest.raises(ValueError, match="strictly increasing order"):
         Slerp([0, 1, 1], keys)
     with pytest.raises(ValueError, match="at least 2 rotations"):
         Slerp([0], keys[:1])
-    with pytest.raises(ValueError, match="number of rotations equal to number of timestamps"):
+    with pytest.raises(ValueError, match="number of rotations to be equal to number of timestamps"):
         Slerp([0, 1], keys)
     with pytest.raises(ValueError, match="1 dimensional array"):
         Slerp([[0, 1, 2]], keys)

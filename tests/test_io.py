@@ -1,4 +1,4 @@
-"""CSV and NPZ keyframe files, query times, atomic writes (quatarray._io)."""
+"""CSV and NPZ keyframe files, query times, atomic writes (quatarray.io)."""
 
 import os
 
@@ -8,8 +8,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from .conftest import random_quats, tol
-from quatarray import _io
-from quatarray._io import (FormatError, Keyframes, fps_times, read_csv, read_npz, read_times,
+from quatarray import _text, io as qio
+from quatarray.io import (FormatError, Keyframes, fps_times, read_csv, read_npz, read_times,
                            resample_keyframes, write_csv, write_npz)
 
 METHODS = ("slerp", "squad", "bezier", "linear")
@@ -72,7 +72,7 @@ def test_csv_names_default_from_batch(tmp_path, rng):
 
 
 def test_csv_reads_shipped_example():
-    kf = read_csv(_io.example_path("arm.csv"))
+    kf = read_csv(qio.example_path("arm.csv"))
     assert kf.keys.shape == (len(kf.times), len(kf.names), 4)
     assert (np.diff(kf.times) > 0).all() and np.ptp(np.diff(kf.times)) > 0  # unequally spaced
     np.testing.assert_allclose(np.linalg.norm(kf.keys, axis=-1), 1, atol=1e-8)
@@ -295,12 +295,12 @@ def test_failed_write_leaves_target_untouched(tmp_path, rng, monkeypatch):
     path.write_text("precious\n")
     calls = []
 
-    def broken(f, rows, sep):
+    def broken(f, rows, *args, **kwargs):
         f.write("half a row")
         calls.append(1)
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(_io, "_write_rows", broken)
+    monkeypatch.setattr(qio, "write_rows", broken)
     with pytest.raises(RuntimeError, match="disk full"):
         write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
     assert calls and path.read_text() == "precious\n"

@@ -1,4 +1,4 @@
-"""The scipy-compatible surface (`quatarray.Rotation` is `QuatArray`): every
+"""`quatarray.Rotation`, scipy's Rotation over a `QuatArray`: every
 method cross-checked against scipy's Rotation in batch shapes (), (N,), (N, M)
 and both dtypes; randomness, averaging and fitting; the bad-input table; the
 documented migration differences; and a realistic workflow run with either
@@ -21,12 +21,12 @@ SHAPES = [(), (6,), (3, 4)]
 
 
 def scipy_of(r):
-    """The scipy Rotation of a QuatArray, from its float64 components."""
-    return SR.from_quat(r.ndarray.astype(np.float64), scalar_first=True)
+    """The scipy Rotation of a Rotation, from its float64 components."""
+    return SR.from_quat(r.as_quat(scalar_first=True).astype(np.float64), scalar_first=True)
 
 
 def pair(rng, shape, dtype):
-    """The same random rotations as a QuatArray (dtype) and a scipy Rotation."""
+    """The same random rotations as a Rotation (dtype) and a scipy Rotation."""
     q = random_quats(rng, shape, dtype)
     return Rotation.from_quat(q, scalar_first=True), SR.from_quat(q.astype(np.float64), scalar_first=True)
 
@@ -39,9 +39,18 @@ def angle_diff(a, b):
     return np.abs(np.angle(np.exp(1j * (np.asarray(a, np.float64) - np.asarray(b, np.float64)))))
 
 
-def test_rotation_is_quatarray():
-    assert quatarray.Rotation is QuatArray
-    assert isinstance(Rotation.from_rotvec([0, 0, 1]), QuatArray)
+def test_rotation_is_its_own_class_over_a_quatarray(rng):
+    r = Rotation.from_rotvec([[0, 0, 1], [1, 0, 0]])
+    assert quatarray.Rotation is Rotation and not isinstance(r, (QuatArray, np.ndarray))
+    # zero-copy both ways: the QuatArray is the rotation's storage, scalar-first
+    q = r.as_quatarray()
+    assert type(q) is QuatArray and q.shape == (2, 4)
+    assert np.shares_memory(q, r.as_quatarray()) and np.shares_memory(Rotation.from_quatarray(q).as_quatarray(), q)
+    np.testing.assert_array_equal(q.ndarray, r.as_quat(scalar_first=True))
+    keys = QuatArray(random_quats(rng, (5,)))
+    assert np.shares_memory(Rotation.from_quatarray(keys).as_quatarray(), keys)
+    with pytest.raises(TypeError, match="expected q to be a QuatArray, got ndarray"):
+        Rotation.from_quatarray(keys.ndarray)
 
 
 # --- quaternions in and out ------------------------------------------------------------------
@@ -53,7 +62,7 @@ def test_from_quat_as_quat_match_scipy(rng, dtype, shape, scalar_first):
     before = q.copy()
     r = Rotation.from_quat(q, scalar_first=scalar_first)
     s = SR.from_quat(q.astype(np.float64), scalar_first=scalar_first)
-    assert r.dtype == dtype and r.shape == shape + (4,) and r.batch_shape == s.shape
+    assert r.dtype == dtype and r.shape == shape == s.shape
     np.testing.assert_array_equal(q, before)  # input untouched
     for canonical in (False, True):
         for sf in (False, True):
@@ -64,7 +73,7 @@ def test_from_quat_as_quat_match_scipy(rng, dtype, shape, scalar_first):
     # canonical=True: the same sign as scipy's, exactly (away from w = 0)
     np.testing.assert_array_equal(np.sign(r.as_quat(canonical=True))[..., 3],
                                   np.sign(s.as_quat(canonical=True))[..., 3])
-    np.testing.assert_allclose(np.linalg.norm(r.ndarray, axis=-1), 1, atol=tol(dtype))
+    np.testing.assert_allclose(np.linalg.norm(r.as_quat(scalar_first=True), axis=-1), 1, atol=tol(dtype))
 
 
 def test_as_quat_canonical_zero_w_rule():
@@ -77,7 +86,7 @@ def test_as_quat_is_a_copy(rng):
     r = Rotation.from_quat(random_quats(rng, (3,)))
     a = r.as_quat(scalar_first=True)
     a[:] = 0
-    assert np.all(np.linalg.norm(r.ndarray, axis=-1) > 0.99)
+    assert np.all(np.linalg.norm(r.as_quat(scalar_first=True), axis=-1) > 0.99)
 
 
 # --- conversions through the class ----------------------------------------------------------------
@@ -92,12 +101,12 @@ def test_conversions_match_scipy(rng, dtype, shape):
     np.testing.assert_allclose(r.as_mrp(), s.as_mrp(), rtol=0, atol=t)
     np.testing.assert_allclose(r.magnitude(), s.magnitude(), rtol=0, atol=t)
     mat = s.as_matrix().astype(dtype)
-    assert_same_rotation(Rotation.from_matrix(mat).ndarray, s.as_quat(scalar_first=True), t)
-    assert_same_rotation(Rotation.from_rotvec(s.as_rotvec().astype(dtype)).ndarray, s.as_quat(scalar_first=True), t)
-    assert_same_rotation(Rotation.from_mrp(s.as_mrp().astype(dtype)).ndarray, s.as_quat(scalar_first=True), t)
+    assert_same_rotation(Rotation.from_matrix(mat).as_quat(scalar_first=True), s.as_quat(scalar_first=True), t)
+    assert_same_rotation(Rotation.from_rotvec(s.as_rotvec().astype(dtype)).as_quat(scalar_first=True), s.as_quat(scalar_first=True), t)
+    assert_same_rotation(Rotation.from_mrp(s.as_mrp().astype(dtype)).as_quat(scalar_first=True), s.as_quat(scalar_first=True), t)
     for res in (r.as_matrix(), r.as_rotvec(), r.as_mrp(), Rotation.from_matrix(mat)):
         assert res.dtype == dtype
-    assert Rotation.from_matrix(mat).batch_shape == shape
+    assert Rotation.from_matrix(mat).shape == shape
 
 
 @pytest.mark.parametrize("seq", ["xyz", "ZYX", "zxz", "YXY", "xzy", "XYZ"])
@@ -124,8 +133,8 @@ def test_euler_and_davenport_match_scipy(rng, dtype, seq, shape):
     for ours, theirs in ((Rotation.from_euler(seq, angles), SR.from_euler(seq, angles.astype(float))),
                          (Rotation.from_davenport(axes, order, angles),
                           SR.from_davenport(axes, order, angles.astype(float)))):
-        assert ours.dtype == dtype and ours.batch_shape == shape
-        assert_same_rotation(ours.ndarray, theirs.as_quat(scalar_first=True), tol(dtype))
+        assert ours.dtype == dtype and ours.shape == shape
+        assert_same_rotation(ours.as_quat(scalar_first=True), theirs.as_quat(scalar_first=True), tol(dtype))
 
 
 def test_gimbal_warning_points_at_the_caller():
@@ -145,11 +154,11 @@ def test_edge_rotations_match_scipy():
     angles = [0.0, 1e-9, -1e-9, np.pi, -np.pi, np.pi - 1e-9, 2 * np.pi]
     rv = np.array([[a, 0, 0] for a in angles] + [[0, a, 0] for a in angles] + [[a, a, a] for a in angles])
     r, s = Rotation.from_rotvec(rv), SR.from_rotvec(rv)
-    assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), 1e-15)
+    assert_same_rotation(r.as_quat(scalar_first=True), s.as_quat(scalar_first=True), 1e-15)
     np.testing.assert_allclose(r.as_rotvec(), s.as_rotvec(), rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(r.as_matrix(), s.as_matrix(), atol=1e-15)
     np.testing.assert_allclose(r.magnitude(), s.magnitude(), rtol=1e-12, atol=1e-15)
-    assert_same_rotation(Rotation.from_matrix(s.as_matrix()).ndarray, s.as_quat(scalar_first=True), 1e-15)
+    assert_same_rotation(Rotation.from_matrix(s.as_matrix()).as_quat(scalar_first=True), s.as_quat(scalar_first=True), 1e-15)
 
 
 # --- apply, inv, magnitude, approx_equal, composition, power ------------------------------------------
@@ -180,32 +189,41 @@ def test_inv_magnitude_and_composition_match_scipy(rng, dtype, batch_shape):
     r, s = pair(rng, batch_shape, dtype)
     r2, s2 = pair(rng, batch_shape, dtype)
     inv = r.inv()
-    assert isinstance(inv, QuatArray) and inv.dtype == dtype
-    assert_same_rotation(inv.ndarray, s.inv().as_quat(scalar_first=True), tol(dtype))
-    assert_same_rotation((r * r2).ndarray, (s * s2).as_quat(scalar_first=True), tol(dtype))
-    assert_same_rotation((r * r.inv()).ndarray, [1, 0, 0, 0], tol(dtype))
+    assert isinstance(inv, Rotation) and inv.dtype == dtype
+    assert_same_rotation(inv.as_quat(scalar_first=True), s.inv().as_quat(scalar_first=True), tol(dtype))
+    assert_same_rotation((r * r2).as_quat(scalar_first=True), (s * s2).as_quat(scalar_first=True), tol(dtype))
+    assert_same_rotation((r * r.inv()).as_quat(scalar_first=True), [1, 0, 0, 0], tol(dtype))
     m = r.magnitude()
     np.testing.assert_allclose(m, s.magnitude(), rtol=0, atol=tol(dtype))
     if batch_shape == ():
         assert isinstance(m, np.floating) and not isinstance(m, np.ndarray)
 
 
-def test_power_is_the_quaternion_power_and_scipy_power_via_rotvec(rng):
-    # `**` is exp(t log q) (issue 2).  For w >= 0 it equals scipy's rotation power;
-    # for w < 0 it is the power of the other representative (a different rotation for
-    # non-integer t).  scipy's power is always from_rotvec(t * as_rotvec()).
+def test_power_is_scipys_for_either_sign_of_w(rng):
+    # `**` is scipy's rotation power, from_rotvec(t * as_rotvec()): the sign of the stored
+    # quaternion does not matter (the QuatArray power exp(t log q) is another operation)
     q = random_quats(rng, (200,))
-    q[:, 0] = np.abs(q[:, 0])
-    r, s = Rotation.from_quat(q, scalar_first=True), SR.from_quat(q, scalar_first=True)
-    for t in (0.5, -0.3, 2.0, 3.7):
-        assert_same_rotation((r ** t).ndarray, (s ** t).as_quat(scalar_first=True), 1e-13)
-    neg = Rotation.from_quat(-q, scalar_first=True)
-    assert_same_rotation((neg ** 2.0).ndarray, (s ** 2.0).as_quat(scalar_first=True), 1e-13)  # integer t: same rotation
-    half = (neg ** 0.5).ndarray
-    diff = Rotation.from_quat(half, scalar_first=True).approx_equal(Rotation.from_quat((s ** 0.5).as_quat()), atol=1e-6)
-    assert not diff[q[:, 0] < 0.99].any()  # different rotations, except near the identity
-    recipe = Rotation.from_rotvec(0.5 * neg.as_rotvec())
-    assert_same_rotation(recipe.ndarray, (s ** 0.5).as_quat(scalar_first=True), 1e-13)
+    for sign in (1, -1):
+        r, s = Rotation.from_quat(sign * q, scalar_first=True), SR.from_quat(q, scalar_first=True)
+        for t in (0.5, -0.3, 2.0, 3.7, 0, 1, -1, np.array(0.25), np.array([1.5])):
+            assert_same_rotation((r ** t).as_quat(scalar_first=True), (s ** t).as_quat(scalar_first=True), 1e-13)
+    r = Rotation.from_quat(q, scalar_first=True)
+    with pytest.raises(TypeError, match="expected n of real numbers"):
+        r ** "2"
+
+
+def test_power_with_one_exponent_per_rotation_is_an_extension(rng):
+    q = random_quats(rng, (4, 3))
+    r, t = Rotation.from_quat(q, scalar_first=True), rng.uniform(-2, 2, (4, 3))
+    got = (r ** t).as_quat(scalar_first=True)
+    for i, j in np.ndindex(4, 3):
+        want = (SR.from_quat(q[i, j], scalar_first=True) ** t[i, j]).as_quat(scalar_first=True)
+        assert_same_rotation(got[i, j], want, 1e-13)
+    assert (r ** t[:, :1]).shape == (4, 3)   # broadcasting
+    with pytest.raises(ValueError, match="Array exponent must be a scalar"):
+        r ** np.ones(5)
+    with pytest.raises(ValueError, match="Array exponent must be a scalar"):
+        r[0, 0] ** np.ones(2)   # a single rotation: scipy's rule
 
 
 def test_approx_equal(rng, dtype):
@@ -221,7 +239,7 @@ def test_approx_equal(rng, dtype):
     assert not r.approx_equal(far, atol=0.01, degrees=True).any()
     np.testing.assert_array_equal(r.approx_equal(r[0]), s.approx_equal(s[0]))
     single = r[0].approx_equal(near[0])
-    assert single.shape == () and bool(single)
+    assert single.shape == s[0].approx_equal(s[0]).shape == (1,) and single.all()  # scipy's shape
     with pytest.warns(UserWarning, match="atol must be set to use the degrees flag"):
         r.approx_equal(near, degrees=True)
 
@@ -250,22 +268,22 @@ def test_mean_matches_scipy(rng, dtype, shape):
     for kwargs in ({}, {"weights": w}):
         got, want = r.mean(**kwargs), s.mean(**kwargs)
         assert got.single and got.dtype == dtype
-        assert got.ndarray[0] >= 0  # canonical sign
-        assert_same_rotation(got.ndarray, want.as_quat(scalar_first=True), 20 * tol(dtype))
+        assert got.as_quat(scalar_first=True)[0] >= 0  # canonical sign
+        assert_same_rotation(got.as_quat(scalar_first=True), want.as_quat(scalar_first=True), 20 * tol(dtype))
     if len(shape) == 2:
         for axis in (0, 1, -1, (0,), (0, 1)):
             got, want = r.mean(axis=axis), s.mean(axis=axis)
-            assert got.batch_shape == want.shape
-            assert_same_rotation(got.ndarray, want.as_quat(scalar_first=True), 20 * tol(dtype))
+            assert got.shape == want.shape
+            assert_same_rotation(got.as_quat(scalar_first=True), want.as_quat(scalar_first=True), 20 * tol(dtype))
         got, want = r.mean(weights=w[0], axis=0), s.mean(weights=w[0], axis=0)
-        assert_same_rotation(got.ndarray, want.as_quat(scalar_first=True), 20 * tol(dtype))
+        assert_same_rotation(got.as_quat(scalar_first=True), want.as_quat(scalar_first=True), 20 * tol(dtype))
 
 
 def test_mean_of_single_rotation_and_zero_weights(rng):
     r = Rotation.random(rng=rng)
-    assert_same_rotation(r.mean().ndarray, r.ndarray, 1e-15)
+    assert_same_rotation(r.mean().as_quat(scalar_first=True), r.as_quat(scalar_first=True), 1e-15)
     many = Rotation.random(3, rng=rng)
-    assert_same_rotation(many.mean(weights=[0, 1, 0]).ndarray, many[1].ndarray, 1e-15)
+    assert_same_rotation(many.mean(weights=[0, 1, 0]).as_quat(scalar_first=True), many[1].as_quat(scalar_first=True), 1e-15)
 
 
 # --- random, identity, concatenate, single, scipy interop ----------------------------------------
@@ -274,7 +292,7 @@ def test_random_is_scipys_random_for_the_same_seed():
     for kwargs in ({}, {"num": 5}, {"shape": (2, 3)}, {"shape": 4}):
         got = Rotation.random(rng=7, **kwargs)
         want = SR.random(rng=7, **kwargs)
-        assert got.batch_shape == want.shape and got.dtype == np.float64
+        assert got.shape == want.shape and got.dtype == np.float64
         np.testing.assert_allclose(got.as_quat(), want.as_quat(), rtol=0, atol=1e-15)
     gen = np.random.default_rng(3)
     np.testing.assert_allclose(Rotation.random(4, gen).as_quat(),
@@ -308,13 +326,14 @@ def test_concatenate_matches_scipy(rng):
     parts = [Rotation.random(rng=1), Rotation.random(3, rng=2), Rotation.random(2, rng=3)]
     sparts = [SR.random(rng=1), SR.random(3, rng=2), SR.random(2, rng=3)]
     got, want = Rotation.concatenate(parts), SR.concatenate(sparts)
-    assert got.batch_shape == want.shape == (6,)
+    assert got.shape == want.shape == (6,)
     np.testing.assert_allclose(got.as_quat(), want.as_quat(), atol=1e-15)
     one = Rotation.concatenate(parts[1])
-    np.testing.assert_array_equal(one.ndarray, parts[1].ndarray)
-    assert not np.shares_memory(one, parts[1])
-    mixed = Rotation.concatenate([parts[0].astype(np.float32), parts[1].astype(np.float32)])
-    assert mixed.dtype == np.float32
+    np.testing.assert_array_equal(one.as_quat(scalar_first=True), parts[1].as_quat(scalar_first=True))
+    assert not np.shares_memory(one.as_quatarray(), parts[1].as_quatarray())
+    f32 = [Rotation(p.as_quat().astype(np.float32)) for p in parts[:2]]
+    assert Rotation.concatenate(f32).dtype == np.float32
+    assert Rotation.concatenate([f32[0], parts[1]]).dtype == np.float64
 
 
 def test_single_len_shape_and_iteration():
@@ -326,24 +345,24 @@ def test_single_len_shape_and_iteration():
     with pytest.raises(TypeError, match="Single rotation has no len"):
         len(SR.random(rng=0))
     assert len(many) == 3
-    # documented difference: `shape` is the ndarray shape; scipy's shape is `batch_shape`
-    assert many.shape == (3, 4) and many.batch_shape == SR.random(3, rng=0).shape == (3,)
+    assert many.shape == SR.random(3, rng=0).shape == (3,) and one.shape == SR.random(rng=0).shape == ()
     assert [q.single for q in many] == [True] * 3
-    # documented choice: the method is the rotation mean, NumPy's function stays componentwise
+    assert bool(one) and bool(Rotation.identity(0))
+    with pytest.raises(TypeError, match="Single rotation is not subscriptable"):
+        one[0]
+    with pytest.raises(TypeError, match="Single rotation is not iterable"):
+        iter(one)
     assert many.mean().single
-    mean = np.mean(many, axis=0)
-    assert type(mean) is np.ndarray
-    np.testing.assert_allclose(mean, many.ndarray.mean(axis=0))
 
 
 def test_scipy_round_trip(rng, dtype, batch_shape):
     r, s = pair(rng, batch_shape, dtype)
-    back = QuatArray.from_scipy(r.to_scipy())
+    back = Rotation.from_scipy(r.to_scipy())
     assert isinstance(r.to_scipy(), SR)
     assert r.to_scipy().shape == s.shape
-    assert_same_rotation(back.ndarray, r.ndarray, tol(dtype))
-    assert_same_rotation(QuatArray.from_scipy(s).ndarray, s.as_quat(scalar_first=True), 0)
-    assert QuatArray.from_scipy(s).batch_shape == s.shape
+    assert_same_rotation(back.as_quat(scalar_first=True), r.as_quat(scalar_first=True), tol(dtype))
+    assert_same_rotation(Rotation.from_scipy(s).as_quat(scalar_first=True), s.as_quat(scalar_first=True), 0)
+    assert Rotation.from_scipy(s).shape == s.shape
 
 
 # --- align_vectors ------------------------------------------------------------------------------------
@@ -357,7 +376,7 @@ def test_align_vectors_matches_scipy(rng):
         r, rssd, sens = Rotation.align_vectors(a, b, return_sensitivity=True, **kwargs)
         s, srssd, ssens = SR.align_vectors(a, b, return_sensitivity=True, **kwargs)
         assert r.single
-        assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), 1e-13)
+        assert_same_rotation(r.as_quat(scalar_first=True), s.as_quat(scalar_first=True), 1e-13)
         np.testing.assert_allclose(rssd, srssd, rtol=1e-10)
         np.testing.assert_allclose(sens, ssens, rtol=1e-10)
         assert len(Rotation.align_vectors(a, b, **kwargs)) == 2
@@ -369,7 +388,7 @@ def test_align_vectors_keeps_float32(rng):
     r, rssd = Rotation.align_vectors(a.astype(np.float32), b.astype(np.float32))
     s, _ = SR.align_vectors(a, b)
     assert r.dtype == np.float32
-    assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), tol(np.float32))
+    assert_same_rotation(r.as_quat(scalar_first=True), s.as_quat(scalar_first=True), tol(np.float32))
     assert Rotation.align_vectors(a.astype(np.float32), b)[0].dtype == np.float64
 
 
@@ -390,7 +409,7 @@ def test_align_vectors_primary_cases_match_scipy(rng, case):
         a, b, w = np.array([[1.0, 0, 0]]), np.array([[-1.0, 1e-5, 0]]), None
     r, rssd = Rotation.align_vectors(a, b, weights=w)
     s, srssd = SR.align_vectors(a, b, weights=w)
-    assert_same_rotation(r.ndarray, s.as_quat(scalar_first=True), 1e-12)
+    assert_same_rotation(r.as_quat(scalar_first=True), s.as_quat(scalar_first=True), 1e-12)
     np.testing.assert_allclose(rssd, srssd, atol=1e-12)
     np.testing.assert_allclose(r.apply(b[0] / np.linalg.norm(b[0])), a[0] / np.linalg.norm(a[0]), atol=1e-12)
 
@@ -411,17 +430,17 @@ def test_align_vectors_degenerate_warns_like_scipy():
 def test_constructors_accept_unusual_layouts_and_do_not_modify_input(rng, make):
     base = {"q": random_quats(rng, (20,)), "v": rng.uniform(-1, 1, (20, 3)),
             "m": SR.random(20, rng=1).as_matrix()}
-    want = make(base).ndarray
+    want = make(base).as_quat(scalar_first=True)
     odd = {k: np.asfortranarray(np.repeat(a, 2, axis=0)[::2]) for k, a in base.items()}
     for a in odd.values():
         a.flags.writeable = False
     before = {k: a.copy() for k, a in odd.items()}
     got = make(odd)
-    np.testing.assert_allclose(got.ndarray, want, atol=1e-15)
+    np.testing.assert_allclose(got.as_quat(scalar_first=True), want, atol=1e-15)
     for k in odd:
         np.testing.assert_array_equal(odd[k], before[k])
     empty = make({"q": np.zeros((0, 4)), "v": np.zeros((0, 3)), "m": np.zeros((0, 3, 3))})
-    assert empty.batch_shape == (0,)
+    assert empty.shape == (0,)
     assert empty.as_matrix().shape == (0, 3, 3) and empty.as_rotvec().shape == (0, 3)
     assert empty.apply(np.zeros((0, 3))).shape == (0, 3)
 
@@ -435,27 +454,27 @@ BAD = [
     (lambda: Rotation.from_quat([[1, 0, 0, 0], [0, 0, 0, 0]]), ValueError, r"at index \(1,\)"),
     (lambda: Rotation.from_quat([np.nan, 0, 0, 1]), ValueError, "expected finite quat"),
     (lambda: Rotation.from_quat([np.inf, 0, 0, 1]), ValueError, "expected finite quat"),
-    (lambda: Rotation.from_quat([1, 2, 3]), ValueError, r"expected quat of shape \(\.\.\., 4\), got \(3,\)"),
+    (lambda: Rotation.from_quat([1, 2, 3]), ValueError, r"Expected `quat` to have shape \(\.\.\., 4\), got \(3,\)"),
     (lambda: Rotation.from_quat(1.0), ValueError, r"shape \(\.\.\., 4\)"),
     (lambda: Rotation.from_quat(["a", "b", "c", "d"]), TypeError, "real numbers"),
     (lambda: Rotation.from_quat([1j, 0, 0, 1]), TypeError, "real numbers"),
     (lambda: Rotation.from_matrix(-np.eye(3)), ValueError, "Non-positive determinant"),
     (lambda: Rotation.from_matrix(np.zeros((3, 3))), ValueError, "Non-positive determinant"),
     (lambda: Rotation.from_matrix(np.full((3, 3), np.nan)), ValueError, "expected finite values in matrix"),
-    (lambda: Rotation.from_matrix(np.eye(4)), ValueError, r"shape \(\.\.\., 3, 3\)"),
-    (lambda: Rotation.from_rotvec([1, 2]), ValueError, r"expected rotvec of shape \(\.\.\., 3\)"),
-    (lambda: Rotation.from_mrp(np.ones((2, 4))), ValueError, r"expected mrp of shape \(\.\.\., 3\)"),
+    (lambda: Rotation.from_matrix(np.eye(4)), ValueError, r"Expected `matrix` to have shape \(3, 3\) or \(\.\.\., 3, 3\), got \(4, 4\)"),
+    (lambda: Rotation.from_rotvec([1, 2]), ValueError, r"Expected `rot_vec` to have shape \(3,\) or \(\.\.\., 3\), got \(2,\)"),
+    (lambda: Rotation.from_mrp(np.ones((2, 4))), ValueError, r"Expected `mrp` to have shape \(3,\) or \(\.\.\., 3\), got \(2, 4\)"),
     (lambda: Rotation.from_euler("xxy", [1, 2, 3]), ValueError, "consecutive axes"),
-    (lambda: Rotation.from_euler("xYz", [1, 2, 3]), ValueError, "not mixed"),
-    (lambda: Rotation.from_euler("xyzx", [1, 2, 3, 4]), ValueError, "1 to 3 axes"),
+    (lambda: Rotation.from_euler("xYz", [1, 2, 3]), ValueError, r"Expected axes from `seq` to be from \['x', 'y', 'z'\] or \['X', 'Y', 'Z'\], got xYz"),
+    (lambda: Rotation.from_euler("xyzx", [1, 2, 3, 4]), ValueError, "non-empty string of up to 3 characters, got xyzx"),
     (lambda: Rotation.from_euler("xyz", [1, 2]), ValueError, r"expected angles of shape \(\.\.\., 3\)"),
     (lambda: Rotation.from_euler("x", [1, 2, 3]), ValueError, r"expected angles of shape \(\.\.\., 1\)"),
     (lambda: R3.as_euler("xy"), ValueError, "3 axes"),
     (lambda: R3.as_euler("xxz"), ValueError, "consecutive axes"),
     (lambda: Rotation.from_davenport(np.eye(3), "x", [1, 2, 3]), ValueError, "order"),
     (lambda: Rotation.from_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), ValueError, "orthogonal"),
-    (lambda: R3.as_davenport(np.eye(3)[:2], "e"), ValueError, "expected 3 axes"),
-    (lambda: R3.apply(np.ones((3, 2))), ValueError, r"expected vectors of shape \(\.\.\., 3\)"),
+    (lambda: R3.as_davenport(np.eye(3)[:2], "e"), ValueError, r"Expected 3 axes, got \(2, 3\)"),
+    (lambda: R3.apply(np.ones((3, 2))), ValueError, r"Expected input of shape \(\.\.\., 3\), got \(3, 2\)"),
     (lambda: R3.apply(np.ones((2, 3))), ValueError, r"Cannot broadcast \(3,\) rotations to \(2,\) vectors"),
     (lambda: R3.apply(np.ones((3, 3), complex)), TypeError, "real numbers"),
     (lambda: R3.approx_equal(Rotation.random(2, rng=0)), ValueError, "broadcastable shapes"),
@@ -483,7 +502,7 @@ BAD = [
     (lambda: Rotation.align_vectors([[1, 0, 0]], [[1, 0, 0]], return_sensitivity=True), ValueError, "sensitivity"),
     (lambda: Rotation.align_vectors([[0, 0, 0]], [[1, 0, 0]]), ValueError, "zero length primary"),
     (lambda: Rotation.align_vectors([[np.nan, 0, 0]], [[1, 0, 0]]), ValueError, "finite"),
-    (lambda: QuatArray.from_scipy(np.array([0, 0, 0, 1.0])), TypeError, "scipy.spatial.transform.Rotation"),
+    (lambda: Rotation.from_scipy(np.array([0, 0, 0, 1.0])), TypeError, "scipy.spatial.transform.Rotation"),
 ]
 
 
@@ -568,3 +587,90 @@ def test_migration_workflow_gives_scipys_numbers():
             np.testing.assert_array_equal(got, want, err_msg=key)
         else:
             np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-11, err_msg=key)
+
+
+# --- scipy's container behaviour, randomness rules and mixing with scipy -----------------------
+
+def test_repr_pickle_copy_and_setitem_like_scipy(rng):
+    import copy
+    import pickle
+    q = random_quats(rng, (3,))
+    r, s = Rotation.from_quat(q, scalar_first=True), SR.from_quat(q, scalar_first=True)
+    assert repr(r) == repr(s) and str(r) == str(s) and repr(r[0]) == repr(s[0])
+    for clone in (pickle.loads(pickle.dumps(r)), copy.copy(r), copy.deepcopy(r)):
+        np.testing.assert_array_equal(clone.as_quat(), r.as_quat())
+        assert not np.shares_memory(clone.as_quatarray(), r.as_quatarray())
+    part = r[1:]
+    before = r.as_quat()
+    part[0] = Rotation.identity()        # a slice is a copy, as in scipy
+    np.testing.assert_array_equal(r.as_quat(), before)
+    r[1] = Rotation.identity()
+    s[1] = SR.identity()
+    np.testing.assert_allclose(r.as_quat(), s.as_quat(), atol=1e-15)
+    r[0] = s[2]                            # a scipy Rotation is converted
+    np.testing.assert_allclose(r[0].as_quat(), s[2].as_quat(), atol=1e-15)
+    with pytest.raises(TypeError, match="value must be a Rotation object"):
+        r[0] = q[0]
+    assert (r == r) and not (r == Rotation.from_quat(r.as_quat())) and r != r.inv()  # identity, as scipy
+
+
+def test_random_legacy_random_state_draws_like_scipy():
+    for ours, theirs in ((Rotation.random(4, 5), SR.random(4, 5)),                         # by position
+                         (Rotation.random(4, random_state=5), SR.random(4, random_state=5)),
+                         (Rotation.random(4, np.random.RandomState(5)), SR.random(4, np.random.RandomState(5)))):
+        np.testing.assert_allclose(ours.as_quat(), theirs.as_quat(), rtol=0, atol=1e-15)
+    with pytest.raises(TypeError, match="multiple values for argument now known as `rng`"):
+        Rotation.random(2, rng=1, random_state=1)
+    with pytest.raises(TypeError, match="takes from 0 to 2 positional arguments"):
+        Rotation.random(1, 2, 3)
+
+
+def test_mixing_with_scipy_rotations_works(rng):
+    q = random_quats(rng, (4,))
+    r, s = Rotation.from_quat(q, scalar_first=True), SR.from_quat(q, scalar_first=True)
+    for got in (r * s, s * r):
+        assert isinstance(got, Rotation)
+        assert_same_rotation(got.as_quat(scalar_first=True), (s * s).as_quat(scalar_first=True), 1e-14)
+    assert r.approx_equal(s).all()
+    assert Rotation.concatenate(s).shape == (4,)
+    with pytest.raises(TypeError, match="from_scipy"):
+        Rotation.concatenate([r, s])
+    from quatarray import Slerp
+    np.testing.assert_allclose(Slerp([0, 1, 2, 3], s)(0.5).as_quat(), Slerp([0, 1, 2, 3], r)(0.5).as_quat())
+
+
+def test_reduce_and_groups_match_scipy(rng):
+    q = random_quats(rng, (20,))
+    r, s = Rotation.from_quat(q, scalar_first=True), SR.from_quat(q, scalar_first=True)
+    for name in ("I", "O", "T", "D3", "C5"):
+        g, sg = Rotation.create_group(name), SR.create_group(name)
+        assert g.shape == sg.shape
+        # the same group: every scipy element is one of ours
+        assert Rotation.from_scipy(sg)[:, None].approx_equal(g[None, :], atol=1e-12).any(axis=1).all()
+        for left, right in ((g, None), (None, g), (g, g)):
+            got, li, ri = r.reduce(left, right, return_indices=True)
+            want = s.reduce(None if left is None else sg, None if right is None else sg)
+            np.testing.assert_allclose(got.magnitude(), want.magnitude(), atol=1e-12)
+            assert (li is None) == (left is None) and (ri is None) == (right is None)
+            one = Rotation.identity() if left is None else g[li]
+            two = Rotation.identity() if right is None else g[ri]
+            assert (one * r * two).approx_equal(got, atol=1e-12).all()
+    assert r[0].reduce(g).single
+
+
+def test_davenport_with_batched_axes_matches_one_call_per_axes_set(rng):
+    axes = np.stack([np.eye(3)[[2, 0, 2]], np.eye(3)[[0, 1, 2]]])     # (2, 3, 3)
+    angles = rng.uniform(-1, 1, (2, 3))
+    r = Rotation.from_davenport(axes, "e", angles)
+    for i in range(2):
+        assert_same_rotation(r[i].as_quat(), SR.from_davenport(axes[i], "e", angles[i]).as_quat(), 1e-14)
+        np.testing.assert_allclose(r.as_davenport(axes, "e")[i], SR.from_davenport(axes[i], "e", angles[i]).as_davenport(axes[i], "e"), atol=1e-12)
+
+
+def test_float32_is_kept_where_scipy_promotes():
+    q = np.array([[0, 0, 0.6, 0.8]], np.float32)
+    r, s = Rotation.from_quat(q), SR.from_quat(q)
+    assert r.dtype == np.float32 and s.as_quat().dtype == np.float64
+    for out in (r.as_quat(), r.as_matrix(), r.as_rotvec(), r.as_euler("xyz"), r.apply(np.ones(3, np.float32))):
+        assert out.dtype == np.float32
+    np.testing.assert_allclose(r.as_matrix(), s.as_matrix(), atol=1e-6)

@@ -6,6 +6,8 @@
   over 4 s (scalar-first quaternions).
 - ``walk.bvh``: a 10-joint skeleton walking, 13 frames at 8 fps, with three
   different rotation channel orders (ZXY, XYZ, YXZ).
+- ``imu.csv``: an orientation log as trackers write it, scalar-last
+  (``imu.x, imu.y, imu.z, imu.w``) at irregular times around 30 Hz over 2 s.
 
 Only NumPy is used, with a fixed seed, so the files are reproducible.
 """
@@ -110,6 +112,18 @@ def walk_bvh(rng):
     return "\n".join(hierarchy + motion) + "\n"
 
 
+def imu_csv(rng):
+    times = np.round(np.cumsum(np.r_[0.0, rng.uniform(0.025, 0.042, 59)]), 4)
+    yaw = _quat([0, 0, 1], 40 * np.sin(1.7 * times) + 10 * times)
+    pitch = _quat([0, 1, 0], 12 * np.sin(3.1 * times + 0.3))
+    roll = _quat([1, 0, 0], 6 * np.cos(2.3 * times))
+    q = _mul(_mul(yaw, pitch), roll)
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    lines = ["time,imu.x,imu.y,imu.z,imu.w"]
+    lines += [f"{t:.4f}," + ",".join(f"{v:.6f}" for v in np.roll(k, -1)) for t, k in zip(times, q)]
+    return "\n".join(lines) + "\n"
+
+
 if __name__ == "__main__":
     here = os.path.dirname(os.path.abspath(__file__))
     rng = np.random.default_rng(6)
@@ -117,3 +131,5 @@ if __name__ == "__main__":
         f.write(arm_csv(rng))
     with open(os.path.join(here, "walk.bvh"), "w", newline="\n") as f:
         f.write(walk_bvh(rng))
+    with open(os.path.join(here, "imu.csv"), "w", newline="\n") as f:
+        f.write(imu_csv(rng))

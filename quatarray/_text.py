@@ -1,0 +1,332 @@
+"""Machinery shared by the file readers and writers (`quatarray.io`, BVH, the command line).
+
+- `FormatError`, the one exception for a file that cannot be read;
+- `atomic_write`, which writes to a temporary file beside the target and
+  renames it into place only when complete;
+- `TextStyle`, `measure_style` and `write_rows`: how a text file printed its
+  numbers and ended its lines, so that it can be written back the same way;
+- `load_table`, `data_lines`, `row_line`: bulk parsing by NumPy in one pass,
+  looking at lines one by one only once that parse has failed, to name the bad
+  one;
+- `check_numbers`, `check_query`, `check_size`: the checks every format shares;
+- `echo`: a value quoted in a message, cut to about 60 characters.
+
+Everything here is public inside the package and private to users.
+"""
+
+import contextlib
+import dataclasses
+import errno
+import os
+import re
+import tempfile
+import warnings
+
+import numpy as np
+
+ROWS = 4096  # rows formatted per block when writing text
+
+#: Most values (frames x values per frame) a resample may produce: 8 GiB of float64.
+MAX_VALUES = 1 << 30
+
+
+class FormatError(ValueError):
+    """A file that cannot be read as the format its extension names.
+
+    ``str(err)`` is one line, ``path:line: message`` (``path: message`` when
+    no line applies); the parts are kept as `path`, `line` and `message`.
+
+    >>> str(FormatError("bad header", "a.csv", 1))
+    'a.csv:1: bad header'
+    """
+
+    def __init__(self, message, path=None, line=None):
+        self.message = " ".join(str(message).split("\n"))
+        self.path = None if path is None else os.fspath(path)
+        self.line = line
+        super().__init__(str(self))
+
+    def __str__(self):
+        where = "" if self.path is None else self.path + (":" if self.line is None else f":{self.line}:")
+        return f"{where} {self.message}" if where else self.message
+
+
+def echo(value, limit=60):
+    """`value` quoted for a message, cut to about `limit` characters.
+
+    >>> echo("abc")
+    "'abc'"
+    >>> echo("x" * 1000)
+    "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx...' (1000 characters)"
+    """
+    value = str(value)
+    if len(value) <= limit:
+        return repr(value)
+    return repr(value[:limit - 10] + "...") + f" ({len(value)} characters)"
+
+
+# --------------------------------------------------------------------------- how numbers were printed
+
+@dataclasses.dataclass(frozen=True)
+class TextStyle:
+    """How a text file printed its values and ended its lines.
+
+    Attributes
+    ----------
+    decimals : int or None
+        Digits after the decimal point; None writes the shortest text that
+        reads back to the same number.
+    trim : bool
+        Trailing zeros are dropped (``0``, ``1.5``, ``-5.14473``, as ``%g``
+        writes), rather than every value having `decimals` digits.
+    newline : str
+        ``"\\n"`` or ``"\\r\\n"``.
+    delimiter : str
+        Between values on a line (CSV: ``,``, tab or ``;``).
+    """
+
+    decimals: int = None
+    trim: bool = False
+    newline: str = "\n"
+    delimiter: str = ","
+
+
+_NUMBER_BYTE = np.zeros(256, bool)
+_NUMBER_BYTE[np.frombuffer(b"0123456789.+-eE", np.uint8)] = True
+
+
+def token_decimals(data):
+    """Digits after the decimal point of each number in `data` (bytes), in order.
+
+    ``1.25`` has 2, ``7`` has 0, ``1.5e-3`` has 4 (what ``%f`` needs to write it).
+    """
+    b = np.frombuffer(data, np.uint8)
+    inside = _NUMBER_BYTE[b]
+    before = np.concatenate([[False], inside[:-1]])
+    after = np.concatenate([inside[1:], [False]])
+    starts = np.flatnonzero(inside & ~before)
+    ends = np.flatnonzero(inside & ~after) + 1
+    dots = np.flatnonzero(b == ord("."))
+    exps = np.flatnonzero((b == ord("e")) | (b == ord("E")))
+    decimals = np.zeros(len(starts), np.int64)
+    if len(dots):
+        i = np.minimum(np.searchsorted(dots, starts), len(dots) - 1)
+        has = (dots[i] >= starts) & (dots[i] < ends)
+        decimals[has] = ends[has] - dots[i[has]] - 1
+    if len(exps):  # rare: a Python loop over the numbers written with an exponent only
+        j = np.minimum(np.searchsorted(exps, starts), len(exps) - 1)
+        for k in np.flatnonzero((exps[j] >= starts) & (exps[j] < ends)):
+            mantissa, _, power = data[starts[k]:ends[k]].decode("ascii").partition(
+                "e" if b[exps[j[k]]] == ord("e") else "E")
+            try:
+                decimals[k] = max(0, len(mantissa.partition(".")[2]) - int(power))
+            except ValueError:
+                decimals[k] = 0
+    return decimals
+
+
+def measure_style(path, skip, ncols=None, delimiter=","):
+    """The `TextStyle` of the numbers after the first `skip` lines of `path`.
+
+    With `ncols`, the first of every `ncols` numbers (a time column) is left
+    out of the count.  More than 17 decimals (a tiny value written with an
+    exponent) means shortest round-trip text (``decimals=None``).
+    """
+    with open(path, "rb") as f:
+        data = f.read()
+    b = np.frombuffer(data, np.uint8)
+    ends = np.flatnonzero(b == ord("\n"))
+    newline = "\r\n" if len(ends) and ends[0] > 0 and b[ends[0] - 1] == ord("\r") else "\n"
+    start = int(ends[skip - 1]) + 1 if skip and len(ends) >= skip else (0 if not skip else len(data))
+    decimals = token_decimals(data[start:])
+    if ncols and len(decimals) % ncols == 0:
+        decimals = decimals.reshape(-1, ncols)[:, 1:].ravel()
+    if not len(decimals) or decimals.max() > 17:
+        return TextStyle(None, False, newline, delimiter)
+    top = int(decimals.max())
+    return TextStyle(top, bool(decimals.min() != top), newline, delimiter)
+
+
+_TRAILING_ZEROS = re.compile(r"(\.\d*?)0+(?![0-9])")
+_BARE_POINT = re.compile(r"\.(?![0-9])")
+
+
+def write_rows(f, rows, style=None, sep=None, first=None):
+    """Write a 2-D float array as text, one line per row.
+
+    Without ``style.decimals``, float64 is written as ``repr`` writes it (the
+    shortest text that reads back to the same number) and float32 with 9
+    significant digits.  With it, values are written with that many decimals
+    (trailing zeros dropped when ``style.trim``), and a value that rounds to
+    zero without being zero is written as plain zero, not ``-0.000``.
+    `first`, a column written before `rows` (CSV times), always reads back to
+    the same number.
+    """
+    style = style or TextStyle()
+    sep = style.delimiter if sep is None else sep
+    exact = "%r" if rows.dtype == np.float64 else "%.9g"
+    fmt = exact if style.decimals is None else f"%.{style.decimals}f"
+    line = sep.join(([exact] if first is not None else []) + [fmt] * rows.shape[1]) + "\n"
+    for start in range(0, len(rows), ROWS):
+        block = rows[start:start + ROWS]
+        if style.decimals is not None:
+            block = np.where(np.abs(block) < 0.5 * 10.0 ** -style.decimals, 0.0, block)
+        if first is not None:
+            block = np.concatenate([first[start:start + ROWS, None], block], axis=1)
+        text = "".join(line % tuple(r) for r in block.tolist())
+        if style.decimals and style.trim:
+            text = _BARE_POINT.sub("", _TRAILING_ZEROS.sub(r"\1", text))
+        f.write(text)
+
+
+# --------------------------------------------------------------------------- writing
+
+@contextlib.contextmanager
+def atomic_write(path, binary=False, newline="\n"):
+    """Open a temporary file beside `path`; rename it to `path` only on success.
+
+    An existing file's permission bits are kept; a new file gets the usual
+    mode (``0o666`` less the umask).  Every error names `path`, never the
+    temporary file; on any exception (including KeyboardInterrupt and the
+    SystemExit the command line raises on SIGTERM) the temporary file is
+    removed and `path` is left as it was.
+    """
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
+    try:
+        mode = os.stat(path).st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        mode = 0o666 & ~mask
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
+    except OSError as exc:  # name the file asked for, not the temporary one
+        raise type(exc)(exc.errno, exc.strerror, path) from None
+    try:
+        os.chmod(tmp, mode)  # mkstemp makes 0600
+        with (os.fdopen(fd, "wb") if binary else
+              os.fdopen(fd, "w", encoding="utf-8", errors="surrogateescape", newline=newline)) as f:
+            fd = None
+            yield f
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise type(exc)(exc.errno, exc.strerror, path) from None
+    except BaseException:
+        if fd is not None:
+            os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+# --------------------------------------------------------------------------- checks
+
+def check_numbers(times, keys, path, where):
+    """Finite values, strictly increasing times, no zero quaternion.
+
+    `where(i, j)` names row `i` (and flat track `j`) for messages; it returns
+    ``(line, text)``.
+    """
+    bad = ~np.isfinite(times)
+    if bad.any():
+        line, at = where(int(np.argmax(bad)), None)
+        raise FormatError(f"{at}non-finite time {float(times[bad][0])!r}", path, line)
+    flat = keys.reshape(len(keys), -1, 4)
+    bad = ~np.isfinite(flat).all(axis=-1)
+    if bad.any():
+        i, j = np.unravel_index(np.argmax(bad), bad.shape)
+        line, at = where(int(i), int(j))
+        raise FormatError(f"{at}non-finite quaternion component", path, line)
+    step = np.diff(times)
+    bad = ~(step > 0)
+    if bad.any():
+        i = int(np.argmax(bad)) + 1
+        line, at = where(i, None)
+        raise FormatError(f"{at}time {float(times[i])!r} does not come after {float(times[i - 1])!r} "
+                          "(times must be strictly increasing)", path, line)
+    bad = ~(flat != 0).any(axis=-1)
+    if bad.any():
+        i, j = np.unravel_index(np.argmax(bad), bad.shape)
+        line, at = where(int(i), int(j))
+        raise FormatError(f"{at}zero quaternion (cannot be a rotation)", path, line)
+
+
+def check_query(times, t, extrapolate):
+    """At least two keys, and with ``extrapolate="raise"`` every query time within the keys."""
+    if len(times) < 2:
+        raise ValueError(f"need at least 2 keyframes to interpolate, got {len(times)}")
+    if extrapolate == "raise" and len(t) and (t.min() < times[0] or t.max() > times[-1]):
+        bad = t[(t < times[0]) | (t > times[-1])][0]
+        raise ValueError(f"query time {float(bad)!r} is outside the key times [{float(times[0])!r}, "
+                         f"{float(times[-1])!r}]; to sample there, extrapolate with "
+                         "--extrapolate clamp or extend (extrapolate='clamp' or 'extend' in Python)")
+
+
+def check_size(frames, per_frame, what):
+    """Refuse, before allocating, an output of more than `MAX_VALUES` values."""
+    if frames * per_frame > MAX_VALUES:
+        raise ValueError(f"{what} asks for {frames:,} frames of {per_frame} values "
+                         f"({frames * per_frame * 8 / 2**30:,.1f} GiB as float64); the limit is "
+                         f"{MAX_VALUES:,} values ({MAX_VALUES * 8 // 2**30} GiB)")
+
+
+# --------------------------------------------------------------------------- reading
+
+def data_lines(path, skip, delimiter):
+    """Yield ``(line_number, text)`` of the data lines after the first `skip`.
+
+    As in `numpy.loadtxt`, empty lines are skipped, and so are lines of only
+    whitespace when the delimiter is whitespace (`delimiter` None).
+    """
+    with open(path, encoding="utf-8-sig", errors="surrogateescape") as f:
+        for number, text in enumerate(f, 1):
+            text = text.rstrip("\r\n")
+            if number > skip and (text if delimiter else text.strip()):
+                yield number, text
+
+
+def row_line(path, skip, row, delimiter):
+    """File line number of data row `row` (counted as `data_lines` does)."""
+    for i, (number, _) in enumerate(data_lines(path, skip, delimiter)):
+        if i == row:
+            return number
+    return None
+
+
+def _diagnose(path, skip, ncols, delimiter, names=None, what="values"):
+    """Find the first line after `skip` with the wrong count or a non-number; raise."""
+    for number, text in data_lines(path, skip, delimiter):
+        cells = text.split(delimiter)
+        if len(cells) != ncols:
+            raise FormatError(f"expected {ncols} {what}, got {len(cells)}", path, number)
+        for k, cell in enumerate(cells):
+            try:
+                float(cell)
+            except ValueError:
+                col = f" in column {echo(names[k])}" if names else f" (value {k + 1})"
+                hint = " (decimal commas are not supported: write 0.5, not 0,5)" if (
+                    delimiter == ";" and "," in cell) else ""
+                raise FormatError(f"non-numeric value {echo(cell.strip())}{col}{hint}", path, number) from None
+
+
+def load_table(path, skip, ncols, delimiter, names=None, what="values"):
+    """Parse the numbers after line `skip` into (rows, ncols) float64, naming bad lines."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
+            rows = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
+                              ndmin=2, comments=None, encoding="utf-8-sig")
+    except ValueError as exc:
+        error = str(exc)
+    else:
+        if not rows.size:
+            return np.empty((0, ncols))
+        if rows.shape[1] == ncols:
+            return rows
+        error = f"expected {ncols} {what}, got {rows.shape[1]}"
+    _diagnose(path, skip, ncols, delimiter, names, what)
+    raise FormatError(error if len(error) <= 200 else error[:190] + "...", path)

@@ -1,0 +1,327 @@
+"""Raw keyframe-track machinery: the time line, per-segment tables and their blocked evaluation.
+
+A track of K keys over any batch of B tracks is evaluated from a *table*
+of shape ``(R, K, B)`` (components first, in the keys' dtype): R rows per
+segment, computed once at construction, plus a phantom segment K-1 that
+holds the last key (so a query at the last key time is exact).  A call
+finds each query's segment, gathers that segment's rows for a block of
+queries and tracks, and runs a fixed number of batched kernels on them: no
+Python loop over keys, queries or tracks.
+
+`Timeline` holds the key times, the segment lookup and the extrapolation
+policy shared by every kind of track (rotations in `interpolate.Track`,
+rigid motions in `rigid.RigidTrack`).  The rows of the rotation methods
+are great-circle frames ``[F (8), phi]`` per SLERP piece (`frame_rows`);
+a query's rotation is then ``cos(u phi) k0 + sin(u phi) k_perp``.
+"""
+
+from math import prod
+
+import numpy as np
+
+from . import _blocks
+from . import _interp_curves as IC
+from . import _interp_kernels as IK
+from . import _kernels as Kn
+from ._blocks import soa
+from ._interp_lookup import SegmentIndex
+from ._validate import float_array
+
+__all__ = ["Timeline", "components_first", "qt_blocks", "frame_rows", "rotation_table",
+           "gather", "evaluate", "angular_velocity"]
+
+
+class Timeline:
+    """Key times (K,), their segment lookup and the extrapolation policy."""
+
+    def __init__(self, times, extrapolate):
+        self.times = times
+        self.extrapolate = extrapolate
+        self.index = SegmentIndex(times)
+        self.dt = np.append(np.diff(times), np.inf)   # phantom segment after the last key: u = 0
+
+    def __getstate__(self):
+        # pickles (e.g. shipped to Dask workers) carry the times; the lookup is rebuilt from them
+        return {"times": self.times, "extrapolate": self.extrapolate}
+
+    def __setstate__(self, state):
+        self.__init__(state["times"], state["extrapolate"])
+
+    def queries(self, t, name):
+        """(shape of t, t as flat float64 (clamped with 'clamp'), mask of clamped queries or None)."""
+        t = float_array(t, name)
+        flat = np.ravel(t).astype(np.float64, copy=False)
+        outside = None
+        if flat.size:
+            lo, hi = float(flat.min()), float(flat.max())
+            if np.isnan(lo) or np.isnan(hi):
+                raise ValueError(f"expected {name} without nan, got nan")
+            t0, t1 = float(self.times[0]), float(self.times[-1])
+            if self.extrapolate == "raise" and (lo < t0 or hi > t1):
+                bad = lo if lo < t0 else hi
+                raise ValueError(f"expected {name} within the range [{t0!r}, {t1!r}], both inclusive "
+                                 f"(extrapolate='raise'), got {bad!r}")
+            if self.extrapolate == "clamp" and (lo < t0 or hi > t1):
+                outside = (flat < t0) | (flat > t1)
+                flat = np.clip(flat, t0, t1)
+            if self.extrapolate == "extend" and not (np.isfinite(lo) and np.isfinite(hi)):
+                raise ValueError(f"expected finite {name} to extrapolate (extrapolate='extend'), got {lo!r} .. {hi!r}")
+        return t.shape, flat, outside
+
+    def segments(self, tb, velocity):
+        """Segment index i and parameter u (float64) of the queries tb.
+
+        Without `velocity`, a query at (or, with 'clamp', past) the last key
+        gets the phantom segment K-1; with it, the last real segment.
+        """
+        i = self.index.find(tb)
+        K = len(self.times)
+        if velocity or self.extrapolate == "extend":
+            np.clip(i, 0, K - 2, out=i)
+        u = np.subtract(tb, np.take(self.times, i, mode="clip"))
+        u /= np.take(self.dt, i, mode="clip")
+        return i, u
+
+
+def components_first(q, K, B):
+    """(K, ..., k) -> C-contiguous float64 (k, K, B): long contiguous rows for the
+    construction-time maths (strided views make every NumPy call several times slower)."""
+    out = np.empty((q.shape[-1], K, B))
+    out[...] = soa(q.reshape(K, B, q.shape[-1]))
+    return out
+
+
+def qt_blocks(M, B):
+    """(query slice, track slice) blocks of at most BLOCK elements each."""
+    def as_slice(ix):
+        return slice(ix, ix + 1) if isinstance(ix, int) else ix
+
+    return [tuple(as_slice(ix) for ix in idx) + (slice(None),) * (2 - len(idx))
+            for idx in _blocks.split((M, B))]
+
+
+def frame_rows(pieces, last):
+    """Rows [F_1 (8), ..., F_n (8), phi_1, ..., phi_n] of shape (9n, K, B) for the n
+    great-circle pieces (k0, k1) ((4, K-1, B) each) of every segment, plus a
+    phantom segment K-1 that stays at `last` (4, B) (so t = t_end is exact)."""
+    n = len(pieces)
+    K1, B = pieces[0][0].shape[1:]
+    table = np.empty((9 * n, K1 + 1, B))
+    Fv = table[:8 * n].reshape(n, 8, K1 + 1, B)
+    if n > 1 and n * K1 * B <= _blocks.BLOCK:   # small: one call on the stacked pieces
+        k0 = np.stack([p[0] for p in pieces], 1)
+        k1 = np.stack([p[1] for p in pieces], 1)
+        IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), table[8 * n:, :K1])
+    else:                                   # large: piece by piece, no stacked copies
+        for j, (k0, k1) in enumerate(pieces):
+            IK.frames(k0, k1, Fv[j, :, :K1], table[8 * n + j, :K1])
+    Fv[:, :4, K1] = last[None]
+    Fv[:, 4:, K1] = 0
+    table[8 * n:, K1] = 0
+    return table
+
+
+def rotation_table(method, times, keys):
+    """Table (R, K, B) in the keys' dtype and control points of a rotation track.
+
+    `keys` (K, ..., 4) are unit and unflipped; `method` is 'linear',
+    'slerp', 'squad' or 'bezier'.  The control points are None, s
+    (K, ..., 4) for squad, or (a, b) for Bézier.
+    """
+    K = keys.shape[0]
+    B = prod(keys.shape[1:-1])
+    Q = components_first(keys, K, B)        # (4, K, B), C-contiguous float64
+    controls = None
+    if method == "linear":
+        table = np.concatenate([Q, np.concatenate([Q[:, 1:], Q[:, -1:]], axis=1)])
+    elif method == "slerp":
+        table = frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
+    elif method == "squad":
+        s = controls = IC.squad_controls(keys, times)
+        S = components_first(s, K, B)
+        table = frame_rows([(Q[:, :-1], Q[:, 1:]), (S[:, :-1], S[:, 1:])], Q[:, -1])
+    else:
+        a, b = controls = IC.bezier_controls(keys, times)
+        A = components_first(a, K, B)
+        Bc = components_first(b, K, B)
+        table = frame_rows([(Q[:, :-1], A[:, :-1]), (A[:, :-1], Bc[:, 1:]), (Bc[:, 1:], Q[:, 1:])], Q[:, -1])
+    return np.ascontiguousarray(table, dtype=keys.dtype), controls
+
+
+def gather(table, i, sb):
+    """Table rows of segments `i` for tracks `sb`: (R, len(i), b), components first,
+    in the calling thread's scratch."""
+    R, _, B = table.shape
+    work = _blocks.scratch()
+    if B == 1:   # 2-D take: one element per row and index (twice as fast)
+        G = work.rows(R, (len(i),), table.dtype)
+        np.take(table[:, :, 0], i, axis=1, mode="clip", out=G)
+        return G[:, :, None]
+    tab = table[:, :, sb]
+    G = work.rows(R, (len(i), tab.shape[2]), table.dtype)
+    np.take(tab, i, axis=1, mode="clip", out=G)
+    return G
+
+
+def rotation_block(method, G, u, O):
+    """Rotations (4, m, b) into `O` from gathered rows `G` and parameters `u` (m, 1)."""
+    s = O.shape[1:]
+    work = _blocks.scratch()
+    if method == "slerp":
+        IK.frame_core(G[:8], G[8], u, O)
+    elif method == "linear":
+        Gv = G.reshape((2, 4) + s)
+        W = work.rows(2, s, O.dtype)
+        np.subtract(1, u, out=W[0])
+        np.copyto(W[1], u)
+        np.multiply(Gv, W[:, None], out=Gv)
+        np.add(Gv[0], Gv[1], out=O)
+        n = work.rows(1, s, O.dtype)[0]
+        np.copyto(Gv[0], O)
+        IK.sqsum(Gv[0], n)
+        np.sqrt(n, out=n)
+        np.divide(O, n, out=O)
+    elif method == "squad":
+        P = work.rows(4, s, O.dtype)
+        S = work.rows(4, s, O.dtype)
+        IK.frame_core(G[:8], G[16], u, P)
+        IK.frame_core(G[8:16], G[17], u, S)
+        IK.squad_blend(P, S, u, O)
+    else:
+        L = work.rows(12, s, O.dtype).reshape((4, 3) + s)
+        for j in range(3):
+            IK.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j])
+        IK.bezier_levels(L, u, O)
+
+
+def rotation_deriv(method, G, u):
+    """(q, dq/du) of the rotation from gathered float64 rows `G` and parameters `u` (m, 1)."""
+    if method == "linear":
+        k0, k1 = G[:4], G[4:]
+        return (1 - u) * k0 + u * k1, k1 - k0
+    if method == "slerp":
+        return IC.frame_deriv(G[:8], G[8], u)
+    if method == "squad":
+        A, dA = IC.frame_deriv(G[:8], G[16], u)
+        S, dS = IC.frame_deriv(G[8:16], G[17], u)
+        return IC.slerp_deriv(A, dA, S, dS, IK.squad_param(u), 2 - 4 * u)
+    L = [IC.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
+    M = [IC.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
+    return IC.slerp_deriv(*M[0], *M[1], u, 1.0)
+
+
+def evaluate(timeline, table, flat, block_fn, width):
+    """Run ``block_fn(G, u, O)`` over blocks of queries `flat` (M,) and the table's tracks.
+
+    `G` is the gathered rows (R, m, b), `u` the segment parameters (m, 1) in
+    the table's dtype and `O` the components-first view (width, m, b) of the
+    block of the output (M, B, width), which is returned.
+    """
+    M, B = flat.size, table.shape[2]
+    out = np.empty((M, B, width), table.dtype)
+
+    def block(qt):
+        sm, sb = qt
+        i, u = timeline.segments(flat[sm], False)
+        G = gather(table, i, sb)
+        uu = u.astype(table.dtype)[:, None]
+        block_fn(G, uu, soa(out[sm, sb]))
+
+    _blocks.run(block, qt_blocks(M, B), M * B)
+    return out
+
+
+def angular_velocity(timeline, method, table, flat, outside, frame):
+    """Angular velocity (M, B, 3) of a rotation track at queries `flat` (M,), in the table's dtype.
+
+    Zero where `outside` (clamped queries) is set; `frame` is 'world' or 'body'.
+    """
+    M, B = flat.size, table.shape[2]
+    out = np.empty((M, B, 3), np.float64)
+    for sm, sb in qt_blocks(M, B):
+        tb = flat[sm]
+        i, u = timeline.segments(tb, True)
+        tab = table[:, :, sb]
+        G = np.take(tab, i, axis=1, mode="clip").astype(np.float64, copy=False)
+        uu = u[:, None]
+        q, dq = rotation_deriv(method, G, uu)
+        w = IC.omega_from(q, dq, frame) / np.take(timeline.dt, i)[:, None]
+        if outside is not None:
+            w[:, outside[sm]] = 0
+        soa(out[sm, sb])[...] = w
+    return out.astype(table.dtype, copy=False)
+
+
+# --------------------------------------------------------------------------- rigid motions
+
+RIGID_ROWS = 23   # frame (8), phi, t0 (3), D (3), P (3), X (3), cos(2 phi), 1 / sin(2 phi)
+
+
+def rigid_table(keys, translations):
+    """Table (23, K, B) of a track of rigid motions, ScLERP on every segment.
+
+    `keys` (K, ..., 4) are unit, unflipped rotation quaternions and
+    `translations` (K, ..., 3) the translations, in the keys' dtype.  On
+    segment i the rotation is SLERP (the real part of ScLERP), and with the
+    relative rotation ``q_{i+1} q_i*`` = (cos Ω, sin Ω a) (world axis a) and
+    ``Δ = t_{i+1} - t_i`` split into D = (a·Δ) a along the axis and
+    P = Δ - D across it, the translation along the screw is
+
+        t(u) = t_i + u D + f(u) P + g(u) a × P,
+        f = sin(uΩ) cos((1-u)Ω) / sin Ω,   g = -sin(uΩ) sin((1-u)Ω) / sin Ω,
+
+    written without the screw axis' point, which runs off to infinity as
+    Ω -> 0 (f -> u, g -> 0: linear translation).
+    """
+    K = keys.shape[0]
+    B = prod(keys.shape[1:-1])
+    Q = components_first(keys, K, B)
+    T = components_first(translations, K, B)
+    table = np.zeros((RIGID_ROWS, K, B))
+    table[:9] = frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
+    rel = Kn.multiply(np.moveaxis(Q[:, 1:], 0, -1), Kn.conjugate(np.moveaxis(Q[:, :-1], 0, -1)))
+    vec = rel[..., 1:]
+    s = np.sqrt(np.sum(vec * vec, axis=-1, keepdims=True))
+    axis = np.divide(vec, s, out=np.zeros_like(vec), where=s > 0)
+    delta = np.moveaxis(T[:, 1:] - T[:, :-1], 0, -1)
+    D = np.sum(axis * delta, axis=-1, keepdims=True) * axis
+    P = delta - D
+    table[9:12] = T
+    table[12:15, :-1] = np.moveaxis(D, -1, 0)
+    table[15:18, :-1] = np.moveaxis(P, -1, 0)
+    table[18:21, :-1] = np.moveaxis(np.cross(axis, P), -1, 0)
+    omega = 2 * table[8, :-1]
+    table[21] = 1
+    table[21, :-1] = np.cos(omega)
+    sin = np.sin(omega)
+    table[22, :-1] = np.divide(1, sin, out=np.zeros_like(sin), where=sin > 0)
+    return np.ascontiguousarray(table, dtype=keys.dtype)
+
+
+def rigid_block(G, u, O):
+    """Rotations (O[:4]) and translations (O[4:7]) from gathered `rigid_table` rows."""
+    s = O.shape[1:]
+    work = _blocks.scratch()
+    c, sn, rc, w = work.rows(4, s, O.dtype)
+    np.multiply(G[8], u, out=sn)
+    sn *= 2                                    # u Ω
+    np.cos(sn, out=c)
+    np.sin(sn, out=sn)
+    Fv = G[:8].reshape((2, 4) + s)
+    np.multiply(Fv[0], c, out=O[:4])
+    np.multiply(Fv[1], sn, out=Fv[1])
+    O[:4] += Fv[1]
+    np.multiply(sn, G[22], out=rc)             # sin(uΩ) / sin Ω ...
+    np.copyto(rc, np.broadcast_to(u, s), where=G[22] == 0)   # ... -> u as Ω -> 0
+    rc *= G[21]                                # times cos Ω
+    Ot = O[4:7]
+    np.multiply(G[12:15], u, out=Ot)
+    Ot += G[9:12]
+    np.multiply(rc, c, out=w)
+    w += sn * sn                               # f
+    np.multiply(G[15:18], w, out=G[15:18])
+    Ot += G[15:18]
+    np.subtract(rc, c, out=w)
+    w *= sn                                    # g
+    np.multiply(G[18:21], w, out=G[18:21])
+    Ot += G[18:21]
