@@ -38,6 +38,7 @@ import numpy as np
 
 from . import _common
 from ._common import LIBS, installed
+from .conversions import SLOW_FROM_MATRIX
 
 __all__ = ["main", "Row", "measure", "targets"]
 
@@ -244,7 +245,7 @@ BIG = 1_000_000
 #: Peer operations skipped at N = 10⁶ because they are known to be more than 100x
 #: slower than quatarray there (numpy-quaternion's and quaternionic's from_matrix
 #: take 23-26 s per call, quatarray about 0.07 s); their N = 10⁴ rows stand in.
-SLOW_PEERS = {("from_matrix", "numpy-quaternion"), ("from_matrix", "quaternionic")}
+SLOW_PEERS = {("from_matrix", lib) for lib in SLOW_FROM_MATRIX}
 
 #: Operations the compiled peers have, compared at default threads and on one thread.
 RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigid apply inverse": "time_apply_inverse",
