@@ -366,7 +366,7 @@ def _k_as_rotvec(q, o, factor):
     half = arctan2(nv, np.abs(w))
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
-    np.negative(scale, out=scale, where=_flip_mask(w, x, y, z))
+    scale = np.where(_flip_mask(w, x, y, z), -scale, scale)   # not a masked negative: cheaper
     scale *= factor
     np.multiply(x, scale, out=o[0])
     np.multiply(y, scale, out=o[1])
@@ -489,7 +489,7 @@ def magnitude(q):
 def _k_as_mrp(q, o):
     w, x, y, z = q
     k = 1.0 / (np.sqrt(w * w + x * x + y * y + z * z) + np.abs(w))
-    np.negative(k, out=k, where=w < 0)
+    k = np.where(w < 0, -k, k)
     np.multiply(x, k, out=o[0])
     np.multiply(y, k, out=o[1])
     np.multiply(z, k, out=o[2])

@@ -166,8 +166,8 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
             np.negative(o[third], out=o[third])
         middle -= lamb
     for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
-        np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
-        np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
+        # np.where, not ufuncs with where=: masked loops cost several times more
+        np.copyto(row, np.where(row < -np.pi, row + 2 * np.pi, np.where(row > np.pi, row - 2 * np.pi, row)))
     return gimbal
 
 

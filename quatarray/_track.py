@@ -40,6 +40,13 @@ class Timeline:
         self.index = SegmentIndex(times)
         self.dt = np.append(np.diff(times), np.inf)   # phantom segment after the last key: u = 0
 
+    def __getstate__(self):
+        # pickles (e.g. shipped to Dask workers) carry the times; the lookup is rebuilt from them
+        return {"times": self.times, "extrapolate": self.extrapolate}
+
+    def __setstate__(self, state):
+        self.__init__(state["times"], state["extrapolate"])
+
     def queries(self, t, name):
         """(shape of t, t as flat float64 (clamped with 'clamp'), mask of clamped queries or None)."""
         t = float_array(t, name)

@@ -31,7 +31,7 @@ from . import _interp_spline as ISp
 from . import _kernels as Kn
 from . import _track as TR
 from ._array import QuatArray
-from ._validate import finite, float_array
+from ._validate import batch_axis, finite, float_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -219,13 +219,7 @@ def unflip(q, axis=0):
                [-0.6, -0.8, -0. , -0. ]])
     """
     q = _quat(q, "q")
-    nb = q.ndim - 1
-    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
-        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
-    if not -nb <= axis < nb:
-        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of q with batch shape "
-                         f"{q.shape[:-1]}), got {axis}")
-    return QuatArray._wrap(IK.unflip(q, int(axis) % nb))
+    return QuatArray._wrap(IK.unflip(q, batch_axis(axis, q.shape[:-1])))
 
 
 def squad(q0, a, b, q1, t):
