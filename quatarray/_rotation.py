@@ -439,8 +439,9 @@ class Rotation:
             raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
         q = self._q
         if q.ndim > 1 or v.ndim > 1:
-            _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[:-1]} rotations to "
-                                      f"{v.shape[:-1]} vectors.")
+            _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[0]} rotations to {v.shape[0]} vectors."
+                       if q.ndim <= 2 and v.ndim <= 2 else  # scipy's two wordings
+                       f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape} vectors.")
         return K.rotate(q, v, inverse)
 
     def __mul__(self, other):

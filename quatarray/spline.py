@@ -111,6 +111,7 @@ class RotationSpline:
     """
 
     MAX_ITER = S.MAX_ITER
+    TOL = S.TOL[np.dtype(np.float64)]   # scipy's class attribute (float32 keys iterate to their own)
 
     def __init__(self, times, rotations):
         keys = _keys(rotations)

@@ -271,6 +271,16 @@ def test_composition_apply_and_approx_equal_broadcast_like_scipy(a):
         same_as_scipy(lambda R, **_: _random(R, a, 1).apply(np.ones(b + (3,)), inverse=True), match="Cannot broadcast")
 
 
+@pytest.mark.parametrize("rotations, vectors", [((5,), (3, 3)), ((3,), (0, 3)), ((5,), (2, 2, 3)), ((2, 2), (3, 3))])
+def test_apply_broadcast_error_is_scipys_message(rotations, vectors):
+    messages = []
+    for R in (sst.Rotation, qa.Rotation):
+        with pytest.raises(ValueError) as info:
+            _random(R, rotations, 1).apply(np.ones(vectors))
+        messages.append(str(info.value))
+    assert messages[1] == messages[0]
+
+
 @pytest.mark.parametrize("other", [2, 2.0, np.float64(2), np.ones(4), "a", None, [1, 2, 3, 4]], ids=repr)
 def test_multiplying_by_a_non_rotation_raises_type_error(other):
     same_as_scipy(lambda R, **_: _random(R, (), 1) * other)
@@ -415,6 +425,7 @@ def test_slerp_bad_keys_like_scipy(times, shape):
 
 @pytest.mark.parametrize("order", [0, 1, 2])
 def test_rotation_spline_like_scipy(order):
+    same_as_scipy(lambda Spline, **_: (Spline.TOL, Spline.MAX_ITER))
     for at in [0.5, [0, 1.7, 4], [], 5]:
         same_as_scipy(lambda R, Spline, **_: Spline([0, 1, 2.5, 4], R.random(4, rng=3))(at, order), atol=1e-7)
 
