@@ -21,16 +21,12 @@ from . import _convert as C
 from . import _dualquat as DQ
 from . import _kernels as Kn
 from . import _motion as MO
+from ._rotation import Rotation
 
 __all__ = ["RigidTransform"]
 
 _TO_FIRST = [3, 0, 1, 2, 7, 4, 5, 6]
 _TO_LAST = [1, 2, 3, 0, 5, 6, 7, 4]
-
-
-def _rotation_cls():
-    from . import Rotation
-    return Rotation
 
 
 def _promote(x):
@@ -372,7 +368,7 @@ class RigidTransform:
             if w.shape != q.shape[:-1]:
                 raise ValueError(f"Expected `weights` to match transform shape, got shape {w.shape} "
                                  f"for {q.shape[:-1]} transformations.")
-        rot = _rotation_cls().from_quat(q, scalar_first=True)
+        rot = Rotation(q, normalize=False, copy=False, scalar_first=True)
         qm = np.asarray(rot.mean(weights=weights, axis=axes).as_quat(scalar_first=True), q.dtype)
         if weights is None:
             tm = np.mean(t, axis=axes)
@@ -395,7 +391,7 @@ class RigidTransform:
     @property
     def rotation(self):
         """The rotations, as a `Rotation`."""
-        return _rotation_cls().from_quat(self._quat, scalar_first=True)
+        return Rotation(self._quat, normalize=False, copy=True, scalar_first=True)
 
     @property
     def translation(self):

@@ -91,13 +91,13 @@ def components_first(q, K, B):
     return out
 
 
-def qt_blocks(M, B):
-    """(query slice, track slice) blocks of at most BLOCK elements each."""
+def qt_blocks(M, B, block=None):
+    """(query slice, track slice) blocks of at most `block` (default BLOCK) elements each."""
     def as_slice(ix):
         return slice(ix, ix + 1) if isinstance(ix, int) else ix
 
     return [tuple(as_slice(ix) for ix in idx) + (slice(None),) * (2 - len(idx))
-            for idx in _blocks.split((M, B))]
+            for idx in _blocks.split((M, B), block or _blocks.BLOCK)]
 
 
 def frame_rows(pieces, last):

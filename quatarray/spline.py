@@ -9,6 +9,7 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
+from ._interp_lookup import SegmentIndex
 from ._rotation import Rotation
 from ._validate import float_array, in_memory
 
@@ -110,6 +111,7 @@ class RotationSpline:
     """
 
     MAX_ITER = S.MAX_ITER
+    TOL = S.TOL[np.dtype(np.float64)]   # scipy's class attribute (float32 keys iterate to their own)
 
     def __init__(self, times, rotations):
         keys = _keys(rotations)
@@ -131,7 +133,8 @@ class RotationSpline:
         self.times = times
         self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys
-        self._coeff = S.coefficients(times, keys)
+        self._table = S.table(keys, S.coefficients(times, keys))
+        self._index = SegmentIndex(times)
 
     def __call__(self, times, order=0):
         """Interpolated rotations (order 0), angular rate (1, rad/s) or acceleration (2, rad/s²).
@@ -152,7 +155,9 @@ class RotationSpline:
         if t.ndim > 1:
             raise ValueError("`times` must be at most 1-dimensional.")
         single = t.ndim == 0
-        res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
+        res = S.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
         if single:
             res = res[0]
-        return Rotation.from_quat(res, scalar_first=True) if order == 0 else res
+        if order:
+            return res
+        return Rotation(res, normalize=False, copy=False, scalar_first=True)   # already unit

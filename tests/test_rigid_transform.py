@@ -126,3 +126,21 @@ def test_pickle_iteration_and_inputs_unchanged():
     np.testing.assert_array_equal(v, before)
     with pytest.raises(TypeError, match="not iterable"):
         iter(ours[0])
+
+
+@pytest.mark.parametrize("shape", [(10,), (10, 2), (10, 3, 3)], ids=str)
+def test_powers_equal_repeated_composition(shape):
+    """scipy's test_pow without its private-attribute check: integer powers are repeated
+    products, fractional ones square to the right power, a single transform stays single."""
+    rng = np.random.default_rng(100)
+    Rot = __import__("quatarray").Rotation
+    p = RigidTransform.from_components(rng.normal(size=shape + (3,)), Rot.from_quat(rng.normal(size=shape + (4,))))
+    for n in (-5, -2, -1, 0, 1, 2, 5):
+        r = RigidTransform.identity(shape=shape)
+        for _ in range(abs(n)):
+            r = r * (p if n > 0 else p.inv())
+        np.testing.assert_allclose((p ** n).as_matrix(), r.as_matrix(), atol=1e-12)
+    for f, whole in ((0.5, 1), (-0.5, -1), (1.5, 3), (-1.5, -3)):
+        half = p ** f
+        np.testing.assert_allclose((half * half).as_matrix(), (p ** whole).as_matrix(), atol=1e-12)
+    assert (RigidTransform.identity() ** 3).as_matrix().shape == (4, 4)
