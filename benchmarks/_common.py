@@ -189,6 +189,9 @@ class Quatarray(Lib):
     def inv(self, q):
         return self._rotation(q).inv()
 
+    def rotation_power(self, q, t):
+        return self._rotation(q) ** t
+
     def magnitude(self, q):
         return self._rotation(q).magnitude()
 
@@ -211,24 +214,24 @@ class Quatarray(Lib):
     def apply(self, q, v):
         return self._rotation(q).apply(v)
 
-    # conversions
+    # conversions: scipy's surface, `Rotation` (over the same quaternions, no copy)
     def as_matrix(self, q):
-        return self._method(q, "as_matrix")()
+        return self._rotation(q).as_matrix()
 
     def from_matrix(self, m):
-        return self._method(self.Q, "from_matrix")(m)
+        return self.qa.Rotation.from_matrix(m)
 
     def as_rotvec(self, q):
-        return self._method(q, "as_rotvec")()
+        return self._rotation(q).as_rotvec()
 
     def from_rotvec(self, v):
-        return self._method(self.Q, "from_rotvec")(v)
+        return self.qa.Rotation.from_rotvec(v)
 
     def as_euler(self, q):
-        return self._method(q, "as_euler")(EULER_SEQ)
+        return self._rotation(q).as_euler(EULER_SEQ)
 
     def from_euler(self, a):
-        return self._method(self.Q, "from_euler")(EULER_SEQ, a)
+        return self.qa.Rotation.from_euler(EULER_SEQ, a)
 
     # interpolation
     def slerp(self, q0, q1, t):
@@ -281,6 +284,8 @@ class Scipy(Lib):
 
     def power(self, q, t):
         return q ** t
+
+    rotation_power = power
 
     def rotate(self, q, v):
         return q.apply(v)

@@ -250,6 +250,9 @@ SLOW_PEERS = {("from_matrix", "numpy-quaternion"), ("from_matrix", "quaternionic
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
+#: Rotation methods timed on one rotation (N = 1) against scipy's
+SINGLE_OPS = ("product", "apply", "inv", "magnitude", "rotation_power", "as_matrix", "from_matrix",
+              "as_rotvec", "from_rotvec", "as_euler", "from_euler")
 
 
 def _rows(full):
@@ -274,12 +277,15 @@ def _rows(full):
     f64 = ["float64"]
     dtypes = _common.DTYPES if full else f64
     add("product", Algebra, "time_product", _common.SIZES if full else [1, BIG], _common.DTYPES, (qa, sp, nq, qn))
-    for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power"):
-        add(op, Algebra, f"time_{op}", sizes, dtypes, (qa, nq, qn) if op in PEER_OPS else (qa, sp))
+    # N = 1: a single rotation, where per-call cost decides (scipy's Rotation methods)
+    single = sizes if full else [1, BIG]
+    for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power", "rotation_power"):
+        add(op, Algebra, f"time_{op}", single if op in SINGLE_OPS else sizes, dtypes,
+            (qa, nq, qn) if op in PEER_OPS else (qa, sp))
     add("rotate", RotateVectors, "time_rotate", sizes, dtypes, (qa, nq, qn))
     add("apply", RotateVectors, "time_apply", _common.SIZES if full else [1, BIG], dtypes, (qa, sp))
     for op in ("as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler"):
-        add(op, Conversions, f"time_{op}", sizes, dtypes, (qa, sp) + ((nq, qn) if op in PEER_OPS else ()))
+        add(op, Conversions, f"time_{op}", single, dtypes, (qa, sp) + ((nq, qn) if op in PEER_OPS else ()))
     if not full:  # the peers' from_matrix at 10⁴ (10⁶ is skipped, see SLOW_PEERS)
         add("from_matrix", Conversions, "time_from_matrix", [10_000], f64, (qa, nq, qn))
     add("slerp", Pairwise, "time_slerp", sizes, _common.DTYPES, (qa, nq, qn))
@@ -392,8 +398,8 @@ def targets(results, memory, imports):
     check("apply: scipy / quatarray >= 2", ratio("apply", "scipy"), lambda v: v >= 2)
     for op in ("inv", "magnitude"):
         check(f"{op}: scipy / quatarray >= 1", ratio(op, "scipy"), lambda v: v >= 1)
-    check("N=1 product: scipy / quatarray >= 1", ratio("product", "scipy", n=1), lambda v: v >= 1)
-    check("N=1 apply: scipy / quatarray >= 1", ratio("apply", "scipy", n=1), lambda v: v >= 1)
+    for op in SINGLE_OPS:
+        check(f"N=1 {op}: scipy / quatarray >= 1", ratio(op, "scipy", n=1), lambda v: v >= 1)
     check("N=1 one-query Slerp(t): scipy / quatarray >= 1", ratio("Slerp(t), one query", "scipy", n=1),
           lambda v: v >= 1)
     if imports:

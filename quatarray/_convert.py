@@ -377,6 +377,13 @@ def _flip_mask(w, x, y, z):
     return flip
 
 
+def _flip_one(w, x, y, z):
+    """`_flip_mask` for one quaternion of Python floats."""
+    if w != 0:
+        return w < 0
+    return (x < 0) or (x == 0 and ((y < 0) or (y == 0 and z < 0)))
+
+
 def _k_as_rotvec(q, o, factor):
     w, x, y, z = q
     nv = np.sqrt(x * x + y * y + z * z)
@@ -414,8 +421,14 @@ def as_rotvec(q, degrees=False):
     array([ 0.,  0., 90.])
     """
     q = _quat(q)
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
     factor = 2.0 * (180.0 / np.pi if degrees else 1.0)
+    if q.shape == (4,):  # one rotation: Python floats (a few µs instead of a block run)
+        w, x, y, z = q.tolist()
+        nv = math.sqrt(x * x + y * y + z * z)
+        scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * factor
+        scale = -scale if _flip_one(w, x, y, z) else scale
+        return np.array([x * scale, y * scale, z * scale], q.dtype)
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=factor)
     return out
 
@@ -458,8 +471,15 @@ def from_rotvec(rotvec, degrees=False):
     array([0.707107, 0.      , 0.      , 0.707107])
     """
     v = _vec3(rotvec, "rotvec")
-    out = np.empty(v.shape[:-1] + (4,), v.dtype)
     factor = np.pi / 180.0 if degrees else 1.0
+    if v.shape == (3,):  # one rotation: Python floats, the same half-angle tangent
+        x, y, z = v.tolist()
+        theta = max(math.sqrt(x * x + y * y + z * z) * factor, _TINY[v.dtype])
+        t = math.tan(theta * 0.25)
+        d = 1.0 / (1.0 + t * t)
+        scale = 2.0 * t * d / theta * factor
+        return np.array([(1.0 - t) * (1.0 + t) * d, x * scale, y * scale, z * scale], v.dtype)
+    out = np.empty(v.shape[:-1] + (4,), v.dtype)
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
     return out
 
@@ -523,6 +543,11 @@ def as_mrp(q):
     array([0., 0., 1.])
     """
     q = _quat(q)
+    if q.shape == (4,):  # one rotation: Python floats
+        w, x, y, z = q.tolist()
+        k = 1.0 / (math.sqrt(w * w + x * x + y * y + z * z) + abs(w))
+        k = -k if w < 0 else k
+        return np.array([x * k, y * k, z * k], q.dtype)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
@@ -557,6 +582,11 @@ def from_mrp(mrp):
     array([0., 0., 0., 1.])
     """
     p = _vec3(mrp, "mrp")
+    if p.shape == (3,):  # one rotation: Python floats
+        x, y, z = p.tolist()
+        n = x * x + y * y + z * z
+        d = 1.0 / (1.0 + n)
+        return np.array([(1.0 - n) * d, 2.0 * x * d, 2.0 * y * d, 2.0 * z * d], p.dtype)
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
     return out

@@ -8,13 +8,15 @@ Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
 `_convert`.
 """
 
+import functools
+import math
 import re
 import warnings
 
 import numpy as np
 
 from ._convert import _blockwise, _half_angle, _quat
-from ._kernels import multiply_rows
+from ._kernels import hamilton, multiply_rows
 from ._validate import float_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
@@ -37,6 +39,13 @@ def check_seq(seq, n=None):
     """
     if not isinstance(seq, str):
         raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    axes, intrinsic = _check_str_seq(seq, n)
+    return list(axes), intrinsic
+
+
+@functools.lru_cache(maxsize=128)
+def _check_str_seq(seq, n):
+    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs)."""
     if n is not None and len(seq) != n:
         raise ValueError(f"expected seq of {n} axes, got {seq!r} ({len(seq)} axes)")
     if not 1 <= len(seq) <= 3:
@@ -47,7 +56,7 @@ def check_seq(seq, n=None):
                          f"(intrinsic), not mixed, got {seq!r}")
     if any(a == b for a, b in zip(seq, seq[1:])):
         raise ValueError(f"expected consecutive axes of seq to be different, got {seq!r}")
-    return ["xyz".index(a) for a in seq.lower()], intrinsic
+    return tuple("xyz".index(a) for a in seq.lower()), intrinsic
 
 
 def _lin(c, a, sign, s, b, out=None):
@@ -129,8 +138,18 @@ def from_euler(seq, angles, degrees=False):
         a = a.reshape(1)
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
-    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     scale = np.pi / 720.0 if degrees else 0.25
+    if a.shape == (len(axes),):  # one rotation: Python floats, elementary turns composed
+        q = None
+        for axis, angle in zip(axes, a.tolist()):
+            t = math.tan(angle * scale)
+            d = 1.0 / (1.0 + t * t)
+            e = [(1.0 - t) * (1.0 + t) * d, 0.0, 0.0, 0.0]
+            e[axis + 1] = 2.0 * t * d
+            e = (complex(e[0], e[1]), complex(e[2], e[3]))  # (w + x i) + (y + z i) j
+            q = e if q is None else (hamilton(*q, *e) if intrinsic else hamilton(*e, *q))
+        return np.array([q[0].real, q[0].imag, q[1].real, q[1].imag], a.dtype)
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
     return out
@@ -166,6 +185,29 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
         np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
         np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
     return gimbal
+
+
+def _angles_one(a, b, c, d, extrinsic, symmetric, sign, lamb):
+    """`_angles` for one rotation in Python floats: ([first, middle, third], gimbal)."""
+    first, third = (0, 2) if extrinsic else (2, 0)
+    half_sum, half_diff = math.atan2(b, a), math.atan2(d, c)
+    o = [0.0, 2.0 * math.atan2(math.sqrt(c * c + d * d), math.sqrt(a * a + b * b)), 0.0]
+    o[first], o[third] = half_sum - half_diff, half_sum + half_diff
+    case1 = o[1] <= _GIMBAL_EPS
+    gimbal = case1 or abs(o[1] - math.pi) <= _GIMBAL_EPS
+    if gimbal:
+        o[2] = 0.0
+        o[0] = 2 * half_sum if case1 else (-2 if extrinsic else 2) * half_diff
+    if not symmetric:
+        if sign < 0:
+            o[third] = -o[third]
+        o[1] -= lamb
+    for n in (0, 2):
+        if o[n] < -math.pi:
+            o[n] += 2 * math.pi
+        elif o[n] > math.pi:
+            o[n] -= 2 * math.pi
+    return o, gimbal
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
@@ -221,6 +263,14 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     if symmetric:
         k = 3 - i - j
     sign = (i - j) * (j - k) * (k - i) // 2
+    if q.shape == (4,):  # one rotation: Python floats
+        c = q.tolist()
+        w, qi, qj, qk = c[0], c[i + 1], c[j + 1], c[k + 1] * sign
+        abcd = (w, qi, qj, qk) if symmetric else (w - qj, qi + qk, qj + w, qk - qi)
+        angles, gimbal = _angles_one(*abcd, not intrinsic, symmetric, sign, math.pi / 2)
+        _warn_gimbal(gimbal, suppress_warnings)
+        out = np.array(angles, q.dtype)
+        return np.rad2deg(out, out=out) if degrees else out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
                         symmetric=symmetric, sign=sign, extrinsic=not intrinsic)

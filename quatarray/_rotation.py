@@ -449,9 +449,10 @@ class Rotation:
         else:
             return NotImplemented
         p = self._q
-        if p.ndim > 1 or q.ndim > 1:
-            _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
-                             f"{q.shape[:-1]} rotations in second object.")
+        if p.ndim == 1 and q.ndim == 1:  # two single rotations: from_quat normalises in Python floats
+            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True))
+        _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
+                         f"{q.shape[:-1]} rotations in second object.")
         return type(self)._wrap(K.normalize(K.multiply(p, q)))
 
     def __rmul__(self, other):
@@ -550,9 +551,10 @@ class Rotation:
             atol = 1e-8 if p.dtype == q.dtype == np.float64 else 1e-5
         elif degrees:
             atol = np.deg2rad(atol)
-        _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
-                         f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
+        if p.ndim > 1 or q.ndim > 1:
+            _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
+                             f"rotations in first and {q.shape[:-1]} rotations in second object.")
+        res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
