@@ -59,6 +59,12 @@ def _check_str_seq(seq, n):
     return tuple("xyz".index(a) for a in seq.lower()), intrinsic
 
 
+def _negate(x):
+    """-x in place.  Not ``np.negative(x, out=x)``: NumPy 2.4 reads the wrong elements for
+    float32 rows 16 bytes apart (the component rows of an (m, 4) output)."""
+    return np.multiply(x, -1, out=x)
+
+
 def _lin(c, a, sign, s, b, out=None):
     """c*a + sign*s*b for rows or None (a zero row); None if both are zero."""
     if a is None and b is None:
@@ -67,7 +73,7 @@ def _lin(c, a, sign, s, b, out=None):
         return np.multiply(c, a, out=out)
     sb = np.multiply(s, b, out=out if a is None else None)
     if a is None:
-        return sb if sign > 0 else np.negative(sb, out=sb)
+        return sb if sign > 0 else _negate(sb)
     ca = np.multiply(c, a, out=out)
     return np.add(ca, sb, out=ca) if sign > 0 else np.subtract(ca, sb, out=ca)
 
@@ -179,7 +185,7 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
         np.copyto(o[0], lock_angle, where=locked)
     if not symmetric:
         if sign < 0:
-            np.negative(o[third], out=o[third])
+            _negate(o[third])
         middle -= lamb
     for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
         np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
@@ -366,7 +372,7 @@ def from_davenport(axes, order, angles, degrees=False):
 def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
     gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
     if flip:
-        np.negative(o[1], out=o[1])
+        _negate(o[1])
     return gimbal
 
 
