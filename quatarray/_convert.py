@@ -238,6 +238,37 @@ def _shepperd(mat, q):
     q /= np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
+def _shepperd_one(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """`_shepperd` for one matrix of Python floats: the unit quaternion (w, x, y, z)."""
+    tr = m00 + m11 + m22
+    choice, best = 1, m00
+    for col, value in ((2, m11), (3, m22), (0, tr)):
+        if value > best:
+            choice, best = col, value
+    q = ((1.0 + tr, m21 - m12, m02 - m20, m10 - m01),
+         (m21 - m12, 1.0 - tr + 2 * m00, m10 + m01, m20 + m02),
+         (m02 - m20, m10 + m01, 1.0 - tr + 2 * m11, m21 + m12),
+         (m10 - m01, m20 + m02, m21 + m12, 1.0 - tr + 2 * m22))[choice]
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return [c / n for c in q]
+
+
+def _from_matrix_one(m, assume_valid, tol_diag, tol_off):
+    """One matrix in Python floats, or None when it needs the array path (not a
+    rotation within the tolerances: projection or an error message)."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m.reshape(9).tolist()
+    if not assume_valid:
+        det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+               + m02 * (m10 * m21 - m11 * m20))
+        diag = max(abs(m00 * m00 + m01 * m01 + m02 * m02 - 1.0), abs(m10 * m10 + m11 * m11 + m12 * m12 - 1.0),
+                   abs(m20 * m20 + m21 * m21 + m22 * m22 - 1.0))
+        off = max(abs(m00 * m10 + m01 * m11 + m02 * m12), abs(m00 * m20 + m01 * m21 + m02 * m22),
+                  abs(m10 * m20 + m11 * m21 + m12 * m22))
+        if not (0 < det < math.inf and diag <= tol_diag and off <= tol_off):
+            return None
+    return np.array(_shepperd_one(m00, m01, m02, m10, m11, m12, m20, m21, m22), m.dtype)
+
+
 def _k_from_matrix(mat, q, status, tol_diag, tol_off):
     _shepperd(mat, q)
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
@@ -327,6 +358,12 @@ def from_matrix(matrix, assume_valid=False):
     m = float_array(matrix, "matrix")
     if m.ndim < 2 or m.shape[-2:] != (3, 3):
         raise ValueError(f"expected matrix of shape (..., 3, 3), got {m.shape}")
+    eps = np.finfo(m.dtype).eps
+    tol_off = 1e-12 if m.dtype == np.float64 else 64 * eps
+    if m.shape == (3, 3):  # one matrix: Python floats, unless it is not a rotation
+        one = _from_matrix_one(m, assume_valid, 1e-5 + tol_off, tol_off)
+        if one is not None:
+            return one
     batch = m.shape[:-2]
     flat = m.reshape(-1, 9)
     n = flat.shape[0]
@@ -335,8 +372,6 @@ def from_matrix(matrix, assume_valid=False):
     if assume_valid:
         _blockwise(_k_shepperd, [flat], [qflat])
         return out
-    eps = np.finfo(m.dtype).eps
-    tol_off = 1e-12 if m.dtype == np.float64 else 64 * eps
     status = np.empty((n, 1), np.int8)
     _blockwise(_k_from_matrix, [flat], [qflat, status], tol_diag=1e-5 + tol_off, tol_off=tol_off)
     status = status[:, 0]

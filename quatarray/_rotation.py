@@ -11,7 +11,7 @@ float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
 the batch shape (one per rotation).
 """
 
-import math
+import functools
 import warnings
 
 import numpy as np
@@ -574,6 +574,8 @@ class Rotation:
         array([10.,  0.,  0.])
         """
         q = self._q
+        if q.ndim == 1 and weights is None and axis is None:  # the mean of one rotation is itself
+            return type(self)._wrap(C.canonical(q))
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]
@@ -891,6 +893,12 @@ def _check_euler_seq(seq, n=None):
     """scipy's checks and messages for an Euler sequence."""
     if not isinstance(seq, str):
         raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    _check_str_seq(seq, n)
+
+
+@functools.lru_cache(maxsize=128)
+def _check_str_seq(seq, n):
+    """`_check_euler_seq` for a str, remembered (it costs as much as one rotation's conversion)."""
     if n is not None and len(seq) != n:
         raise ValueError(f"Expected {n} axes, got {seq}.")
     if not 1 <= len(seq) <= 3:
