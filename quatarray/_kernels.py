@@ -47,11 +47,11 @@ def hamilton(a, b, c, d, o0=None, o1=None, t=None):
     the inputs) nothing is allocated.  Works on complex arrays and scalars.
 
     >>> hamilton(1j, 0, 0, 1)   # i j = k: (0 + 0i) + (0 + 1i) j
-    (np.complex128(0j), np.complex128(1j))
+    (0j, 1j)
     """
     given = o0 is not None
     if not given:  # operators: the same passes on arrays, and no ufunc call overhead on scalars
-        return a * c - b * np.conjugate(d), a * d + b * np.conjugate(c)
+        return a * c - b * d.conjugate(), a * d + b * c.conjugate()
     r0 = np.multiply(a, c, o0)
     u = np.multiply(b, np.conjugate(d, t), t)
     r0 = np.subtract(r0, u, o0 if given else None)
