@@ -57,7 +57,12 @@ def _blockwise(kernel, ins, outs, **params):
         return _blocks.blockwise(kernel, ins, outs, **params)
 
 
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+
+
 def _quat(q, name="quat"):
+    if type(q) is np.ndarray and q.dtype in _FLOATS and q.shape[-1:] == (4,):
+        return q   # already what float_array would return (saves its checks on one rotation)
     return float_array(q, name, last=4)
 
 

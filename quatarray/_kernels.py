@@ -433,7 +433,7 @@ def rotate(q, v, inverse=False):
 
 def _matrix_one(q, dtype):
     """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero)."""
-    w, x, y, z = q.reshape(4).tolist()
+    w, x, y, z = q.tolist() if q.ndim == 1 else q.reshape(4).tolist()
     n2 = w * w + x * x + y * y + z * z
     s = 2.0 / n2 if n2 else float("nan")
     return np.array([  # a flat list: half the cost of nested ones

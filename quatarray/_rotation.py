@@ -842,6 +842,8 @@ def _random(num=None, rng=None, *, shape=None, legacy=False):
     return Rotation(rng.normal(size=size + (4,)))
 
 
+# named `random` for Python's own argument errors ("random() takes from 0 to 2 positional
+# arguments"), which scipy's tests match
 _random.__name__ = _random.__qualname__ = "random"
 
 
@@ -876,7 +878,6 @@ def _broadcastable(a, b):
 def _batch_key(indexer):
     """An index into the batch axes of a (..., 4) array (the component axis stays whole)."""
     key = indexer if isinstance(indexer, tuple) else (indexer,)
-    key = tuple(k._q if isinstance(k, Rotation) else k for k in key)
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
 
 
