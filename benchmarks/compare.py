@@ -250,9 +250,11 @@ SLOW_PEERS = {("from_matrix", "numpy-quaternion"), ("from_matrix", "quaternionic
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
-#: Rotation methods timed on one rotation (N = 1) against scipy's
-SINGLE_OPS = ("product", "apply", "inv", "magnitude", "rotation_power", "as_matrix", "from_matrix",
-              "as_rotvec", "from_rotvec", "as_euler", "from_euler")
+#: Rotation methods timed on one rotation (N = 1) against scipy's (benchmarks.single)
+SINGLE_METHODS = ("from_quat", "as_quat", "from_matrix", "as_matrix", "from_rotvec", "as_rotvec",
+                  "from_mrp", "as_mrp", "from_euler", "as_euler", "from_davenport", "as_davenport",
+                  "apply", "mul", "pow", "inv", "magnitude", "approx_equal", "mean", "reduce",
+                  "identity", "random", "align_vectors")
 
 
 def _rows(full):
@@ -262,6 +264,7 @@ def _rows(full):
     from .pairwise import Pairwise
     from .resample import Resample
     from .rotate import RotateVectors
+    from .single import SingleRotation
     from .tracks import OneQuery, Tracks
 
     qa, sp, nq, qn = "quatarray", "scipy", "numpy-quaternion", "quaternionic"
@@ -277,21 +280,20 @@ def _rows(full):
     f64 = ["float64"]
     dtypes = _common.DTYPES if full else f64
     add("product", Algebra, "time_product", _common.SIZES if full else [1, BIG], _common.DTYPES, (qa, sp, nq, qn))
-    # N = 1: a single rotation, where per-call cost decides (scipy's Rotation methods)
-    single = sizes if full else [1, BIG]
     for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power", "rotation_power"):
-        add(op, Algebra, f"time_{op}", single if op in SINGLE_OPS else sizes, dtypes,
-            (qa, nq, qn) if op in PEER_OPS else (qa, sp))
+        add(op, Algebra, f"time_{op}", sizes, dtypes, (qa, nq, qn) if op in PEER_OPS else (qa, sp))
     add("rotate", RotateVectors, "time_rotate", sizes, dtypes, (qa, nq, qn))
     add("apply", RotateVectors, "time_apply", _common.SIZES if full else [1, BIG], dtypes, (qa, sp))
     for op in ("as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "as_euler", "from_euler"):
-        add(op, Conversions, f"time_{op}", single, dtypes, (qa, sp) + ((nq, qn) if op in PEER_OPS else ()))
+        add(op, Conversions, f"time_{op}", sizes, dtypes, (qa, sp) + ((nq, qn) if op in PEER_OPS else ()))
     if not full:  # the peers' from_matrix at 10⁴ (10⁶ is skipped, see SLOW_PEERS)
         add("from_matrix", Conversions, "time_from_matrix", [10_000], f64, (qa, nq, qn))
     add("slerp", Pairwise, "time_slerp", sizes, _common.DTYPES, (qa, nq, qn))
     if full:
         add("nlerp", Pairwise, "time_nlerp", sizes, dtypes, LIBS)
     rows.append(Row("Slerp(t), one query", OneQuery, "time_slerp_call", ("float64",), libs=(qa, sp), n=1))
+    for method in SINGLE_METHODS:   # N = 1: one rotation, where the per-call cost decides
+        rows.append(Row(f"Rotation {method}", SingleRotation, f"time_{method}", (), libs=(qa, sp), n=1))
     tracks = [(10_000, BIG)] + ([(10, 10), (10, BIG), (10_000, 10)] if full else [])
     for k, m in tracks:
         for method, libs in (("slerp", (qa, sp)), ("squad", (qa, nq, qn))) + ((("bezier", (qa, sp)),) if full else ()):
@@ -398,8 +400,11 @@ def targets(results, memory, imports):
     check("apply: scipy / quatarray >= 2", ratio("apply", "scipy"), lambda v: v >= 2)
     for op in ("inv", "magnitude"):
         check(f"{op}: scipy / quatarray >= 1", ratio(op, "scipy"), lambda v: v >= 1)
-    for op in SINGLE_OPS:
-        check(f"N=1 {op}: scipy / quatarray >= 1", ratio(op, "scipy", n=1), lambda v: v >= 1)
+    check("N=1 product: scipy / quatarray >= 1", ratio("product", "scipy", n=1), lambda v: v >= 1)
+    check("N=1 apply: scipy / quatarray >= 1", ratio("apply", "scipy", n=1), lambda v: v >= 1)
+    for method in SINGLE_METHODS:
+        check(f"N=1 Rotation.{method}: scipy / quatarray >= 1", ratio(f"Rotation {method}", "scipy", n=1),
+              lambda v: v >= 1)
     check("N=1 one-query Slerp(t): scipy / quatarray >= 1", ratio("Slerp(t), one query", "scipy", n=1),
           lambda v: v >= 1)
     if imports:
