@@ -362,8 +362,17 @@ def from_davenport(axes, order, angles, degrees=False):
     if a.shape[-1] != ax.shape[0]:
         raise ValueError(f"Expected `angles` to match number of axes: expected angles of shape "
                          f"(..., {ax.shape[0]}), got {a.shape}")
-    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     scale = np.pi / 720.0 if degrees else 0.25
+    if a.ndim == 1:  # one rotation: Python floats, the turns composed with `hamilton`
+        q = None
+        for (x, y, z), angle in zip(ax.tolist(), a.tolist()):
+            t = math.tan(angle * scale)
+            d = 1.0 / (1.0 + t * t)
+            s = 2.0 * t * d
+            e = (complex((1.0 - t) * (1.0 + t) * d, s * x), complex(s * y, s * z))
+            q = e if q is None else (hamilton(*e, *q) if extrinsic else hamilton(*q, *e))
+        return np.array([q[0].real, q[0].imag, q[1].real, q[1].imag], a.dtype)
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
                axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale)
     return out
@@ -406,8 +415,31 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     array([90., 30., 10.])
     """
     extrinsic = check_order(order)
-    n1, n2, n3 = _unit_axes(axes, 3)
     q = _quat(q)
+    key = float_array(axes, "axes").astype(np.float64, copy=False)
+    lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
+    if q.shape == (4,):  # one rotation: Python floats
+        c = q.tolist()
+        abcd = [sum(row[i] * c[i] for i in range(4)) for row in lmat]
+        angles, gimbal = _angles_one(*abcd, extrinsic, False, 1, lamb)
+        if flip:
+            angles[1] = -angles[1]
+        _warn_gimbal(gimbal, suppress_warnings)
+        out = np.array(angles, q.dtype)
+        return np.rad2deg(out, out=out) if degrees else out
+    abcd = q.reshape(-1, 4) @ np.array(lmat, q.dtype).T
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
+                        extrinsic=extrinsic, lamb=lamb, flip=flip)
+    _warn_gimbal(gimbal, suppress_warnings)
+    return np.rad2deg(out, out=out) if degrees else out
+
+
+@functools.lru_cache(maxsize=64)
+def _davenport_frame(axes_bytes, shape, extrinsic):
+    """(4x4 matrix L as nested tuples, λ, flip) for `as_davenport`'s axes, remembered:
+    the same few axes serve many calls, and building L costs more than one rotation."""
+    n1, n2, n3 = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3)
     if not extrinsic:
         n1, n3 = n3, n1
     ncross = np.cross(n1, n2)
@@ -424,10 +456,4 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     proj = np.zeros((4, 4))
     proj[0, 0] = 1
     proj[1:, 1:] = [n1, n2, ncross]
-    lmat = (proj @ left).astype(q.dtype)
-    abcd = q.reshape(-1, 4) @ lmat.T
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
-                        extrinsic=extrinsic, lamb=lamb, flip=flip)
-    _warn_gimbal(gimbal, suppress_warnings)
-    return np.rad2deg(out, out=out) if degrees else out
+    return tuple(map(tuple, (proj @ left).tolist())), lamb, flip

@@ -362,12 +362,13 @@ class Rotation:
         if a.shape[-1] != n or (ax2.ndim > 2 and not _broadcastable(ax2.shape[:-2], a.shape[:-1])):
             raise ValueError(f"Expected `angles` to match number of axes, got {a.shape} angles "
                              f"and {ax2.shape} axes.")
-        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
-        dots = np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1))
-        if (dots > 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
         if ax2.ndim == 2:
+            if any(abs(c) > 1e-7 for c in _cosines(ax2)):
+                raise ValueError("Consecutive axes must be orthogonal.")
             return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees))
+        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
+        if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
         # axes with a batch shape: one elementary turn per axis, composed in order
         dtype = np.result_type(a.dtype, ax2.dtype)
         angle = np.deg2rad(a) if degrees else a
@@ -395,13 +396,14 @@ class Rotation:
         if ax.ndim > 2 and not _broadcastable(ax.shape[:-2], self._q.shape[:-1]):
             raise ValueError(f"Expected `axes` to match number of rotations, got {ax.shape} axes "
                              f"and {self._q.shape} rotations.")
-        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
-        dots = np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)
-        if (dots >= 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
         if ax.ndim == 2:
+            if any(c >= 1e-7 for c in _cosines(ax)):   # scipy's test, without abs
+                raise ValueError("Consecutive axes must be orthogonal.")
             return E.as_davenport(self._q, ax, order, degrees=degrees,
                                   suppress_warnings=suppress_warnings)
+        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
+        if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
         # one set of axes per rotation: each distinct set read by the raw function
         batch = np.broadcast_shapes(ax.shape[:-2], self._q.shape[:-1])
         qb = np.broadcast_to(self._q, batch + (4,)).reshape(-1, 4)
@@ -879,6 +881,14 @@ def _batch_key(indexer):
     """An index into the batch axes of a (..., 4) array (the component axis stays whole)."""
     key = indexer if isinstance(indexer, tuple) else (indexer,)
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
+
+
+def _cosines(axes):
+    """Cosines between consecutive rows of a few axes (n, 3), in Python floats."""
+    rows = axes.tolist()
+    norms = [(x * x + y * y + z * z) ** 0.5 for x, y, z in rows]
+    return [(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / (nu * nv) if nu * nv else float("nan")
+            for u, v, nu, nv in zip(rows, rows[1:], norms, norms[1:])]   # nan: zero axes, refused later
 
 
 def _coerce(r, name):

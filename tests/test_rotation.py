@@ -679,6 +679,7 @@ def test_float32_is_kept_where_scipy_promotes():
 # --- one rotation: the Python-float paths give the batch paths' numbers ----------------------
 
 EULER_SEQS = ["xyz", "xzy", "yxz", "yzx", "zxy", "zyx", "XYZ", "ZYX", "xyx", "zxz", "YZY", "XZX"]
+DAV_AXES = np.array([[1, 1, 0], [0, 0, 1], [1, -1, 0]]) / np.array([[2 ** 0.5], [1], [2 ** 0.5]])
 
 
 def test_single_rotation_paths_equal_batch_paths(rng, dtype):
@@ -693,11 +694,15 @@ def test_single_rotation_paths_equal_batch_paths(rng, dtype):
         warnings.simplefilter("ignore", UserWarning)
         for seq in EULER_SEQS:
             batch[seq] = r.as_euler(seq)
+        for order in ("e", "i"):
+            batch["dav" + order] = r.as_davenport(DAV_AXES, order)
         for i, one in enumerate(r):
             got = {"as_matrix": one.as_matrix(), "as_rotvec": one.as_rotvec(), "as_mrp": one.as_mrp(),
                    "as_rotvec_deg": one.as_rotvec(degrees=True) / 180}
             for seq in EULER_SEQS:
                 got[seq] = one.as_euler(seq)
+            for order in ("e", "i"):
+                got["dav" + order] = one.as_davenport(DAV_AXES, order)
             for key, value in got.items():
                 assert value.dtype == dtype
                 np.testing.assert_allclose(value, batch[key][i], rtol=0, atol=t, err_msg=key)
@@ -706,7 +711,8 @@ def test_single_rotation_paths_equal_batch_paths(rng, dtype):
     v64 = v.astype(np.float64)
     for ours, theirs in ((Rotation.from_rotvec, SR.from_rotvec), (Rotation.from_mrp, SR.from_mrp),
                          *(((lambda a, q=seq: Rotation.from_euler(q, a[..., :len(q)])),
-                            (lambda a, q=seq: SR.from_euler(q, a[..., :len(q)]))) for seq in ("zxz", "YX", "x"))):
+                            (lambda a, q=seq: SR.from_euler(q, a[..., :len(q)]))) for seq in ("zxz", "YX", "x")),
+                         (lambda a: Rotation.from_davenport(DAV_AXES, "i", a), lambda a: SR.from_davenport(DAV_AXES, "i", a))):
         whole = theirs(v64).as_quat()
         for i in range(len(v)):
             one = ours(v[i])
