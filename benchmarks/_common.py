@@ -42,6 +42,20 @@ _MODULES = {"quatarray": "quatarray", "scipy": "scipy.spatial.transform",
             "numpy-quaternion": "quaternion", "quaternionic": "quaternionic"}
 
 
+def _preload():
+    """Import every installed library now: asv's forkserver imports the suite once and
+    forks a child per benchmark, which then inherits them (the peers' numba imports
+    cost seconds each)."""
+    for mod in _MODULES.values():
+        try:
+            importlib.import_module(mod)
+        except ImportError:
+            pass
+
+
+_preload()
+
+
 def installed(lib):
     """True when `lib` (one of `LIBS`) can be imported."""
     try:
@@ -455,8 +469,17 @@ _ADAPTERS = {"quatarray": Quatarray, "scipy": Scipy, "numpy-quaternion": NumpyQu
              "quaternionic": Quaternionic}
 
 
-def adapter(lib):
-    """The `Lib` for `lib`; `NotImplementedError` (asv: skipped) when it is not installed."""
+#: Peers that compute in float64 only: given float32 data they would time float64 again.
+FLOAT64_ONLY = ("numpy-quaternion", "quaternionic")
+
+
+def adapter(lib, dtype=None):
+    """The `Lib` for `lib`; `NotImplementedError` (asv: skipped) when it is not installed,
+    and `Skip` for a float64-only peer asked for float32 (checked before importing it:
+    each asv benchmark runs in a fresh process, where the peers' numba imports cost
+    seconds)."""
+    if dtype is not None and np.dtype(dtype) == np.float32 and lib in FLOAT64_ONLY:
+        raise Skip(f"{lib} computes in float64 only")
     try:
         return _ADAPTERS[lib]()
     except ImportError as exc:

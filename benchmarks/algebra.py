@@ -8,15 +8,15 @@ class Algebra:
 
     scipy's twins act on rotations: ``inv`` for the conjugate, ``from_quat``
     for normalisation, ``from_rotvec``/``as_rotvec`` for exp/log and ``**``
-    for the power.  numpy-quaternion and quaternionic are float64 only: they
-    get the float32 data as float64.
+    for the power.  numpy-quaternion and quaternionic are float64 only: their
+    float32 rows are skipped (they would time float64 again).
     """
 
     params = (SIZES, DTYPES, LIBS)
     param_names = ["n", "dtype", "lib"]
 
     def setup(self, n, dtype, lib):
-        self.lib = L = adapter(lib)
+        self.lib = L = adapter(lib, dtype)
         self.raw = quats(n, dtype, salt=3)  # non-unit, for normalize / exp / log
         self.p = L.wrap(unit_quats(n, dtype, salt=1))
         self.q = L.wrap(unit_quats(n, dtype, salt=2))

@@ -38,6 +38,7 @@ import numpy as np
 
 from . import _common
 from ._common import LIBS, installed
+from .conversions import SLOW_FROM_MATRIX
 
 __all__ = ["main", "Row", "measure", "targets"]
 
@@ -244,9 +245,11 @@ BIG = 1_000_000
 #: Peer operations skipped at N = 10⁶ because they are known to be more than 100x
 #: slower than quatarray there (numpy-quaternion's and quaternionic's from_matrix
 #: take 23-26 s per call, quatarray about 0.07 s); their N = 10⁴ rows stand in.
-SLOW_PEERS = {("from_matrix", "numpy-quaternion"), ("from_matrix", "quaternionic")}
+SLOW_PEERS = {("from_matrix", lib) for lib in SLOW_FROM_MATRIX}
 
 #: Operations the compiled peers have, compared at default threads and on one thread.
+RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigid apply inverse": "time_apply_inverse",
+             "rigid inv": "time_inv", "rigid from_matrix": "time_from_matrix", "rigid as_matrix": "time_as_matrix"}
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
@@ -299,6 +302,14 @@ def _rows(full):
         for method, libs in (("slerp", (qa, sp)), ("squad", (qa, nq, qn))) + ((("bezier", (qa, sp)),) if full else ()):
             rows.append(Row(f"track {method}, {k} keys", Tracks, f"time_{method}", (k, m, "float64"),
                             size=m, libs=LIBS if full else libs, n=m))
+    from .rigid import RigidTransforms, SplineEvaluate
+    rows.append(Row("spline eval, 10000 keys", SplineEvaluate, "time_rotations", (10_000, BIG, "float64"),
+                    libs=(qa, sp), n=BIG))
+    rows.append(Row("spline build, 10000 keys", SplineEvaluate, "time_build", (10_000, 10, "float64"),
+                    libs=(qa, sp), n=10_000, one_thread=False))
+    for op in RIGID_OPS:
+        for n in (1, BIG) if op in ("rigid apply", "rigid compose") else (1,):
+            rows.append(Row(op, RigidTransforms, RIGID_OPS[op], (n, "float64"), size=n, libs=(qa, sp)))
     if full:
         for case in ("npz", "bvh"):
             rows.append(Row(f"resample {case}", Resample, "time_resample", (case,), libs=Resample.params[-1],
@@ -395,6 +406,15 @@ def targets(results, memory, imports):
     for op, (peak, size) in memory.items():
         check(f"memory {op} N=1e6: (peak extra + scratch kept) / output <= 1.5", peak / size if size else None,
               lambda v: v <= 1.5)
+    # rotation splines and rigid transforms (scipy is the only peer that has them)
+    check("RotationSpline 1e4 keys -> 1e6 times (order 0): scipy / quatarray >= 10",
+          ratio("spline eval, 10000 keys", "scipy"), lambda v: v >= 10)
+    check("RotationSpline build, 1e4 keys: scipy / quatarray >= 1",
+          ratio("spline build, 10000 keys", "scipy", n=10_000), lambda v: v >= 1)
+    for op in ("rigid apply", "rigid compose"):
+        check(f"{op} N=1e6: scipy / quatarray >= 2", ratio(op, "scipy"), lambda v: v >= 2)
+    for op in RIGID_OPS:
+        check(f"N=1 {op}: scipy / quatarray >= 1", ratio(op, "scipy", n=1), lambda v: v >= 1)
     # earlier targets that still hold
     check("product: scipy r1*r2 / quatarray >= 20", ratio("product", "scipy"), lambda v: v >= 20)
     check("apply: scipy / quatarray >= 2", ratio("apply", "scipy"), lambda v: v >= 2)

@@ -15,7 +15,7 @@ class Pairwise:
     param_names = ["n", "dtype", "lib"]
 
     def setup(self, n, dtype, lib):
-        self.lib = L = adapter(lib)
+        self.lib = L = adapter(lib, dtype)
         q0, q1 = unit_quats(n, dtype, salt=31), unit_quats(n, dtype, salt=32)
         t = rng(33).uniform(0, 1, batch(n)).astype(dtype)
         self.t = float(t) if n == 1 else t

@@ -14,7 +14,7 @@ class RotateVectors:
     param_names = ["n", "dtype", "lib"]
 
     def setup(self, n, dtype, lib):
-        self.lib = L = adapter(lib)
+        self.lib = L = adapter(lib, dtype)
         self.q = L.wrap(unit_quats(n, dtype, salt=11))
         self.v = vectors(n, dtype, salt=12)
 

@@ -47,7 +47,7 @@ class Tracks:
     param_names = ["keys", "queries", "dtype", "lib"]
 
     def setup(self, k, m, dtype, lib):
-        self.lib = L = adapter(lib)
+        self.lib = L = adapter(lib, dtype)
         times, keys, t = make_track(k, m, dtype)
         self.times, self.keys = times, L.wrap(keys)
         self.t = t if lib in ("quatarray", "scipy") else t.astype(np.float64)
@@ -84,7 +84,7 @@ class OneQuery:
     param_names = ["dtype", "lib"]
 
     def setup(self, dtype, lib):
-        L = adapter(lib)
+        L = adapter(lib, dtype)
         times, keys, _ = make_track(2, 1, dtype)
         self.slerp = L.slerp_class(times, L.wrap(keys))
         self.t = 0.3 * times[-1]

@@ -207,6 +207,12 @@ def rst_table(rows, n):
     for op, data, ours, theirs in rows:
         out += [f"   * - {op}", f"     - {data}", f"     - {fmt(ours[0])}", f"     - {fmt(ours[1])}",
                 f"     - {fmt(theirs[0]) if theirs else '—'}", f"     - {fmt(theirs[1]) if theirs else '—'}"]
+    worst = [(op, data, ours[1]) for op, data, ours, _ in rows if ours[1] > 10]
+    if worst:
+        listed = "; ".join(f"{op} ({data}): {m:.3g} ulp" for op, data, m in worst)
+        out += ["", f"Rows above 10 ulp at their maximum: {listed}."]
+    else:
+        out += ["", f"Every row is within {max(r[2][1] for r in rows):.1f} ulp at its maximum."]
     out += ["", f"{n} samples per row; quatarray {quatarray.__version__}, NumPy {np.__version__}, "
             f"scipy {scipy.__version__}, Python {platform.python_version()}, {platform.machine()}, "
             f"NumPy SIMD level {simd_level()}; references with mpmath at {DIGITS} digits.", ""]

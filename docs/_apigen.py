@@ -124,24 +124,32 @@ def _cli_help():
 
 
 def write_api_pages(docs_dir):
-    """Write ``api/index.rst`` and ``api/cli.rst`` (build products, git-ignored)."""
+    """Write ``api/index.rst``, one page per group and ``api/cli.rst`` (build products,
+    git-ignored); return the group pages, for ``autosummary_generate``."""
     api = os.path.join(docs_dir, "api")
     os.makedirs(api, exist_ok=True)
     objects = public_objects()
-    lines = ["API reference", "=============", "",
-             "One page per public class and function, generated from the docstrings.", "",
-             ".. toctree::", "   :hidden:", "", "   cli", ""]
+    pages = []
+    index = ["API reference", "=============", "",
+             "One page per public class and function, generated from the docstrings, by topic:",
+             "", ".. toctree::", "   :maxdepth: 1", ""]
     for key, title, intro in GROUPS:
         names = [q for g, q, _ in objects if g == key]
         if not names and key != "files":
+            with contextlib.suppress(FileNotFoundError):   # a group left over from an older API
+                os.remove(os.path.join(api, f"{key}.rst"))
             continue
-        lines += [title, "-" * len(title), "", intro, ""]
+        index.append(f"   {key}")
+        page = [title, "=" * len(title), "", intro, ""]
         if key == "files":
-            lines += [":doc:`cli`: the ``quatarray`` command (``resample``, ``demo``).", ""]
+            page += [".. toctree::", "   :hidden:", "", "   cli", "",
+                     ":doc:`cli`: the ``quatarray`` command (``resample``, ``demo``).", ""]
         if names:
-            lines += [".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
-            lines += [f"   ~{q}" for q in names] + [""]
-    _write(os.path.join(api, "index.rst"), "\n".join(lines))
+            page += [".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
+            page += [f"   ~{q}" for q in names] + [""]
+        _write(os.path.join(api, f"{key}.rst"), "\n".join(page))
+        pages.append(f"api/{key}.rst")
+    _write(os.path.join(api, "index.rst"), "\n".join(index + [""]))
 
     cli = ["Command line", "============", "",
            "The ``quatarray`` command (also ``python -m quatarray``). Its help, as printed by the "
@@ -150,6 +158,7 @@ def write_api_pages(docs_dir):
         cli += [f"``{command}``", "", ".. code-block:: text", ""]
         cli += ["   " + line if line else "" for line in text.rstrip().splitlines()] + [""]
     _write(os.path.join(api, "cli.rst"), "\n".join(cli))
+    return pages
 
 
 def _write(path, text):

@@ -37,12 +37,12 @@ extensions = [
 
 exclude_patterns = ["_build"]
 templates_path = ["_templates"]
-html_static_path = []
+html_static_path = ["_static"]
 root_doc = "index"
 
 # -- API reference ---------------------------------------------------------
-_apigen.write_api_pages(HERE)
-autosummary_generate = True
+# The group pages are named, not found: a page new since the last build gets its stubs too.
+autosummary_generate = _apigen.write_api_pages(HERE)
 autosummary_imported_members = True
 autosummary_ignore_module_all = False
 # The class template documents only the members quatarray defines, not the
@@ -96,6 +96,10 @@ html_theme_options = {
     "footer_end": [],
 }
 html_sidebars = {"index": []}
+html_favicon = "_static/favicon.svg"
+html_css_files = ["quatarray.css"]
+# The theme's script logs an error for an unset mode on a first visit; say it.
+html_context = {"default_mode": "auto"}
 html_show_sourcelink = False
 
 
@@ -106,7 +110,7 @@ html_show_sourcelink = False
 import re  # noqa: E402
 
 _INLINE_CODE = re.compile(r"(``.+?``|`[^`]+`)")
-_STAR_NAME = re.compile(r"(?<=[(\[, ])\*(?=[A-Za-z_][\w.]*[,)\]])")
+_STAR_NAME = re.compile(r"(?<=[(\[, ])\*(?=[,)\]]|[A-Za-z_][\w.]*[,)\]])")   # (K, *batch), f(a, *, b)
 
 
 def _escape_prose(text):

@@ -62,7 +62,7 @@ class Motion:
         One row per frame, one column per channel (joints' channels in order).
     style : TextStyle or None
         How the file printed its frame values (decimals) and ended its lines;
-        `write_bvh` writes the same way.  None: shortest exact text, ``\n``.
+        `write_bvh` writes the same way.  None: shortest exact text, ``\\n``.
     frame_time_text : str or None
         ``Frame Time`` as printed in the file read; written back unchanged
         while it still reads as `frame_time`.
@@ -213,8 +213,8 @@ def read_frame_time(text):
 
     >>> read_frame_time("0.0333333") == 1 / 30, read_frame_time(".0083333") == 1 / 120
     (True, True)
-    >>> read_frame_time("0.3"), read_frame_time("0.0345")
-    (0.3, 0.0345)
+    >>> read_frame_time("0.3"), read_frame_time("0.03456789")
+    (0.3, 0.03456789)
     """
     value = float(text)
     if not (0 < value <= 1):
@@ -369,6 +369,8 @@ def _lerp_rows(times, values, t, extrapolate):
         block = out[start:start + ROWS]
         np.multiply(values[i + 1], u[:, None], out=block)
         block += values[i] * (1.0 - u)[:, None]
+        for hit, key in ((u == 0, i), (u == 1, i + 1)):  # on a frame: its values as read, -0.0 included
+            block[hit] = values[key[hit]]
     return out
 
 
@@ -427,6 +429,9 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
                              f"{float(step.min())!r} to {float(step.max())!r}")
     if frame_time is None:
         frame_time = spacing if len(t) > 1 else motion.frame_time
+        n = round(1 / frame_time)
+        if n >= 1 and abs(frame_time * n - 1) <= 1e-9:  # k/30 times: 1/30 exactly, not 1/30 + rounding
+            frame_time = 1 / n
     check_size(len(t), motion.frames.shape[1], f"{len(t):,} frame times")
     frames = _lerp_rows(times, motion.frames, t, extrapolate)  # positions, and reference angles
     for seq, cols in motion.rotation_groups().items():

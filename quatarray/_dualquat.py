@@ -54,9 +54,16 @@ def as_rotation_translation(dq):
 
 
 def normalize(dq):
-    """Nearest unit dual quaternion: real part scaled to unit norm, dual part made orthogonal to it."""
+    """Nearest unit dual quaternion: real part scaled to unit norm, dual part made orthogonal to it.
+
+    A zero real part becomes the identity rotation (the dual part is kept), as in scipy.
+    """
     r, d = _parts(dq)
     n = np.linalg.norm(r, axis=-1, keepdims=True)
+    zero = n == 0
+    if zero.any():
+        r = np.where(zero, np.array([1, 0, 0, 0], r.dtype), r)
+        n = np.where(zero, 1, n).astype(n.dtype)
     r = r / n
     d = d / n
     d = d - np.sum(r * d, axis=-1, keepdims=True) * r

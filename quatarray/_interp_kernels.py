@@ -18,10 +18,13 @@ tan(Omega / 2).  With tau = tan(h Omega / 2) the weights of
     w0 = cos(h Omega) - cos(Omega) w1
        = ((1 - tau^2) - (1 - rho^2) tau / rho) / (1 + tau^2)
 
-so one call to arctan and one to tan replace the two calls to sin that the
-textbook formula needs (on this hardware float64 sin costs ~8-12 ns per
-element, tan and arctan ~1.4 ns), and no 1 - cos cancellation appears:
-for tiny angles tau / rho -> h with full relative accuracy.
+so one call to arctan and one to tan replace the calls to sin that the
+textbook formula needs, and no 1 - cos cancellation appears: for tiny
+angles tau / rho -> h with full relative accuracy.  That is the float64
+route: float64 sin has no SIMD loop on AVX-512 CPUs, where tan and arctan
+are cheap.  float32 takes the textbook sines (w1 = sin(h Omega) /
+sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
+every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
 from math import prod
@@ -33,7 +36,7 @@ from ._blocks import soa
 from ._kernels import result_dtype
 
 __all__ = [
-    "vdot", "soa", "sqsum", "slerp_weights", "slerp_core", "squad_param", "squad_blend",
+    "vdot", "soa", "sqsum", "slerp_weights", "hemisphere", "wide_arcs", "slerp_core", "squad_param", "squad_blend",
     "frame_core", "frames", "slerp", "lerp", "nlerp", "squad", "bezier", "unflip",
 ]
 
@@ -88,30 +91,62 @@ def sqsum(T, out):
 # SLERP between two blocks (angle computed at run time)
 # --------------------------------------------------------------------------
 
-def slerp_weights(a2, b2, h, shortest):
+def slerp_weights(a2, b2, h, sign=None):
     """The SLERP weights (w0, w1) of ``w0 A + w1 B``, written once for every path.
 
     a2 = |B - A|², b2 = |B + A|² (arrays of one shape, both overwritten),
-    h broadcastable to them.  With `shortest`, B counts as -B when
-    |B + A| < |B - A| (w1 then carries the sign; ties keep B).  Returns
-    views into the thread's scratch: use them before the caller's scratch
-    frame ends.
+    h broadcastable to them.  `sign`: None follows B as given; otherwise an
+    array of the sign of A·B (see `hemisphere`), and B counts as -B where it
+    is negative (w1 then carries the sign; +0 keeps B).  Accurate for
+    A·B >= 0 after the flip (weights at most sqrt(2)); `slerp_core` computes
+    the wide arcs (A·B < 0, followed as given) by `wide_arcs` instead.
+    Returns views into the thread's scratch: use them before the caller's
+    scratch frame ends.
     """
     s = a2.shape
     dtype = a2.dtype
-    r2, rho, tau, t2, w0, sgn = _rows(6, s, dtype)
-    antipodal = None
-    if shortest:
-        np.subtract(b2, a2, out=sgn)  # sign of the dot product (b² - a² = 4 A·B)
+    r2, rho, tau, t2, w0 = _rows(5, s, dtype)
+    if sign is not None:
         np.minimum(a2, b2, out=r2)
         np.maximum(a2, b2, out=b2)
     else:
-        sgn = None
         np.copyto(r2, a2)
-        zero_b = b2 == 0
-        if zero_b.any():
-            antipodal = zero_b & (a2 > 0)
-    # b² = 0 only for zero input (or B = -A followed as given, fixed below):
+    if dtype == np.float32:
+        w0, w1 = _sine_weights(r2, b2, h, w0, tau, t2, rho)
+    else:
+        w0, w1 = _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2)
+    if sign is not None:
+        np.copysign(1, sign, out=sign)   # +1, or -1 to follow -B (x - x is +0: ties keep B)
+        w1 *= sign
+    return w0, w1
+
+
+def _sine_weights(r2, b2, h, w0, th, s2, w1):
+    """float32 weights sin((1 - h) Ω) / sin Ω and sin(h Ω) / sin Ω, Ω = 2θ with
+    sin θ = sqrt(r2 / (r2 + b2)) (θ <= π/4): float32 sin and arcsin are SIMD
+    loops, far cheaper than tan and arctan (benchmarks/README.md)."""
+    np.add(r2, b2, out=s2)
+    np.maximum(s2, _floor(r2.dtype), out=s2)
+    np.divide(r2, s2, out=th)
+    np.sqrt(th, out=th)
+    np.arcsin(th, out=th)
+    np.maximum(th, _tiny(r2.dtype), out=th)   # sin(2hθ) / sin(2θ) -> h at θ = 0
+    th *= 2                                   # Ω
+    np.sin(th, out=s2)
+    np.divide(1, s2, out=s2)                  # 1 / sin Ω
+    np.multiply(th, h, out=w1, casting="unsafe")
+    np.subtract(th, w1, out=w0)               # (1 - h) Ω
+    np.sin(w1, out=w1)
+    np.sin(w0, out=w0)
+    w1 *= s2
+    w0 *= s2
+    return w0, w1
+
+
+def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
+    """float64 weights from rho = tan(Ω/2) and tau = tan(h Ω/2) (module docstring)."""
+    dtype = r2.dtype
+    # b² = 0 only for zero input (or B = -A followed as given, see `wide_arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
     np.maximum(b2, _floor(dtype), out=b2)
     np.divide(r2, b2, out=r2)
@@ -135,16 +170,67 @@ def slerp_weights(a2, b2, h, shortest):
     np.add(r2, 1, out=w1)
     w1 *= v
     w1 *= g
-    if sgn is not None:
-        np.copysign(1, sgn, out=sgn)     # +1, or -1 to follow -B (x - x is +0: ties keep B)
-        w1 *= sgn
-    if antipodal is not None and antipodal.any():
-        # B = -A followed "as given": no unique arc; keep the rotation constant
-        # (A before the midpoint, B from it on), a deterministic choice.
-        hb = np.broadcast_to(h, s)
-        w0[antipodal] = hb[antipodal] < 0.5
-        w1[antipodal] = hb[antipodal] >= 0.5
     return w0, w1
+
+
+def hemisphere(A, B, a2, b2, out):
+    """out = b2 - a2 = 4 A·B (components first), with the sign of A·B summed in float64.
+
+    In float32 the difference of the rounded squares cannot resolve a dot
+    product below about 1e-6 (rotations within about 1e-6 rad of π apart);
+    there the dot is summed again in float64, where the products of float32
+    numbers are exact.
+    """
+    np.subtract(b2, a2, out=out)
+    if out.dtype == np.float32:
+        unsure = np.abs(out) <= _UNSURE32 * (a2 + b2)
+        if unsure.any():
+            s = out.shape
+            at = _where(unsure)
+            d = vdot(np.broadcast_to(A, (4,) + s)[at].astype(np.float64),
+                     np.broadcast_to(B, (4,) + s)[at].astype(np.float64), 0)
+            out[at[1:]] = np.sign(d)      # 0 stays +0: ties keep B
+    return out
+
+
+#: |b² - a²| below this times a² + b² leaves the float32 sign of A·B in doubt.
+_UNSURE32 = np.float32(64 * np.finfo(np.float32).eps)
+
+
+def _where(mask):
+    """Index of the True elements of `mask` for (k, *mask.shape) arrays: integer
+    indices, since boolean indexing of every component row rescans the mask."""
+    return (slice(None),) + np.nonzero(mask)
+
+
+def wide_arcs(A, B, h, O, wide):
+    """O[:, wide] = slerp(A, B, h) where A·B < 0 and B is followed as given.
+
+    Near B = -A the weights of ``w0 A + w1 B`` grow like 1 / |A + B| and the
+    sum cancels.  Here the arc is ``cos(h Ω) A + sin(h Ω) P`` instead, with
+    P the unit vector of ``S - (A·S) A / |A|²``, S = A + B: S is exact for
+    nearly opposite inputs, so P is accurate and orthogonal to A, and the
+    output unit, however close B is to -A.  B = -c A exactly (c > 0) has no
+    unique arc: the rotation stays constant, A before the midpoint and B
+    from it on.
+    """
+    s = O.shape[1:]
+    at = _where(wide)
+    a = np.broadcast_to(A, (4,) + s)[at]
+    b = np.broadcast_to(B, (4,) + s)[at]
+    hh = np.broadcast_to(h, s)[at[1:]]
+    S = a + b
+    D = b - a
+    P = S - (vdot(a, S, 0) / vdot(a, a, 0)) * a
+    pn = np.sqrt(vdot(P, P, 0))
+    flat = ~(pn > 0)
+    pn[flat] = 1
+    ang = np.arctan2(np.sqrt(vdot(D, D, 0)), np.sqrt(vdot(S, S, 0)))
+    ang *= 2 * hh
+    res = np.cos(ang) * a + (np.sin(ang) / pn) * P
+    if flat.any():
+        res[:, flat] = np.where(hh[flat] < 0.5, a[:, flat], b[:, flat])
+    O[at] = res.astype(O.dtype, copy=False)
 
 
 def slerp_core(A, B, h, O, shortest):
@@ -152,7 +238,7 @@ def slerp_core(A, B, h, O, shortest):
 
     A, B : (4, *s) arrays (not modified); h : broadcastable to s;
     O : (4, *s) output, may be a strided view, must not overlap A or B.
-    With `shortest`, B is replaced by -B when |B + A| < |B - A| (ties keep B).
+    With `shortest`, B is replaced by -B where A·B < 0 (ties keep B).
     """
     s = O.shape[1:]
     with _blocks.scratch().frame() as work:
@@ -161,14 +247,23 @@ def slerp_core(A, B, h, O, shortest):
         np.add(B, A, out=T[4:])
         np.multiply(T, T, out=T)
         Tv = T.reshape((2, 4) + s)
-        ab = work.rows(2, s, O.dtype)
-        np.add(Tv[:, 0], Tv[:, 1], out=ab)
-        ab += Tv[:, 2]
-        ab += Tv[:, 3]
-        w0, w1 = slerp_weights(ab[0], ab[1], h, shortest)
+        ab = work.rows(3, s, O.dtype)
+        np.add(Tv[:, 0], Tv[:, 1], out=ab[:2])
+        ab[:2] += Tv[:, 2]
+        ab[:2] += Tv[:, 3]
+        a2, b2, sign = ab
+        wide = None
+        if shortest:
+            sign = hemisphere(A, B, a2, b2, sign)
+        else:
+            sign = None
+            wide = b2 < a2
+        w0, w1 = slerp_weights(a2, b2, h, sign)
         np.multiply(A, w0, out=T[:4])
         np.multiply(B, w1, out=T[4:])
         np.add(T[:4], T[4:], out=O)
+        if wide is not None and wide.any():
+            wide_arcs(A, B, h, O, wide)
     return O
 
 
@@ -252,11 +347,34 @@ def _frames_block(k0, k1, F, phi):
     if zero.any():
         sc[zero] = 0
         phi[b == 0] = 0                      # antipodal: no unique arc; stay at k0
+    wide = a2 > b2                           # k0·k1 < 0: the tangent from S = k0 + k1
     D *= n2
     np.multiply(k0, a2, out=T)
     D += T
     D *= sc
     F[:4] = k0
+    if wide.any():
+        _wide_tangents(k0, k1, F[4:], phi, wide)
+
+
+def _wide_tangents(k0, k1, P, phi, wide):
+    """P[:, wide] = the unit tangent at k0 towards k1 where k0·k1 < 0.
+
+    ``(2 D + a² k0) / (a b)`` cancels near k1 = -k0 (its error grows like
+    1 / b); the component of S = k0 + k1 orthogonal to k0 does not (as in
+    `wide_arcs`).  k1 = -c k0 exactly: no unique arc, p = 0 and phi = 0.
+    """
+    at = _where(wide)
+    a = k0[at]
+    S = a + k1[at]
+    S -= (vdot(a, S, 0) / vdot(a, a, 0)) * a
+    n = np.sqrt(vdot(S, S, 0))
+    flat = ~(n > 0)
+    n[flat] = np.inf                         # p = 0
+    S /= n
+    P[at] = S
+    if flat.any():
+        phi[tuple(i[flat] for i in at[1:])] = 0
 
 
 def frame_core(F, phi, u, O):
@@ -270,12 +388,17 @@ def frame_core(F, phi, u, O):
     CS = _rows(2, s, O.dtype)
     c, sn = CS
     np.multiply(phi, u, out=sn, casting="unsafe")
-    np.tan(sn, out=sn)                       # tau
-    np.multiply(sn, sn, out=c)
-    c += 1
-    np.divide(2, c, out=c)                   # 2 / (1 + tau²)
-    sn *= c                                  # sin
-    c -= 1                                   # cos
+    if O.dtype == np.float32:                # SIMD sin and cos (see `_kernels.cos_sin`)
+        sn *= 2
+        np.cos(sn, out=c)
+        np.sin(sn, out=sn)
+    else:
+        np.tan(sn, out=sn)                   # tau
+        np.multiply(sn, sn, out=c)
+        c += 1
+        np.divide(2, c, out=c)               # 2 / (1 + tau²)
+        sn *= c                              # sin
+        c -= 1                               # cos
     Fv = F.reshape((2, 4) + s)
     np.multiply(Fv, CS[:, None], out=Fv)
     np.add(Fv[0], Fv[1], out=O)
@@ -330,17 +453,14 @@ def slerp(q0, q1, t, shortest=True):
 
 
 def _slerp_small(q0, q1, t, shortest, dtype):
-    """`slerp_core` as direct expressions on (n, 4) arrays (small batches, one pair)."""
+    """`slerp_core` on components-first views of (n, 4) arrays: no blocks, no copies
+    into scratch (small batches, one pair)."""
     batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], t.shape)
     A = np.broadcast_to(q0, batch + (4,)).reshape(-1, 4).astype(dtype, copy=False)
     B = np.broadcast_to(q1, batch + (4,)).reshape(-1, 4).astype(dtype, copy=False)
     h = np.broadcast_to(t, batch).reshape(-1)
-    a2 = np.asarray(_sq_last(B - A))
-    b2 = np.asarray(_sq_last(B + A))
-    with _blocks.scratch().frame():
-        w0, w1 = slerp_weights(a2, b2, h, shortest)
-        out = A * w0[:, None]
-        out += B * w1[:, None]
+    out = np.empty(A.shape, dtype)
+    slerp_core(A.T, B.T, h, out.T, shortest)
     return out.reshape(batch + (4,))
 
 
@@ -448,7 +568,9 @@ def unflip(q, axis):
     n = qa.shape[0]
     if n < 2:
         return q.astype(dtype, copy=True)
-    d = vdot(qa[1:], qa[:-1])
+    # float32: summed in float64 (exact products), so that rotations close to π
+    # apart get the sign of their exact dot product, as `hemisphere` gives slerp
+    d = vdot(qa[1:], qa[:-1]) if dtype != np.float32 else vdot(qa[1:].astype(np.float64), qa[:-1])
     step = np.ones(qa.shape[:-1], np.int8)
     step[1:][d < 0] = -1
     c = np.cumprod(step, axis=0, dtype=np.int8)           # sign with no restarts

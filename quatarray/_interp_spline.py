@@ -22,6 +22,8 @@ import numpy as np
 from . import _blocks
 from . import _convert as C
 from . import _kernels as Kn
+from . import _track as TR
+from ._blocks import soa
 
 MAX_ITER = 10
 TOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 4 * float(np.finfo(np.float32).eps)}
@@ -106,46 +108,80 @@ def angular_acceleration(rotvecs, rotvecs_dot, rotvecs_ddot):
     return angular_rate(rotvecs, rotvecs_ddot) + acceleration_term(rotvecs, rotvecs_dot)
 
 
+def inv3(m):
+    """Inverses of 3x3 matrices (..., 3, 3) in closed form: the adjugate over the determinant.
+
+    The rows of the adjugate's transpose are cross products of the rows of
+    ``m``; no LAPACK call per matrix (``np.linalg.inv`` on stacks of 3x3
+    matrices spends its time in per-matrix overhead).
+    """
+    r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
+    adj = np.stack([np.cross(r1, r2), np.cross(r2, r0), np.cross(r0, r1)], axis=-1)
+    det = np.sum(r0 * adj[..., :, 0], axis=-1)
+    return adj / det[..., None, None]
+
+
 def _pad(a):
     z = np.zeros((1,) + a.shape[1:], a.dtype)
     return np.concatenate([z, a, z])
 
 
-def block_tridiagonal_solve(lower, diag, upper, rhs):
-    """Solve ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i`` by cyclic reduction.
+def block_tridiagonal_factor(lower, diag, upper):
+    """Cyclic-reduction factorisation of ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i``.
 
     ``lower``, ``diag``, ``upper`` have shape (n, *batch, 3, 3) (``lower[0]``
-    and ``upper[-1]`` are ignored), ``rhs`` (n, *batch, 3).  Each level
-    removes the odd rows, so the recursion depth is ``log2(n)``.
+    and ``upper[-1]`` are ignored).  Each level removes the odd rows, so
+    there are ``log2(n)`` levels, each vectorised over rows and batch.  The
+    matrices are reduced once; `block_tridiagonal_apply` then solves for any
+    right-hand side with matrix-vector products only (the spline's
+    fixed-point iteration changes only the right-hand side).
     """
-    n = len(diag)
-    if n == 1:
-        return np.linalg.solve(diag[0], rhs[0][..., None])[..., 0][None]
-    lower = lower.copy()
-    upper = upper.copy()
-    lower[0] = 0
-    upper[-1] = 0
-    odd_inv = np.linalg.inv(diag[1::2])
+    levels = []
+    while len(diag) > 1:
+        n = len(diag)
+        lower = lower.copy()
+        upper = upper.copy()
+        lower[0] = 0
+        upper[-1] = 0
+        odd_inv = inv3(diag[1::2])
+        m = (n + 1) // 2
+        # padded so that index i of the padded array is odd row i - 1 of the original
+        inv_p = _pad(np.zeros_like(diag))
+        inv_p[2:-1:2] = odd_inv
+        low_p, up_p = _pad(lower), _pad(upper)
+        prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
+        alpha = lower[0::2] @ inv_p[prev]
+        beta = upper[0::2] @ inv_p[nxt]
+        levels.append((lower[1::2], upper[1::2], odd_inv, alpha, beta))
+        diag, lower, upper = (diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt],
+                              -(alpha @ low_p[prev]), -(beta @ up_p[nxt]))
+    levels.append(inv3(diag[0]))
+    return levels
+
+
+def block_tridiagonal_apply(levels, rhs, level=0):
+    """Solution (n, *batch, 3) for ``rhs`` (n, *batch, 3) of a `block_tridiagonal_factor`."""
+    if level == len(levels) - 1:
+        return _mv(levels[level], rhs[0])[None]
+    low_odd, up_odd, odd_inv, alpha, beta = levels[level]
+    n = len(rhs)
     m = (n + 1) // 2
-    # padded so that index i of the padded array is odd row i - 1 of the original
-    inv_p = _pad(np.zeros_like(diag))
-    inv_p[2:-1:2] = odd_inv
-    low_p, up_p, rhs_p = _pad(lower), _pad(upper), _pad(rhs)
+    rhs_p = _pad(rhs)
     prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
-    alpha = lower[0::2] @ inv_p[prev]
-    beta = upper[0::2] @ inv_p[nxt]
-    new_diag = diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt]
-    new_low = -(alpha @ low_p[prev])
-    new_up = -(beta @ up_p[nxt])
     new_rhs = rhs[0::2] - _mv(alpha, rhs_p[prev]) - _mv(beta, rhs_p[nxt])
-    even = block_tridiagonal_solve(new_low, new_diag, new_up, new_rhs)
+    even = block_tridiagonal_apply(levels, new_rhs, level + 1)
     x = np.empty_like(rhs)
     x[0::2] = even
     ev_p = np.concatenate([even, np.zeros((1,) + even.shape[1:], even.dtype)])
     left = even[: n // 2]
     right = ev_p[1 : n // 2 + 1]
-    x[1::2] = _mv(odd_inv, rhs[1::2] - _mv(lower[1::2], left) - _mv(upper[1::2], right))
+    x[1::2] = _mv(odd_inv, rhs[1::2] - _mv(low_odd, left) - _mv(up_odd, right))
     return x
+
+
+def block_tridiagonal_solve(lower, diag, upper, rhs):
+    """Solve ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i`` by cyclic reduction."""
+    return block_tridiagonal_apply(block_tridiagonal_factor(lower, diag, upper), rhs)
 
 
 def relative_rotvecs(keys):
@@ -172,10 +208,11 @@ def _solve_rates(dt, rates, rotvecs):
     b0[0] -= 2 / dtb[0] * _mv(a_inv[0], first)
     b0[-1] -= 2 / dtb[-1] * _mv(a[-1], rates[-1])
     tol = TOL[np.dtype(dtype)]
+    levels = block_tridiagonal_factor(lower, diag, upper)
     for _ in range(MAX_ITER):
         rotvecs_dot = _mv(a, rates)
         rhs = b0 - acceleration_term(rotvecs[:-1], rotvecs_dot[:-1])
-        new = block_tridiagonal_solve(lower, diag, upper, rhs)
+        new = block_tridiagonal_apply(levels, rhs)
         delta = np.abs(new - rates[:-1])
         rates[:-1] = new
         if np.all(delta < tol * (1 + np.abs(new))):
@@ -217,35 +254,117 @@ def coefficients(times, keys):
     return coeff
 
 
-def segments(times, t):
-    """Segment index of each query as scipy's PPoly picks it (the end segments extend)."""
-    idx = np.searchsorted(times, t, side="right") - 1
-    return np.clip(idx, 0, len(times) - 2)
+ROWS = 25   # key q (4), q (0, c_k) for k = 0, 1, 2 (12), c_0, c_1, c_2 (9)
+_TINY = {np.dtype(np.float64): 1e-300, np.dtype(np.float32): 1e-30}
 
 
-def evaluate(times, keys, coeff, t, order=0):
-    """The spline at query times ``t`` (shape (M,)): quaternions, rates or accelerations.
+def table(keys, coeff):
+    """Per-segment evaluation table (25, K - 1, B), components first, in the keys' dtype.
 
-    Returns shape (M, *batch, 4) for ``order=0`` and (M, *batch, 3) otherwise;
-    queries are processed in blocks so temporaries stay cache-sized.
+    With ``r(s) = ((c0 s + c1) s + c2) s`` the spline is ``q exp(r/2)`` =
+    ``cos(θ/2) q + sin(θ/2)/θ · q (0, r)`` (θ = |r|), and ``q (0, r)`` is
+    the same cubic in s with coefficients ``q (0, c_k)``: those products are
+    made here, once per segment, so that a query costs two cubics, one
+    tangent and no quaternion product.
     """
-    batch = keys.shape[1:-1]
-    dtype = keys.dtype
-    width = 4 if order == 0 else 3
-    out = np.empty(t.shape + batch + (width,), dtype)
-    per = max(1, _blocks.BLOCK // max(1, int(np.prod(batch, dtype=np.int64))))
-    for start in range(0, len(t), per):
-        tb = t[start:start + per]
-        idx = segments(times, tb)
-        s = (tb - times[idx]).astype(dtype).reshape((-1,) + (1,) * (len(batch) + 1))
-        c0, c1, c2 = coeff[0][idx], coeff[1][idx], coeff[2][idx]
-        r = ((c0 * s + c1) * s + c2) * s
-        if order == 0:
-            Kn.multiply(keys[idx], C.from_rotvec(r), out=out[start:start + per])
-            continue
-        r1 = (3 * c0 * s + 2 * c1) * s + c2
-        if order == 1:
-            out[start:start + per] = angular_rate(r, r1)
-        else:
-            out[start:start + per] = angular_acceleration(r, r1, 6 * c0 * s + 2 * c1)
+    K1 = coeff.shape[1]
+    B = int(np.prod(keys.shape[1:-1], dtype=np.int64))
+    out = np.empty((ROWS, K1, B), keys.dtype)
+    q = keys[:-1]
+    out[0:4] = soa(q.reshape(K1, B, 4))
+    for k in range(3):
+        c = coeff[k]
+        pure = np.concatenate([np.zeros(c.shape[:-1] + (1,), c.dtype), c], axis=-1)
+        out[4 + 4 * k:8 + 4 * k] = soa(Kn.multiply(q, pure).reshape(K1, B, 4))
+        out[16 + 3 * k:19 + 3 * k] = soa(c.reshape(K1, B, 3))
     return out
+
+
+def _rotation_rows(G, s, O):
+    """O (4, m, b) = q exp(r(s)/2) from gathered table rows G (25, m, b) and s (m, 1).
+
+    G is used as scratch (overwritten); O may be a strided view of the output.
+    """
+    shape = O.shape[1:]
+    work = _blocks.scratch()
+    r = work.rows(3, shape, O.dtype)
+    theta, tmp = work.rows(2, shape, O.dtype)
+    np.multiply(G[16:19], s, out=r)
+    r += G[19:22]
+    r *= s
+    r += G[22:25]
+    r *= s
+    np.multiply(r[0], r[0], out=theta)
+    np.multiply(r[1], r[1], out=tmp)
+    theta += tmp
+    np.multiply(r[2], r[2], out=tmp)
+    theta += tmp
+    np.sqrt(theta, out=theta)
+    np.maximum(theta, _TINY[O.dtype], out=theta)
+    tau, d, cos_half = r                      # r is no longer needed
+    np.multiply(theta, 0.25, out=tau)
+    np.tan(tau, out=tau)                      # τ = tan(θ/4)
+    np.multiply(tau, tau, out=d)
+    d += 1
+    np.divide(1, d, out=d)                    # 1 / (1 + τ²)
+    np.subtract(1, tau, out=cos_half)
+    np.add(1, tau, out=tmp)
+    cos_half *= tmp
+    cos_half *= d                             # cos(θ/2) = (1 - τ)(1 + τ) / (1 + τ²)
+    np.multiply(tau, d, out=tmp)
+    tmp *= 2
+    tmp /= theta                              # sin(θ/2) / θ
+    V = G[4:8]                                # q (0, r(s)), in place of its first coefficient
+    V *= s
+    V += G[8:12]
+    V *= s
+    V += G[12:16]
+    np.multiply(tmp, s, out=tmp)              # the last factor s joins sin(θ/2) / θ
+    V *= tmp
+    Q = G[0:4]
+    Q *= cos_half
+    np.add(V, Q, out=O)                       # the only write to the (strided) output
+
+
+def _rate_rows(G, s, order, O):
+    """Angular rate (order 1) or acceleration (order 2) (3, m, b) into O."""
+    c0, c1, c2 = G[16:19], G[19:22], G[22:25]
+    r = ((c0 * s + c1) * s + c2) * s
+    r1 = (3 * c0 * s + 2 * c1) * s + c2
+    last = (lambda a: np.moveaxis(a, 0, -1))
+    if order == 1:
+        res = angular_rate(last(r), last(r1))
+    else:
+        res = angular_acceleration(last(r), last(r1), last(6 * c0 * s + 2 * c1))
+    O[...] = np.moveaxis(res, -1, 0)
+
+
+def evaluate(index, times, tab, t, order, batch):
+    """The spline at query times ``t`` (M,): quaternions (order 0), rates (1) or accelerations (2).
+
+    `index` is the `SegmentIndex` of `times` and `tab` the `table`.  Returns
+    shape (M, *batch, 4) for ``order=0`` and (M, *batch, 3) otherwise.  The
+    end segments extend beyond the key times, as scipy's ``PPoly``.
+    """
+    M, K1, B = t.size, tab.shape[1], tab.shape[2]
+    dtype = tab.dtype
+    width = 4 if order == 0 else 3
+    out = np.empty((M, B, width), dtype)
+
+    found = index.find_sorted(t) if M > _blocks.BLOCK else None
+
+    def block(qt):
+        sm, sb = qt
+        tb = t[sm]
+        i = index.find(tb) if found is None else found[sm].copy()
+        np.clip(i, 0, K1 - 1, out=i)
+        s = np.subtract(tb, np.take(times, i, mode="clip")).astype(dtype, copy=False)[:, None]
+        G = TR.gather(tab, i, sb)
+        O = soa(out[sm, sb])
+        if order == 0:
+            _rotation_rows(G, s, O)
+        else:
+            _rate_rows(G, s, order, O)
+
+    _blocks.run(block, TR.qt_blocks(M, B), M * B)
+    return out.reshape(t.shape + tuple(batch) + (width,))

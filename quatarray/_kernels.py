@@ -13,7 +13,8 @@ import numpy as np
 from . import _blocks
 
 __all__ = [
-    "result_dtype", "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
+    "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
+    "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
     "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
 ]
 
@@ -27,6 +28,73 @@ def result_dtype(*arrays):
     dtype('float64')
     """
     return np.result_type(*arrays, np.float32)
+
+
+#: A positive floor for angles divided into their sines (exp, from_rotvec): sin(a) / a
+#: then comes out exactly 1 at a = 0.
+ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
+
+
+def cos_sin(angle):
+    """(cos a, sin a) of an array of angles, by the cheaper exact route for its dtype.
+
+    float32: `np.cos` and `np.sin`, SIMD loops on every x86 NumPy build.
+    float64: one tangent, ``t = tan(a / 2)``, ``cos a = (1 - t)(1 + t) / (1 + t²)``
+    and ``sin a = 2 t / (1 + t²)``: one transcendental call instead of two,
+    the cheaper on AVX2 and much the cheaper on AVX-512, where float64 sin
+    and cos have no SIMD loop (costs in benchmarks/README.md).
+    ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
+    small cosine is accurate to about one ulp of t.
+
+    >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
+    [0.707106781187, 0.707106781187]
+    """
+    angle = np.asarray(angle)
+    if angle.dtype == np.float32:
+        return np.cos(angle), np.sin(angle)
+    t = np.tan(angle * 0.5)
+    d = 1.0 / (1.0 + t * t)
+    c = (1.0 - t) * (1.0 + t)
+    c *= d
+    d *= 2.0
+    d *= t
+    return c, d
+
+
+def half_angle(angle, scale):
+    """(cos(a/2), sin(a/2)) of ``a = angle * 4 * scale`` (see `cos_sin`).
+
+    >>> [round(float(x), 12) for x in half_angle(np.array(np.pi / 2), 0.25)]
+    [0.707106781187, 0.707106781187]
+    """
+    return cos_sin(angle * (2 * scale))
+
+
+def arctan2(y, x, out=None):
+    """``np.arctan2(y, x)`` from one ``arctan`` of the ratio: arctan(y / x), plus
+    ±π (the sign of y) where x is negative or -0.0.
+
+    The ratio is rounded once and arctan is well conditioned, so the angle
+    is within about 2 ulp of ``np.arctan2``'s, signed zeros included, for a
+    fraction of its cost on CPUs without AVX-512 (benchmarks/README.md).
+    Differs from `np.arctan2` only where both are infinite (NaN here).
+
+    >>> y, x = np.array([1.0, 0.0, -0.0, -2.0]), np.array([-0.0, -1.0, -1.0, 0.5])
+    >>> np.allclose(arctan2(y, x), np.arctan2(y, x), rtol=4e-16, atol=0)
+    True
+    """
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        out = np.divide(y, x, out=out)
+    nan = np.isnan(out)
+    if nan.any():   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
+        np.copyto(out, y, where=nan & (x == 0))
+    np.arctan(out, out=out)
+    neg = np.signbit(x)
+    if neg.any():   # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan
+        turn = np.copysign(np.pi, y, dtype=out.dtype)
+        turn *= neg
+        out += turn
+    return out
 
 
 def _contig_last(a, dtype):
@@ -266,8 +334,13 @@ def _normalize_flat(q, out):
     norms, then one division per component column (long inner loops)."""
     def block(idx):
         blk, o = q[idx], out[idx]
-        t = _blocks.scratch().rows(1, (len(o),), q.dtype)[0]
-        np.einsum("ij,ij->i", blk, blk, out=t)
+        work = _blocks.scratch()
+        t = work.rows(1, (len(o),), q.dtype)[0]
+        sq = work.rows(len(o), (4,), q.dtype)
+        np.multiply(blk, blk, out=sq)        # one flat pass, then three strided adds:
+        np.add(sq[:, 0], sq[:, 1], out=t)    # half the cost of einsum's length-4 reductions
+        t += sq[:, 2]
+        t += sq[:, 3]
         np.sqrt(t, t)
         if not (t > 0).all():
             raise ValueError(_ZERO_NORMALIZE)
@@ -303,12 +376,13 @@ def _k_exp(q, o):
     vn = _sum_sq(q, 1, o[0])
     np.sqrt(vn, out=vn)
     ew = np.exp(q[0])
-    # sin|v| / |v|, with its limit 1 at |v| = 0
-    s = np.where(vn > 0, np.sin(vn) / vn, 1.0).astype(o.dtype, copy=False)
+    # cos|v| and sin|v| / |v| (limit 1 at |v| = 0) from one tangent
+    np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
+    c, s = half_angle(vn, 0.5)
+    s /= vn
     s *= ew
     np.multiply(q[1:], s, out=o[1:])
-    np.cos(vn, out=o[0])
-    o[0] *= ew
+    np.multiply(c, ew, out=o[0])
 
 
 def exp(q):
@@ -328,14 +402,31 @@ def _log_parts(q):
     """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|) for the principal log of
     components-first rows.
 
-    The scale has its limit 1/w at |v| = 0, w > 0; for a negative real
-    quaternion (|v| = 0, w < 0) the axis is taken as x (θ = π)."""
-    vn = np.sqrt(_sum_sq(q, 1, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0]))
+    ln|q| is ``log1p((w - 1)(w + 1) + |v|²) / 2``, accurate near the identity
+    where ``log(|q|)`` keeps only the rounding error of |q| ≈ 1; log1p is
+    taken as ``log(u) · d / (u - 1)`` with u = 1 + d (exact for u ≠ 1, d where
+    u = 1), one call to log.  The scale has its limit 1/w at |v| = 0, w > 0;
+    for a negative real quaternion (|v| = 0, w < 0) the axis is taken as x
+    (θ = π)."""
+    work = _blocks.scratch()
+    vv = _sum_sq(q, 1, work.rows(1, q.shape[1:], q.dtype)[0])
     w = q[0]
-    ln = np.log(np.hypot(vn, w))
-    theta = np.arctan2(vn, w)
-    scale = np.where(vn > 0, theta / vn, np.where(w > 0, 1.0 / w, 0.0))
-    return ln, theta, vn, scale.astype(q.dtype, copy=False)
+    d = (w - 1) * (w + 1)
+    d += vv
+    u = d + 1
+    ln = np.log(u)
+    um1 = u - 1
+    um1 = np.divide(d, um1, out=um1)      # nan or inf where u = 1: fixed below
+    ln *= um1
+    np.copyto(ln, d, where=u == 1)
+    ln *= 0.5
+    vn = np.sqrt(vv, out=vv)
+    theta = arctan2(vn, w)
+    scale = theta / vn
+    lim = vn == 0
+    if lim.any():
+        scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
+    return ln, theta, vn, scale
 
 
 def _k_log(q, o):
@@ -371,16 +462,19 @@ def _k_power(q, t, o):
     if zero.any():
         mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
     ang = t * theta
+    # sin and cos, not `half_angle`: cos(tθ) keeps its relative accuracy near tθ = π/2
+    # (principal roots of negative reals)
+    cos_a, sin_a = np.cos(ang), np.sin(ang)
     # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
-    s = np.where(vn > 0, np.sin(ang) / np.where(vn > 0, vn, 1), t * scale)
+    s = np.where(vn > 0, sin_a / np.where(vn > 0, vn, 1), t * scale)
     factor = mag * s
     if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         factor = np.where(zero, 0.0, factor)
-    np.multiply(mag, np.cos(ang), out=o[0])
+    np.multiply(mag, cos_a, out=o[0])
     np.multiply(q[1:], factor, out=o[1:])
     neg_real = (vn == 0) & (q[0] < 0)
     if neg_real.any():
-        np.copyto(o[1], mag * np.sin(ang), where=neg_real)
+        np.copyto(o[1], mag * sin_a, where=neg_real)
 
 
 def power(q, t):
@@ -444,7 +538,7 @@ def _matrix_one(q, dtype):
 
 
 def _rotate_scalar(q, u, dtype, inverse=False):
-    """`rotate` for one quaternion and one vector, with Python floats (a few µs)."""
+    """`rotate` for one quaternion and one vector, with Python floats (no block run)."""
     w, x, y, z = q.tolist()
     if inverse:
         w = -w  # conj(q) = (w, -vec): t -> -t, and vec × t keeps its sign

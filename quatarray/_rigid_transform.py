@@ -1,239 +1,437 @@
-"""scipy-style `RigidTransform`: ``x -> R x + t``.
+"""scipy-style `RigidTransform`: ``x -> R x + t``, same API, results and errors as scipy 1.17.
 
 Stored as a rotation (unit scalar-first quaternion) plus a translation,
 not as a unit dual quaternion: `apply` then costs one quaternion rotation
 and one addition, `rotation`/`translation` are free, and matrices convert
 without the dual part's products.  Dual quaternions are produced on demand
 by the raw `_dualquat` conversions, which are exact inverses of each other.
+
+The one exception is scipy's ``RigidTransform(matrix, normalize=False)``:
+scipy then keeps the matrix exactly as given (with ``copy=False`` sharing
+its memory), so such a transform keeps the matrix and reads its rotation
+and translation from it whenever they are needed.
+
+The maths lives in `_motion` (apply, compose, invert), `_convert` and
+`_dualquat`; this module validates, wraps and keeps scipy's messages.
 """
 
 import numpy as np
 
+from . import _convert as C
 from . import _dualquat as DQ
 from . import _kernels as Kn
+from . import _motion as MO
+from ._rotation import Rotation
+
+__all__ = ["RigidTransform"]
+
+_TO_FIRST = [3, 0, 1, 2, 7, 4, 5, 6]
+_TO_LAST = [1, 2, 3, 0, 5, 6, 7, 4]
 
 
-def _rotation_cls():
-    from . import Rotation
-    return Rotation
+def _promote(x):
+    """scipy's promotion: float32 and float64 kept, other real input as float64."""
+    a = np.asarray(x)
+    if a.dtype == np.float32 or a.dtype == np.float64:
+        return a
+    if a.dtype.kind not in "biuf":
+        raise TypeError(f"expected an array of real numbers, got dtype {a.dtype}")
+    return a.astype(np.float64)
 
 
-def _float(a, name, last):
-    a = np.asarray(a)
-    if a.dtype.kind not in "fiu" or a.shape[-len(last):] != last:
-        raise ValueError(f"Expected `{name}` to have shape (..., {', '.join(map(str, last))}), got {a.shape}.")
-    return a.astype(np.float32 if a.dtype == np.float32 else np.float64)
+def _check_last(a, name, core):
+    if a.ndim < 1 or a.shape[-1] != core:
+        raise ValueError(f"Expected `{name}` to have shape (..., {core}), got {a.shape}.")
 
 
-def _cross(a, b):
-    return np.cross(a, b)
+def _is_rotation(x):
+    return hasattr(x, "as_quat") and hasattr(type(x), "from_rotvec") and not isinstance(x, RigidTransform)
+
+
+def _quat_of(rotation, name="rotation"):
+    if not _is_rotation(rotation):
+        raise TypeError(f"Expected `{name}` to be a `Rotation` instance, got {type(rotation)}.")
+    return np.asarray(rotation.as_quat(scalar_first=True))
 
 
 def _left_jacobian_coeffs(theta):
     """(1-cos θ)/θ² and (θ-sin θ)/θ³, by series near zero where the quotients cancel."""
     small = theta < 1e-3
     th = np.where(small, 1.0, theta)
-    a = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(th)) / th**2)
-    b = np.where(small, 1 / 6 - theta**2 / 120, (th - np.sin(th)) / th**3)
+    a = np.where(small, 0.5 - theta**2 / 24 + theta**4 / 720, (1 - np.cos(th)) / th**2)
+    b = np.where(small, 1 / 6 - theta**2 / 120 + theta**4 / 5040, (th - np.sin(th)) / th**3)
     return a, b
 
 
-class RigidTransform:
-    """Rigid transforms (rotation then translation), batched, scipy 1.17 API."""
+def _last_row_check(m):
+    ok = np.all(m[..., 3, :] == np.array([0, 0, 0, 1], m.dtype), axis=-1)
+    if not np.all(ok):
+        idx = () if ok.shape == () else tuple(int(i[0]) for i in np.nonzero(~ok))
+        raise ValueError(f"Expected last row of transformation matrix {idx} to be "
+                         f"exactly [0, 0, 0, 1], got {m[idx + (3, Ellipsis)]}")
 
-    def __init__(self, quat, translation, single):
-        self._quat = quat
-        self._translation = translation
-        self._single = single
+
+def _axes(axis, batch):
+    nb = len(batch)
+    if axis is None:
+        return tuple(range(nb))
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
+        axis = (int(axis),)
+    if not isinstance(axis, tuple):
+        raise ValueError("`axis` must be None, int, or tuple of ints.")
+    if axis and (min(axis) < -nb or max(axis) > nb - 1):
+        raise ValueError(f"axis {axis} is out of bounds for transform with shape {batch}.")
+    return tuple(sorted({a % nb for a in axis}))
+
+
+class RigidTransform:
+    """Rigid transforms ``x -> R x + t`` (rotation, then translation), batched.
+
+    Same constructor, methods, results and errors as scipy 1.17's
+    ``scipy.spatial.transform.RigidTransform``; `rotation` is a quatarray
+    `Rotation`.  Use the ``from_*`` constructors rather than calling this
+    class directly.
+
+    Parameters
+    ----------
+    matrix : array_like, shape (..., 4, 4)
+        Homogeneous transformation matrices.
+    normalize : bool, default True
+        Replace the rotation part by the nearest rotation matrix.  With
+        False the matrix is kept exactly as given (it must be a rigid
+        transform).
+    copy : bool, default True
+        With ``normalize=False``: False keeps (shares) the matrix itself.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray import RigidTransform, Rotation
+    >>> tf = RigidTransform.from_components([1.0, 0, 0], Rotation.from_rotvec([0, 0, np.pi / 2]))
+    >>> np.round(tf.apply([1.0, 0, 0]), 12) + 0.0
+    array([1., 1., 0.])
+    >>> np.round((tf * tf.inv()).as_matrix(), 12) + 0.0
+    array([[1., 0., 0., 0.],
+           [0., 1., 0., 0.],
+           [0., 0., 1., 0.],
+           [0., 0., 0., 1.]])
+    """
+
+    __slots__ = ("_q", "_t", "_m", "_single", "__weakref__")
+
+    def __init__(self, matrix, normalize=True, copy=True):
+        m = _promote(matrix)
+        if m.ndim < 2 or m.shape[-2:] != (4, 4):
+            raise ValueError(f"Expected `matrix` to have shape (..., 4, 4), got {m.shape}.")
+        _last_row_check(m)
+        self._single = m.ndim == 2
+        if normalize:
+            self._m = None
+            self._q = C.from_matrix(m[..., :3, :3])
+            self._t = m[..., :3, 3].copy()
+        else:
+            self._m = m.copy() if copy and m is matrix else m
+            self._q = self._t = None
 
     @classmethod
     def _from_parts(cls, quat, translation, single):
         """From raw unit scalar-first quaternions (..., 4) and translations (..., 3), not copied."""
-        return cls(quat, translation, single)
+        tf = cls.__new__(cls)
+        tf._q = quat
+        tf._t = translation
+        tf._m = None
+        tf._single = single
+        return tf
 
     @classmethod
     def _make(cls, quat, translation, single):
-        batch = np.broadcast_shapes(quat.shape[:-1], translation.shape[:-1])
-        dtype = np.result_type(quat.dtype, translation.dtype)
-        q = np.array(np.broadcast_to(quat, batch + (4,)), dtype)
-        t = np.array(np.broadcast_to(translation, batch + (3,)), dtype)
-        return cls(q, t, single)
+        """Like `_from_parts`, broadcasting the two and promoting to one dtype."""
+        if quat.shape[:-1] != translation.shape[:-1] or quat.dtype != translation.dtype:
+            batch = np.broadcast_shapes(quat.shape[:-1], translation.shape[:-1])
+            dtype = np.result_type(quat.dtype, translation.dtype)
+            quat = np.array(np.broadcast_to(quat, batch + (4,)), dtype)
+            translation = np.array(np.broadcast_to(translation, batch + (3,)), dtype)
+        return cls._from_parts(quat, translation, single)
 
-    # constructors
+    # raw parts (read from the kept matrix for normalize=False transforms)
+    @property
+    def _quat(self):
+        if self._m is None:
+            return self._q
+        return C.from_matrix(self._m[..., :3, :3], assume_valid=True)
+
+    @property
+    def _translation(self):
+        if self._m is None:
+            return self._t
+        return self._m[..., :3, 3]
+
+    # ------------------------------------------------------------------ constructors
     @classmethod
     def from_matrix(cls, matrix):
-        m = _float(matrix, "matrix", (4, 4))
-        if not np.all(m[..., 3, :] == np.array([0, 0, 0, 1], m.dtype)):
-            raise ValueError("Expected last row of `matrix` to be [0, 0, 0, 1].")
-        rot = _rotation_cls().from_matrix(m[..., :3, :3])
-        q = np.asarray(rot.as_quat(scalar_first=True), m.dtype)
-        return cls._make(q, m[..., :3, 3], m.ndim == 2)
+        """From homogeneous matrices (..., 4, 4); the rotation part is orthonormalised as in scipy."""
+        return cls(matrix, normalize=True, copy=True)
 
     @classmethod
     def from_rotation(cls, rotation):
-        q = np.asarray(rotation.as_quat(scalar_first=True))
-        return cls._make(q, np.zeros(q.shape[:-1] + (3,), q.dtype), q.ndim == 1)
+        """Pure rotations from a `Rotation` (quatarray's or scipy's)."""
+        q = _quat_of(rotation)
+        return cls._from_parts(q.copy(), np.zeros(q.shape[:-1] + (3,), q.dtype), q.ndim == 1)
 
     @classmethod
     def from_translation(cls, translation):
-        t = _float(translation, "translation", (3,))
+        """Pure translations (..., 3)."""
+        t = _promote(translation)
+        _check_last(t, "translation", 3)
         q = np.zeros(t.shape[:-1] + (4,), t.dtype)
         q[..., 0] = 1
-        return cls._make(q, t, t.ndim == 1)
+        return cls._from_parts(q, t.copy(), t.ndim == 1)
 
     @classmethod
     def from_components(cls, translation, rotation):
-        t = _float(translation, "translation", (3,))
-        q = np.asarray(rotation.as_quat(scalar_first=True))
-        return cls._make(q, t, t.ndim == 1 and q.ndim == 1)
-
-    @classmethod
-    def from_dual_quat(cls, dual_quat, *, scalar_first=False):
-        dq = _float(dual_quat, "dual_quat", (8,))
-        if not scalar_first:
-            dq = dq[..., [3, 0, 1, 2, 7, 4, 5, 6]]
-        # like scipy, a zero real part (no rotation to normalise) means the identity
-        zero = ~np.any(dq[..., :4], axis=-1)
-        if np.any(zero):
-            dq = np.where(zero[..., None], np.eye(1, 8, dtype=dq.dtype), dq)
-        q, t = DQ.as_rotation_translation(DQ.normalize(dq))
-        return cls._make(q, t, dq.ndim == 1)
+        """Rotation then translation: ``x -> R x + t`` (batches broadcast)."""
+        rot = cls.from_rotation(rotation)
+        return cls.from_translation(translation) * rot
 
     @classmethod
     def from_exp_coords(cls, exp_coords):
-        e = _float(exp_coords, "exp_coords", (6,))
+        """From exponential coordinates (..., 6): rotation vector, then the se(3) translation part."""
+        e = _promote(exp_coords)
+        _check_last(e, "exp_coords", 6)
         phi, u = e[..., :3], e[..., 3:]
         theta = np.linalg.norm(phi, axis=-1, keepdims=True)
         a, b = _left_jacobian_coeffs(theta)
-        pu = _cross(phi, u)
-        t = u + a * pu + b * _cross(phi, pu)
-        q = np.asarray(_rotation_cls().from_rotvec(phi).as_quat(scalar_first=True), e.dtype)
-        return cls._make(q, t.astype(e.dtype), e.ndim == 1)
+        pu = np.cross(phi, u)
+        t = u + a * pu + b * np.cross(phi, pu)
+        q = C.from_rotvec(phi).astype(e.dtype, copy=False)
+        return cls._from_parts(q, t.astype(e.dtype, copy=False), e.ndim == 1)
+
+    @classmethod
+    def from_dual_quat(cls, dual_quat, *, scalar_first=False):
+        """From unit dual quaternions (..., 8) (real part, then dual part); normalised first."""
+        dq = _promote(dual_quat)
+        _check_last(dq, "dual_quat", 8)
+        if not scalar_first:
+            dq = dq[..., _TO_FIRST]
+        dq = DQ.normalize(dq)
+        q, t = DQ.as_rotation_translation(dq)
+        return cls._from_parts(q, t, dq.ndim == 1)
+
+    @staticmethod
+    def identity(num=None, *, shape=None):
+        """Identity transforms: one, `num` of them, or of batch `shape`."""
+        if num is not None and shape is not None:
+            raise ValueError("Only one of `num` and `shape` can be specified.")
+        if num is None and shape is None:
+            shape = ()
+        elif num is not None:
+            shape = (num,)
+        elif isinstance(shape, (int, np.integer)):
+            shape = (int(shape),)
+        elif not isinstance(shape, tuple):
+            raise ValueError("`shape` must be an int or a tuple of ints or None.")
+        q = np.zeros(shape + (4,))
+        q[..., 0] = 1
+        return RigidTransform._from_parts(q, np.zeros(shape + (3,)), shape == ())
 
     @classmethod
     def concatenate(cls, transforms):
+        """Join transforms (single ones count as one) along the first axis."""
         if isinstance(transforms, RigidTransform):
-            return cls(transforms._quat.copy(), transforms._translation.copy(), transforms._single)
+            return cls._from_parts(transforms._quat.copy(), transforms._translation.copy(), transforms._single)
         if not all(isinstance(x, RigidTransform) for x in transforms):
             raise TypeError("input must contain RigidTransform objects only")
         q = np.concatenate([np.atleast_2d(x._quat) for x in transforms])
         t = np.concatenate([np.atleast_2d(x._translation) for x in transforms])
-        return cls(q, t, False)
+        return cls._from_parts(q, t, False)
 
-    @classmethod
-    def identity(cls, num=None, *, shape=None):
-        if num is not None and shape is not None:
-            raise ValueError("Only one of `num` or `shape` can be specified.")
-        shape = (() if num is None else (num,)) if shape is None else tuple(np.atleast_1d(shape))
-        return cls.from_translation(np.zeros(shape + (3,)))
-
-    # conversions
-    def as_components(self):
-        return self.translation, self.rotation
-
+    # ------------------------------------------------------------------ conversions
     def as_matrix(self):
-        m = np.zeros(self._quat.shape[:-1] + (4, 4), self._quat.dtype)
-        m[..., :3, :3] = self.rotation.as_matrix()
-        m[..., :3, 3] = self._translation
+        """Homogeneous matrices (..., 4, 4)."""
+        if self._m is not None:
+            return self._m.copy()
+        q, t = self._q, self._t
+        m = np.zeros(q.shape[:-1] + (4, 4), q.dtype)
+        m[..., :3, :3] = C.as_matrix(q)
+        m[..., :3, 3] = t
         m[..., 3, 3] = 1
         return m
 
+    def as_components(self):
+        """``(translation, rotation)``."""
+        return self.translation, self.rotation
+
     def as_exp_coords(self):
-        phi = np.asarray(self.rotation.as_rotvec(), self._quat.dtype)
+        """Exponential coordinates (..., 6): rotation vector, then the se(3) translation part."""
+        q = self._quat
+        phi = C.as_rotvec(q).astype(q.dtype, copy=False)
         theta = np.linalg.norm(phi, axis=-1, keepdims=True)
         small = theta < 1e-3
         th = np.where(small, 1.0, theta)
         # inverse left Jacobian: u = t - ½ φ×t + c φ×(φ×t)
-        c = np.where(small, 1 / 12 + theta**2 / 720,
-                     (1 - th * np.sin(th) / (2 * (1 - np.cos(th)))) / th**2)
+        c = np.where(small, 1 / 12 + theta**2 / 720 + theta**4 / 30240,
+                     (1 - 0.5 * th / np.tan(0.5 * th)) / th**2)
         t = self._translation
-        pt = _cross(phi, t)
-        u = t - 0.5 * pt + c * _cross(phi, pt)
-        return np.concatenate([phi, u.astype(phi.dtype)], axis=-1)
+        pt = np.cross(phi, t)
+        u = t - 0.5 * pt + c * np.cross(phi, pt)
+        return np.concatenate([phi, u.astype(phi.dtype, copy=False)], axis=-1)
 
     def as_dual_quat(self, *, scalar_first=False):
-        dq = DQ.from_rotation_translation(self._quat, self._translation)
-        return dq if scalar_first else dq[..., [1, 2, 3, 0, 5, 6, 7, 4]]
+        """Unit dual quaternions (..., 8): the real part with w >= 0 as scipy, then the dual part."""
+        q = self._quat
+        q = np.where(q[..., :1] < 0, -q, q)
+        dq = DQ.from_rotation_translation(q, self._translation)
+        return dq if scalar_first else dq[..., _TO_LAST]
 
-    # operations
+    # ------------------------------------------------------------------ operations
     def apply(self, vector, inverse=False):
-        v = _float(vector, "vector", (3,))
+        """``R v + t`` (or ``Rᵀ (v - t)`` with `inverse`), broadcasting vectors and transforms."""
         q, t = self._quat, self._translation
-        if inverse:
-            out = Kn.rotate(q, v - t, inverse=True)
-        else:
-            out = Kn.rotate(q, v) + t
-        out = np.asarray(out)
-        return out[0] if self._single and v.ndim == 1 and out.ndim == 2 else out
+        v = np.asarray(vector, dtype=q.dtype)
+        if v.ndim < 1 or v.shape[-1] != 3:
+            raise ValueError(f"Expected vector to have shape (..., 3), got {v.shape}.")
+        try:
+            np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+        except ValueError:
+            raise ValueError("operands could not be broadcast together with transforms of shape "
+                             f"{self.shape} and vectors of shape {v.shape}") from None
+        if q.shape == (4,) and v.shape == (3,):
+            out = Kn.rotate(q, v - t if inverse else v, inverse=inverse)
+            return out if inverse else out + t
+        out = MO.apply(q, t, v, inverse)
+        if self._single and v.ndim == 1:
+            return out
+        if self._single and out.ndim == 1:
+            out = out[None]
+        return out
 
     def inv(self):
-        qi = Kn.conjugate(self._quat)
-        return type(self)(np.asarray(qi), -np.asarray(Kn.rotate(qi, self._translation)), self._single)
+        """The inverse transforms."""
+        q, t = MO.inverse(self._quat, self._translation)
+        return type(self)._from_parts(q, t, self._single)
 
     def __mul__(self, other):
+        """Composition: ``(a * b).apply(v) == a.apply(b.apply(v))``; `other` may be a `Rotation`."""
         if not isinstance(other, RigidTransform):
-            if hasattr(other, "as_quat"):
+            if _is_rotation(other):
                 other = RigidTransform.from_rotation(other)
             else:
                 return NotImplemented
-        q = np.asarray(Kn.multiply(self._quat, other._quat))
-        t = np.asarray(Kn.rotate(self._quat, other._translation)) + self._translation
-        return RigidTransform._make(q, t, self._single and other._single)
-
-    def __pow__(self, n):
-        if n == -1:
-            return self.inv()
-        if n == 1:
-            return type(self)(self._quat.copy(), self._translation.copy(), self._single)
-        return type(self).from_exp_coords(self.as_exp_coords() * n)
-
-    def mean(self, weights=None):
-        rot = self.rotation.mean(weights) if weights is not None else self.rotation.mean()
-        t = np.atleast_2d(self._translation).reshape(-1, 3)
-        w = None if weights is None else np.asarray(weights, dtype=float).ravel()
-        tm = np.average(t, axis=0, weights=w).astype(self._translation.dtype)
-        return RigidTransform.from_components(tm, rot)
+        q1, t1, q2, t2 = self._quat, self._translation, other._quat, other._translation
+        try:
+            np.broadcast_shapes(q1.shape[:-1], q2.shape[:-1])
+        except ValueError:
+            raise ValueError(f"Cannot broadcast {self.shape if not self._single else (1,)} transforms in first "
+                             f"to {other.shape if not other._single else (1,)} transforms in second object.") from None
+        single = self._single and other._single
+        if not single:
+            q1, t1 = (q1[None], t1[None]) if self._single else (q1, t1)
+            q2, t2 = (q2[None], t2[None]) if other._single else (q2, t2)
+        q, t = MO.compose(q1, t1, q2, t2)
+        return type(self)._from_parts(q, np.asarray(t), single)
 
     def __rmul__(self, other):
-        if hasattr(other, "as_quat"):
+        if _is_rotation(other):
             return RigidTransform.from_rotation(other) * self
         return NotImplemented
 
-    # container
+    def __pow__(self, n):
+        """Power: ``n`` times the transform (fractional along its screw; scipy's exp coordinates)."""
+        if isinstance(n, np.ndarray) or hasattr(n, "shape"):
+            n = np.asarray(n)
+            if n.shape == (1,):
+                n = n[0]
+            elif n.ndim != 0:
+                raise ValueError("Array exponent must be a scalar")
+        if n == 0:
+            return RigidTransform.identity(shape=self.shape)
+        if n == -1:
+            return self.inv()
+        if n == 1:
+            return type(self)._from_parts(self._quat.copy(), self._translation.copy(), self._single)
+        res = type(self).from_exp_coords(self.as_exp_coords() * n)
+        res._single = self._single
+        return res
+
+    def mean(self, weights=None, axis=None):
+        """Mean transform: chordal mean rotation and (weighted) mean translation."""
+        q, t = self._quat, self._translation
+        if self._single:
+            q, t = q[None], t[None]
+        if q.shape[0] == 0:
+            raise ValueError("Mean of an empty rotation set is undefined.")
+        axes = _axes(axis, q.shape[:-1])
+        if weights is not None:
+            w = _promote(weights)
+            if np.any(w < 0):
+                raise ValueError("`weights` must be non-negative.")
+            if w.shape != q.shape[:-1]:
+                raise ValueError(f"Expected `weights` to match transform shape, got shape {w.shape} "
+                                 f"for {q.shape[:-1]} transformations.")
+        rot = Rotation(q, normalize=False, copy=False, scalar_first=True)
+        qm = np.asarray(rot.mean(weights=weights, axis=axes).as_quat(scalar_first=True), q.dtype)
+        if weights is None:
+            tm = np.mean(t, axis=axes)
+        else:
+            w = w.astype(t.dtype, copy=False)[..., None]
+            tm = np.sum(t * w, axis=axes) / np.sum(w, axis=axes)
+        return type(self)._from_parts(qm.reshape(tm.shape[:-1] + (4,)), tm, tm.ndim == 1)
+
+    # ------------------------------------------------------------------ container
     @property
     def single(self):
+        """True for one transform (no batch axes)."""
         return self._single
 
     @property
     def shape(self):
-        return self._quat.shape[:-1]
+        """Batch shape (``()`` for a single transform)."""
+        return () if self._single else self._quat.shape[:-1]
 
     @property
     def rotation(self):
-        return _rotation_cls().from_quat(self._quat, scalar_first=True)
+        """The rotations, as a `Rotation`."""
+        return Rotation(self._quat, normalize=False, copy=True, scalar_first=True)
 
     @property
     def translation(self):
-        return self._translation.copy()
+        """The translations (..., 3) (a copy)."""
+        return np.array(self._translation)
 
     def __len__(self):
         if self._single:
             raise TypeError("Single transform has no len")
         return self._quat.shape[0]
 
+    def __iter__(self):
+        if self._single:
+            raise TypeError("Single transform is not iterable.")
+        return (self[i] for i in range(len(self)))
+
     def __getitem__(self, index):
         if self._single:
             raise TypeError("Single transform is not subscriptable.")
+        if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and self._quat.shape[0] == 0:
+            raise IndexError("cannot take from an empty array")
         q = self._quat[index]
-        return type(self)(q.copy(), self._translation[index].copy(), q.ndim == 1)
+        return type(self)._from_parts(q.copy(), self._translation[index].copy(), q.ndim == 1)
 
     def __setitem__(self, index, value):
         if self._single:
             raise TypeError("Single transform is not subscriptable.")
         if not isinstance(value, RigidTransform):
             raise TypeError("value must be a RigidTransform object")
-        self._quat[index] = value._quat
-        self._translation[index] = value._translation
+        if self._m is not None:
+            self._m[index] = value.as_matrix()
+            return
+        self._q[index] = value._quat
+        self._t[index] = value._translation
+
+    def __reduce__(self):
+        return (type(self)._from_parts, (self._quat, self._translation, self._single))
 
     def __repr__(self):
-        return f"RigidTransform.from_matrix({self.as_matrix()!r})"
+        m = f"{self.as_matrix()!r}".splitlines()
+        m[1:] = [" " * 27 + line for line in m[1:]]
+        return "RigidTransform.from_matrix(" + "\n".join(m) + ")"
+

@@ -101,7 +101,10 @@ class Rotation:
 
     __slots__ = ("_q", "__weakref__")
 
-    def __init__(self, quat, normalize=True, copy=True, *, scalar_first=False):
+    def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
+        if _is_scipy_rotation(quat):
+            raise TypeError("expected quat to be an array of quaternions, got a scipy Rotation; "
+                            "convert it with quatarray.Rotation.from_scipy")
         q = float_array(quat, "quat")
         if q.ndim == 0 or q.shape[-1] != 4:
             raise ValueError(f"Expected `quat` to have shape (..., 4), got {q.shape}.")
@@ -612,10 +615,11 @@ class Rotation:
         keep = tuple(a for a in range(nb) if a not in axes)
         order = keep + axes + (nb,)
         kshape = tuple(batch[a] for a in keep)
-        qm = q64.transpose(order).reshape(kshape + (-1, 4))
-        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))
+        # components in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
+        qm = q64.transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
+        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
         _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
-        return type(self)._wrap(C.canonical(vectors[..., -1]).astype(q.dtype))
+        return type(self)._wrap(C.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype))
 
     def reduce(self, left=None, right=None, return_indices=False):
         """Reduce each rotation p to the smallest l · p · r over l in `left`, r in `right`.
@@ -654,7 +658,7 @@ class Rotation:
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
-        shape = p.shape[:-1]
+        shape = p.shape[:-1] or (1,)  # scipy: shape (1,) for a single rotation
         return (rot, li.reshape(shape) if left is not None else None,
                 ri.reshape(shape) if right is not None else None)
 
@@ -807,7 +811,7 @@ class Rotation:
     def __getitem__(self, indexer):
         if self._q.ndim == 1:
             raise TypeError("Single rotation is not subscriptable.")
-        return type(self)._wrap(np.array(self._q[_batch_key(indexer)], copy=True))
+        return type(self)._wrap(np.array(self._q[_batch_key(indexer, self.shape)], copy=True))
 
     def __setitem__(self, indexer, value):
         if self._q.ndim == 1:
@@ -816,7 +820,7 @@ class Rotation:
             value = Rotation.from_scipy(value)
         if not isinstance(value, Rotation):
             raise TypeError(f"value must be a Rotation object, got {type(value).__name__}")
-        self._q[_batch_key(indexer)] = value._q
+        self._q[_batch_key(indexer, self.shape)] = value._q
 
     def __getstate__(self):
         return self._q
@@ -877,9 +881,16 @@ def _broadcastable(a, b):
     return True
 
 
-def _batch_key(indexer):
+def _batch_key(indexer, shape):
     """An index into the batch axes of a (..., 4) array (the component axis stays whole)."""
     key = indexer if isinstance(indexer, tuple) else (indexer,)
+    key = tuple(k._q if isinstance(k, Rotation) else k for k in key)
+    used = sum(0 if k is None or k is Ellipsis else
+               np.ndim(k) if isinstance(k, (np.ndarray, list)) and np.asarray(k).dtype == bool else 1
+               for k in key)
+    if used > len(shape):
+        raise IndexError(f"too many indices for rotations of shape {shape}: {used} batch axes "
+                         f"indexed, {len(shape)} present")
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
 
 

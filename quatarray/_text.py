@@ -83,12 +83,17 @@ class TextStyle:
         ``"\\n"`` or ``"\\r\\n"``.
     delimiter : str
         Between values on a line (CSV: ``,``, tab or ``;``).
+    time_decimals, time_trim : int or None, bool
+        The same as `decimals` and `trim` for a time column (CSV), which is
+        written so only where that reads back to the same time.
     """
 
     decimals: int = None
     trim: bool = False
     newline: str = "\n"
     delimiter: str = ","
+    time_decimals: int = None
+    time_trim: bool = False
 
 
 _NUMBER_BYTE = np.zeros(256, bool)
@@ -128,27 +133,49 @@ def token_decimals(data):
 def measure_style(path, skip, ncols=None, delimiter=","):
     """The `TextStyle` of the numbers after the first `skip` lines of `path`.
 
-    With `ncols`, the first of every `ncols` numbers (a time column) is left
-    out of the count.  More than 17 decimals (a tiny value written with an
-    exponent) means shortest round-trip text (``decimals=None``).
+    With `ncols`, the first of every `ncols` numbers (a time column) is
+    counted apart.  More than 17 decimals (a tiny value written with an
+    exponent) means shortest round-trip text (``decimals=None``).  The file is
+    looked at in blocks of whole lines (about 4 MB), so the scratch stays
+    small for large files.
     """
     with open(path, "rb") as f:
         data = f.read()
-    b = np.frombuffer(data, np.uint8)
-    ends = np.flatnonzero(b == ord("\n"))
-    newline = "\r\n" if len(ends) and ends[0] > 0 and b[ends[0] - 1] == ord("\r") else "\n"
-    start = int(ends[skip - 1]) + 1 if skip and len(ends) >= skip else (0 if not skip else len(data))
-    decimals = token_decimals(data[start:])
-    if ncols and len(decimals) % ncols == 0:
-        decimals = decimals.reshape(-1, ncols)[:, 1:].ravel()
-    if not len(decimals) or decimals.max() > 17:
-        return TextStyle(None, False, newline, delimiter)
-    top = int(decimals.max())
-    return TextStyle(top, bool(decimals.min() != top), newline, delimiter)
+    first = data.find(b"\n")
+    newline = "\r\n" if first > 0 and data[first - 1:first] == b"\r" else "\n"
+    start = 0
+    for _ in range(skip):
+        start = data.find(b"\n", start) + 1
+        if not start:
+            start = len(data)
+            break
+    ranges = {"values": [], "times": []}  # (fewest, most) decimals per block
+    while start < len(data):
+        stop = data.find(b"\n", start + _MEASURE_BLOCK)
+        stop = len(data) if stop < 0 else stop + 1
+        decimals = token_decimals(data[start:stop])
+        parts = {"values": decimals}
+        if ncols and len(decimals) % ncols == 0:
+            table = decimals.reshape(-1, ncols)
+            parts = {"values": table[:, 1:], "times": table[:, 0]}
+        for kind, part in parts.items():
+            if part.size:
+                ranges[kind].append((int(part.min()), int(part.max())))
+        start = stop
+    return TextStyle(*_digits(ranges["values"]), newline, delimiter, *_digits(ranges["times"]))
 
 
-_TRAILING_ZEROS = re.compile(r"(\.\d*?)0+(?![0-9])")
-_BARE_POINT = re.compile(r"\.(?![0-9])")
+_MEASURE_BLOCK = 1 << 22
+
+
+def _digits(ranges):
+    """``(decimals, trim)`` for numbers printed with decimals in these (fewest, most) ranges."""
+    if not ranges:
+        return None, False
+    low, top = min(r[0] for r in ranges), max(r[1] for r in ranges)
+    if top > 17:
+        return None, False
+    return top, low != top
 
 
 def write_rows(f, rows, style=None, sep=None, first=None):
@@ -159,24 +186,46 @@ def write_rows(f, rows, style=None, sep=None, first=None):
     significant digits.  With it, values are written with that many decimals
     (trailing zeros dropped when ``style.trim``), and a value that rounds to
     zero without being zero is written as plain zero, not ``-0.000``.
-    `first`, a column written before `rows` (CSV times), always reads back to
-    the same number.
+    `first`, a column written before `rows` (CSV times), is written with
+    ``style.time_decimals`` where that reads back to the same number, else
+    exactly.
     """
     style = style or TextStyle()
     sep = style.delimiter if sep is None else sep
-    exact = "%r" if rows.dtype == np.float64 else "%.9g"
-    fmt = exact if style.decimals is None else f"%.{style.decimals}f"
-    line = sep.join(([exact] if first is not None else []) + [fmt] * rows.shape[1]) + "\n"
+    fmt = ("%r" if rows.dtype == np.float64 else "%.9g") if style.decimals is None else f"%.{style.decimals}f"
+    line = sep.join([fmt] * rows.shape[1]) + "\n"
+    trim = bool(style.decimals and style.trim)
+    if trim:  # every value has exactly `decimals` digits after its point: a run of zeros before a
+        # separator or line end lies inside them (plain replacements: no per-match Python call)
+        zeros = re.compile("0+(?=[" + re.escape(sep) + "\n])")
+        point = re.compile("\\.(?=[" + re.escape(sep) + "\n])")
     for start in range(0, len(rows), ROWS):
         block = rows[start:start + ROWS]
         if style.decimals is not None:
-            block = np.where(np.abs(block) < 0.5 * 10.0 ** -style.decimals, 0.0, block)
-        if first is not None:
-            block = np.concatenate([first[start:start + ROWS, None], block], axis=1)
+            block = np.where((np.abs(block) < 0.5 * 10.0 ** -style.decimals) & (block != 0), 0.0, block)
         text = "".join(line % tuple(r) for r in block.tolist())
-        if style.decimals and style.trim:
-            text = _BARE_POINT.sub("", _TRAILING_ZEROS.sub(r"\1", text))
+        if trim:
+            text = point.sub("", zeros.sub("", text))
+        if first is not None:  # the time column, in its own style
+            text = "".join(f"{t}{sep}{values}\n" for t, values in
+                           zip(_time_texts(first[start:start + ROWS], style), text.split("\n")))
         f.write(text)
+
+
+def _time_texts(times, style):
+    """Times as text in the time style, each exactly where the style's decimals cannot hold it."""
+    exact = "%r" if times.dtype == np.float64 else "%.9g"
+    out = []
+    for t in times.tolist():
+        text = exact % t
+        if style.time_decimals is not None:
+            short = f"{t:.{style.time_decimals}f}"
+            if style.time_trim and "." in short:
+                short = short.rstrip("0").rstrip(".")
+            if times.dtype.type(float(short)) == t:
+                text = short
+        out.append(text)
+    return out
 
 
 # --------------------------------------------------------------------------- writing

@@ -40,6 +40,13 @@ class Timeline:
         self.index = SegmentIndex(times)
         self.dt = np.append(np.diff(times), np.inf)   # phantom segment after the last key: u = 0
 
+    def __getstate__(self):
+        # pickles (e.g. shipped to Dask workers) carry the times; the lookup is rebuilt from them
+        return {"times": self.times, "extrapolate": self.extrapolate}
+
+    def __setstate__(self, state):
+        self.__init__(state["times"], state["extrapolate"])
+
     def queries(self, t, name):
         """(shape of t, t as flat float64 (clamped with 'clamp'), mask of clamped queries or None)."""
         t = float_array(t, name)
@@ -84,13 +91,13 @@ def components_first(q, K, B):
     return out
 
 
-def qt_blocks(M, B):
-    """(query slice, track slice) blocks of at most BLOCK elements each."""
+def qt_blocks(M, B, block=None):
+    """(query slice, track slice) blocks of at most `block` (default BLOCK) elements each."""
     def as_slice(ix):
         return slice(ix, ix + 1) if isinstance(ix, int) else ix
 
     return [tuple(as_slice(ix) for ix in idx) + (slice(None),) * (2 - len(idx))
-            for idx in _blocks.split((M, B))]
+            for idx in _blocks.split((M, B), block or _blocks.BLOCK)]
 
 
 def frame_rows(pieces, last):

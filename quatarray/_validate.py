@@ -6,7 +6,21 @@ Messages name the argument, what was expected and what came, e.g.
 
 import numpy as np
 
-__all__ = ["float_array", "real_array", "finite", "batch_shape"]
+__all__ = ["float_array", "real_array", "finite", "batch_shape", "in_memory", "batch_axis"]
+
+
+def in_memory(x, name):
+    """Raise `TypeError` for a Dask array (or other Dask collection), which NumPy would compute silently.
+
+    Detected by the type's module, so Dask is never imported here.
+
+    >>> in_memory([1.0], "t")
+    [1.0]
+    """
+    if type(x).__module__.split(".")[0] == "dask":
+        raise TypeError(f"expected {name} in memory (array_like), got a Dask {type(x).__name__}; "
+                        f"use quatarray.dask for Dask arrays (same names, lazy results)")
+    return x
 
 def float_array(x, name, last=None, dtype=None):
     """Return `x` as a float32 or float64 ndarray (never copied if already one).
@@ -31,6 +45,7 @@ def float_array(x, name, last=None, dtype=None):
     if isinstance(x, np.ndarray):
         a = x.view(np.ndarray) if type(x) is not np.ndarray else x
     else:
+        in_memory(x, name)
         try:
             a = np.asarray(x)
         except (ValueError, TypeError) as exc:
@@ -94,3 +109,18 @@ def batch_shape(num, shape):
         raise ValueError(f"`shape` must be an int or a tuple of ints or None: expected a tuple of "
                          f"non-negative ints, got {shape!r}")
     return tuple(int(n) for n in shape)
+
+
+def batch_axis(axis, batch, name="q"):
+    """`axis` as an index into the batch shape `batch` of `name` (negative counts from the end).
+
+    >>> batch_axis(-1, (5, 3))
+    1
+    """
+    nb = len(batch)
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
+    if not -nb <= axis < nb:
+        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of {name} with batch shape "
+                         f"{tuple(batch)}), got {axis}")
+    return int(axis) % nb

@@ -8,10 +8,10 @@
     quatarray demo [-o DIR]
     quatarray --version
 
-Formats follow the extensions: ``.csv``, ``.npz`` (interchangeable) and
-``.bvh``.  Bad input ends with a one-line message naming the file (and line)
-on stderr and exit status 2; the output file is then not created or touched
-(also on Ctrl-C and SIGTERM).
+Formats follow the extensions: ``.csv``, ``.npz`` (interchangeable),
+``.bvh``, and glTF ``.gltf``, ``.glb`` (interchangeable).  Bad input ends
+with a one-line message naming the file (and line) on stderr and exit status
+2; the output file is then not created or touched (also on Ctrl-C and SIGTERM).
 """
 
 import argparse
@@ -78,10 +78,17 @@ def _resample_bvh(src, dst, kind_in, kind_out, request):
     return len(times), len(t)
 
 
+def _resample_gltf(src, dst, kind_in, kind_out, request):
+    from ._gltf import resample_gltf
+
+    return resample_gltf(src, dst, fps=request.fps, times=request.times, method=request.method,
+                         extrapolate=request.extrapolate)
+
+
 #: File extension (lower case) -> family; a family converts into its own extensions only.
-FORMATS = {".csv": "keyframes", ".npz": "keyframes", ".bvh": "BVH"}
+FORMATS = {".csv": "keyframes", ".npz": "keyframes", ".bvh": "BVH", ".gltf": "glTF", ".glb": "glTF"}
 #: Family -> ``resample(src, dst, ext_in, ext_out, request) -> (keys read, frames written)``.
-RESAMPLERS = {"keyframes": _resample_keyframes, "BVH": _resample_bvh}
+RESAMPLERS = {"keyframes": _resample_keyframes, "BVH": _resample_bvh, "glTF": _resample_gltf}
 
 
 def _format_of(path):
@@ -98,22 +105,25 @@ def _same_file(src, dst):
         return False
 
 
-def resample_file(src, dst, *, fps=None, times=None, method="slerp", extrapolate="raise", scalar_last=False,
+def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False,
                   precision=None, force=False):
     """Read `src`, resample it and write `dst`; formats follow the extensions.
 
     Parameters
     ----------
     src, dst : str or os.PathLike
-        ``.csv``, ``.npz`` or ``.bvh``.  CSV and NPZ convert into each other;
-        BVH goes to BVH only.  `dst` is written atomically.
+        ``.csv``, ``.npz``, ``.bvh``, ``.gltf`` or ``.glb``.  CSV and NPZ
+        convert into each other, and so do glTF and GLB; BVH goes to BVH
+        only.  `dst` is written atomically.
     fps : float, optional
         Sample at ``t0 + k / fps`` for k = 0, 1, ... up to the last key time.
     times : array_like or str or os.PathLike, optional
         Query times, or a file of one time per line.  For BVH they count from
         the first frame and must be evenly spaced.  Give `fps` or `times`.
     method, extrapolate : str
-        Passed to `quatarray.interpolate.Track`.
+        Passed to `quatarray.interpolate.Track`.  `method` None is 'slerp',
+        except for glTF, where it keeps each sampler's own interpolation
+        (see `quatarray._gltf.resample_gltf`).
     scalar_last : bool
         CSV input and output have components ``x, y, z, w``.
     precision : int or "full", optional
@@ -160,6 +170,8 @@ def resample_file(src, dst, *, fps=None, times=None, method="slerp", extrapolate
         raise FormatError("is the input file; give --force (force=True) to replace it", dst)
     if times is not None and isinstance(times, (str, os.PathLike)):
         times = read_times(times)
+    if method is None and FORMATS[kind_in] != "glTF":
+        method = "slerp"
     request = Request(fps, None if times is None else np.asarray(times, np.float64), method, extrapolate,
                       scalar_last, precision)
     return RESAMPLERS[FORMATS[kind_in]](src, dst, kind_in, kind_out, request)
@@ -172,8 +184,9 @@ def demo(outdir=".", *, fps=120, file=None):
 
     Prints what it did and writes ``demo.png`` (angular speed over time per
     method, when matplotlib is installed) into `outdir`, with copies of the
-    example inputs (``demo_arm.csv``, ``demo_arm.npz``, ``demo_walk.bvh`` and
-    the scalar-last orientation log ``demo_imu.csv``) to try ``quatarray
+    example inputs (``demo_arm.csv``, ``demo_arm.npz``, ``demo_walk.bvh``, the
+    scalar-last orientation log ``demo_imu.csv``, and ``demo_arm.glb``: the
+    arm's tracks as a glTF animation of a joint chain) to try ``quatarray
     resample`` on.  Returns the path of ``demo.png``, or None
     without matplotlib.
     """
@@ -207,15 +220,19 @@ def demo(outdir=".", *, fps=120, file=None):
     print(f"BVH: {len(walk.joints)} joints, {len(walk.frames)} frames at {1 / walk.frame_time:g} fps -> "
           f"{len(fine.frames)} frames at 60 fps (squad) in {1e3 * elapsed:.2f} ms", file=file)
 
+    from ._gltf import keyframes_to_gltf
+
     imu = read_csv(example_path("imu.csv"), scalar_last=True)
     inputs = {"demo_arm.csv": lambda p: write_csv(p, kf), "demo_arm.npz": lambda p: write_npz(p, kf),
               "demo_walk.bvh": lambda p: write_bvh(p, walk),
-              "demo_imu.csv": lambda p: write_csv(p, imu, scalar_last=True)}
+              "demo_imu.csv": lambda p: write_csv(p, imu, scalar_last=True),
+              "demo_arm.glb": lambda p: keyframes_to_gltf(p, kf)}
     for name, write in inputs.items():
         write(os.path.join(outdir, name))
     print(f"example inputs written to {outdir}: {', '.join(inputs)}; try", file=file)
     print(f"  quatarray resample {os.path.join(outdir, 'demo_walk.bvh')} -o walk_60.bvh --fps 60 --method squad",
           file=file)
+    print(f"  quatarray resample {os.path.join(outdir, 'demo_arm.glb')} -o arm_30.glb --fps 30", file=file)
     try:
         from matplotlib.figure import Figure  # only the demo needs matplotlib
     except ImportError:
@@ -274,17 +291,19 @@ def build_parser():
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = commands.add_parser(
-        "resample", help="resample a keyframe file (.csv, .npz or .bvh) with a chosen curve",
+        "resample", help="resample a keyframe file (.csv, .npz, .bvh, .gltf or .glb) with a chosen curve",
         description="Resample keyframes at a new rate or at given times. Formats follow the extensions: "
                     "CSV (time,<track>.w,<track>.x,<track>.y,<track>.z,...), NPZ (times (K,), keys (K, ..., 4) "
-                    "scalar-first) and BVH (Euler channels resampled through quaternions). CSV and NPZ "
-                    "convert into each other.")
+                    "scalar-first), BVH (Euler channels resampled through quaternions) and glTF 2.0 "
+                    "(.gltf, .glb: every animation, written back with LINEAR samplers). CSV and NPZ "
+                    "convert into each other, and so do .gltf and .glb.")
     p.add_argument("input", metavar="IN", help="keyframe file to read")
     p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
     when = p.add_mutually_exclusive_group(required=True)
     when.add_argument("--fps", type=_fps, metavar="F", help="sample at t0 + k/F up to the last key time")
     when.add_argument("--times", metavar="FILE", help="sample at these times (one per line)")
-    p.add_argument("--method", choices=METHODS, default="slerp", help="curve through the keys (default: slerp)")
+    p.add_argument("--method", choices=METHODS, help="curve through the keys (default: slerp; glTF: each "
+                                                     "sampler's own interpolation)")
     p.add_argument("--extrapolate", choices=EXTRAPOLATE, default="raise",
                    help="query times outside the keys: raise (default), clamp or extend")
     p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
@@ -292,6 +311,8 @@ def build_parser():
                    help="decimals of the values written to CSV or BVH (default: as many as the input has; "
                         "'full': the shortest text that reads back exactly)")
     p.add_argument("--force", action="store_true", help="allow OUT to be IN (replaced atomically)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Zarr stores: run on this distributed scheduler")
+    p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
     p.set_defaults(run=_run_resample)
 
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",
@@ -304,11 +325,22 @@ def build_parser():
 
 def _run_resample(args):
     start = time.perf_counter()
+    from ._zarr import is_zarr, resample_zarr   # Dask and Zarr are imported only for .zarr stores
+    if is_zarr(args.input) or is_zarr(args.output):
+        if not (is_zarr(args.input) and is_zarr(args.output)):
+            raise FormatError("Zarr stores resample to Zarr stores only (both IN and OUT end in .zarr)", args.output)
+        nkeys, nframes = resample_zarr(args.input, args.output, fps=args.fps, times=args.times,
+                                       method=args.method or "slerp", extrapolate=args.extrapolate,
+                                       scheduler=args.scheduler, progress=False if args.quiet else None)
+        print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
+              f"({args.method or 'slerp'}, {time.perf_counter() - start:.2f} s)")
+        return 0
     nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
                                    extrapolate=args.extrapolate, scalar_last=args.scalar_last,
                                    precision=args.precision, force=args.force)
     print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
-          f"({args.method}, {time.perf_counter() - start:.2f} s)")
+          f"({args.method or ('own' if FORMATS.get(_format_of(args.input)) == 'glTF' else 'slerp')}, "
+          f"{time.perf_counter() - start:.2f} s)")
     return 0
 
 
@@ -336,6 +368,8 @@ def main(argv=None):
         message = f"{where}: {exc}"
     except MemoryError:
         message = f"{where}: out of memory (try a lower --fps or fewer --times)"
+    except ImportError as exc:   # an optional dependency (Zarr stores need the dask extra)
+        message = str(exc)
     except KeyboardInterrupt:
         return 130
     print("quatarray: error: " + " ".join(message.split()), file=sys.stderr)

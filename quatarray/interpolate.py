@@ -31,7 +31,7 @@ from . import _interp_spline as ISp
 from . import _kernels as Kn
 from . import _track as TR
 from ._array import QuatArray
-from ._validate import finite, float_array
+from ._validate import batch_axis, finite, float_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -219,13 +219,7 @@ def unflip(q, axis=0):
                [-0.6, -0.8, -0. , -0. ]])
     """
     q = _quat(q, "q")
-    nb = q.ndim - 1
-    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
-        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
-    if not -nb <= axis < nb:
-        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of q with batch shape "
-                         f"{q.shape[:-1]}), got {axis}")
-    return QuatArray._wrap(IK.unflip(q, int(axis) % nb))
+    return QuatArray._wrap(IK.unflip(q, batch_axis(axis, q.shape[:-1])))
 
 
 def squad(q0, a, b, q1, t):
@@ -306,7 +300,8 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
     n = np.sqrt(IK.vdot(keys, keys))
     if not (n > 0).all():
         raise ValueError(f"expected non-zero {name}, got a zero quaternion")
-    keys = IK.unflip(keys / n[..., None].astype(keys.dtype, copy=False), 0)
+    # unflipped before normalising: the signs follow the dot products of the keys as given
+    keys = IK.unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
@@ -495,7 +490,7 @@ class Track:
         self._controls = None
         if self._method == "spline":
             # scipy's RotationSpline: its own evaluator, no frame table
-            self._spline = ISp.coefficients(times, keys)
+            self._spline = ISp.table(keys, ISp.coefficients(times, keys))
             self._table = None
             return
         self._table, controls = TR.rotation_table(self._method, times, keys)
@@ -577,7 +572,7 @@ class Track:
     def _evaluate(self, t, name):
         tshape, flat, _ = self._timeline.queries(t, name)
         if self._method == "spline":
-            out = ISp.evaluate(self.times, self._keys, self._spline, flat, 0)
+            out = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch)
         else:
             method = self._method
             out = TR.evaluate(self._timeline, self._table, flat,
@@ -616,14 +611,31 @@ class Track:
         tshape, flat, outside = self._timeline.queries(t, "t")
         if self._method == "spline":
             # the spline's rate (scipy's order=1) is in the body frame
-            w = ISp.evaluate(self.times, self._keys, self._spline, flat, 1)
+            w = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 1, self._batch)
             if frame == "world":
-                w = Kn.rotate(ISp.evaluate(self.times, self._keys, self._spline, flat, 0), w)
+                w = Kn.rotate(ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch), w)
             if outside is not None:
                 w[outside] = 0
         else:
             w = TR.angular_velocity(self._timeline, self._method, self._table, flat, outside, frame)
         return w.reshape(tshape + self._batch + (3,))
+
+
+def _scipy_ties(keys):
+    """Keys (K, ..., 4) signed so that a pair exactly 90° apart in S³ (a half turn between
+    keys, dot product 0) turns the way scipy's Slerp does: the relative rotation
+    ``conj(q[k]) q[k+1]`` canonical (first non-zero of its vector part positive).
+    Other pairs are left to `unflip` (the same choice as scipy's)."""
+    keys = np.asarray(keys)   # raw array (the kernels' arguments)
+    d = IK.vdot(keys[1:].astype(np.float64), keys[:-1])
+    if not (d == 0).any():
+        return keys
+    from ._convert import _flip_mask
+    rel = Kn.multiply(Kn.conjugate(keys[:-1]), keys[1:])
+    x, y, z = rel[..., 1], rel[..., 2], rel[..., 3]
+    step = np.where((d < 0) | ((d == 0) & _flip_mask(np.zeros_like(x), x, y, z)), -1, 1)
+    sign = np.concatenate([np.ones_like(step[:1]), np.cumprod(step, axis=0)])
+    return keys * sign[..., None].astype(keys.dtype)
 
 
 class Slerp(Track):
@@ -683,13 +695,26 @@ class Slerp(Track):
                              f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
         if np.any(np.diff(t) <= 0):
             raise ValueError("Times must be in strictly increasing order.")
-        self._setup(t, rotations.as_quatarray(), "slerp", "raise", "times", "rotations")
+        self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations")
         self._range = (float(t[0]), float(t[-1]))
 
     @property
     def timedelta(self):
         """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
         return np.diff(self.times)
+
+    @property
+    def rotations(self):
+        """The key rotations but the last, a `Rotation` of shape (K - 1, ...) (scipy's attribute)."""
+        from ._rotation import Rotation
+        return Rotation._wrap(self._keys[:-1].copy())
+
+    @property
+    def rotvecs(self):
+        """Rotation vectors from each key to the next, shape (K - 1, ..., 3) (scipy's attribute)."""
+        from ._rotation import Rotation
+        keys = Rotation._wrap(self._keys)
+        return (keys[:-1].inv() * keys[1:]).as_rotvec()
 
     def __call__(self, times):
         """Interpolated rotations at `times` (scalar or 1-D), as a `Rotation`.

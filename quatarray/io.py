@@ -57,7 +57,7 @@ class Keyframes:
     style : TextStyle or None
         How the CSV file they came from printed its values (decimals, line
         endings, separator); `write_csv` writes the same way.  None: values
-        with the shortest text that reads back exactly, ``\n``, commas.
+        with the shortest text that reads back exactly, ``\\n``, commas.
     """
 
     times: np.ndarray
@@ -71,7 +71,10 @@ class Keyframes:
 def _csv_tracks(header, scalar_last, path):
     """Track names from the header cells; raise FormatError naming the bad column."""
     if not header or header[0].lower() != "time":
-        raise FormatError(f"bad header: column 1 must be 'time', got {echo(header[0] if header else '')}", path, 1)
+        hint = (" (the separator must be a comma, a tab or a semicolon)"
+                if len(header) == 1 and header[0].lower().startswith("time") else "")
+        raise FormatError(f"bad header: column 1 must be 'time', got {echo(header[0] if header else '')}{hint}",
+                          path, 1)
     order, other = ("xyzw", "wxyz") if scalar_last else ("wxyz", "xyzw")
     names = []
     for start in range(1, len(header), 4):
@@ -330,8 +333,8 @@ def read_times(path):
 def fps_times(t0, t1, fps, per_frame=1):
     """Times ``t0 + k / fps`` for k = 0, 1, ... up to `t1` inclusive, within rounding.
 
-    A last sample past `t1` by no more than rounding (1e-9 relative) is moved
-    onto `t1`.  More frames than `quatarray._text.MAX_VALUES` / `per_frame`
+    A last sample past `t1` by no more than rounding (a millionth of a frame,
+    or the rounding of `t0` and `t1` themselves) is moved onto `t1`.  More frames than `quatarray._text.MAX_VALUES` / `per_frame`
     (values per output frame) raise ValueError before anything is allocated.
 
     Examples
@@ -345,7 +348,10 @@ def fps_times(t0, t1, fps, per_frame=1):
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"expected fps > 0, got {fps}")
     span = (t1 - t0) * fps
-    n = int(np.floor(span + 1e-9 * max(1.0, span)))
+    # within rounding: a millionth of a frame, plus the rounding of long spans and of large
+    # times (absolute clock times such as 1403636579.76 s carry 2.4e-7 s each)
+    slack = 1e-6 + 1e-12 * span + 8 * np.finfo(np.float64).eps * max(abs(t0), abs(t1)) * fps
+    n = int(np.floor(span + slack))
     check_size(n + 1, per_frame, f"a rate of {fps:g} fps over {t1 - t0:g} s")
     return np.minimum(t0 + np.arange(n + 1) / fps, t1)
 

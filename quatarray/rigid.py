@@ -49,10 +49,7 @@ def normalize_dual_quaternion(dual_quat, *, scalar_first=False):
     >>> normalize_dual_quaternion([0, 0, 0, 2, 0, 0, 0, 1])
     array([0., 0., 0., 1., 0., 0., 0., 0.])
     """
-    dq = _dual(dual_quat, "dual_quat", scalar_first).copy()
-    zero = np.all(dq[..., :4] == 0, axis=-1)
-    dq[..., 0] = np.where(zero, 1, dq[..., 0])
-    return _out(D.normalize(dq), scalar_first)
+    return _out(D.normalize(_dual(dual_quat, "dual_quat", scalar_first)), scalar_first)
 
 
 def sclerp(a, b, t, *, scalar_first=False):

@@ -9,12 +9,68 @@ import numpy as np
 
 from . import _interp_spline as S
 from ._array import QuatArray
+from ._interp_lookup import SegmentIndex
 from ._rotation import Rotation
+from ._validate import float_array, in_memory
 
-__all__ = ["RotationSpline"]
+__all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
+           "angular_acceleration_nonlinear_term"]
+
+
+def _rotvecs(x, name):
+    return float_array(x, name, last=3)
+
+
+def angular_rate_to_rotvec_dot_matrix(rotvecs):
+    """Matrices ``A(r)`` (..., 3, 3) with ``dr/dt = A(r) w``: angular rate to rotation-vector rate.
+
+    scipy keeps this private (``_angular_rate_to_rotvec_dot_matrix``); it
+    is the Jacobian the spline's rate equations are written with.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = np.array([0.0, 0, 1.0])
+    >>> np.allclose(angular_rate_to_rotvec_dot_matrix(r) @ r, r)   # rate along r: dr/dt = w
+    True
+    """
+    return S.rate_to_rotvec_dot(_rotvecs(rotvecs, "rotvecs"))
+
+
+def rotvec_dot_to_angular_rate_matrix(rotvecs):
+    """Matrices ``A(r)⁻¹`` (..., 3, 3) with ``w = A(r)⁻¹ dr/dt`` (closed form, no inversion).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = np.array([0.3, -0.2, 0.9])
+    >>> np.allclose(rotvec_dot_to_angular_rate_matrix(r) @ angular_rate_to_rotvec_dot_matrix(r), np.eye(3))
+    True
+    """
+    return S.rotvec_dot_to_rate(_rotvecs(rotvecs, "rotvecs"))
+
+
+def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
+    """The part of the angular acceleration quadratic in ``dr/dt`` (..., 3).
+
+    The angular acceleration is ``A(r)⁻¹ d²r/dt² +`` this term (scipy's
+    private ``_angular_acceleration_nonlinear_term``); it vanishes when
+    ``dr/dt`` is parallel to ``r``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> r = np.array([0.1, 0.2, 0.3])
+    >>> np.allclose(angular_acceleration_nonlinear_term(r, 2 * r), 0)
+    True
+    """
+    r = _rotvecs(rotvecs, "rotvecs")
+    rd = _rotvecs(rotvecs_dot, "rotvecs_dot")
+    return S.acceleration_term(*np.broadcast_arrays(r, rd))
 
 
 def _keys(rotations):
+    in_memory(rotations, "rotations")
     if isinstance(rotations, Rotation):
         return rotations.as_quatarray().view(np.ndarray)
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
@@ -62,7 +118,7 @@ class RotationSpline:
             raise ValueError("`rotations` must be a sequence of rotations.")
         if len(keys) == 1:
             raise ValueError("`rotations` must contain at least 2 rotations.")
-        times = np.asarray(times, dtype=float)
+        times = np.asarray(in_memory(times, "times"), dtype=float)
         if times.ndim != 1:
             raise ValueError("`times` must be 1-dimensional.")
         if len(times) != len(keys):
@@ -76,7 +132,8 @@ class RotationSpline:
         self.times = times
         self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys
-        self._coeff = S.coefficients(times, keys)
+        self._table = S.table(keys, S.coefficients(times, keys))
+        self._index = SegmentIndex(times)
 
     def __call__(self, times, order=0):
         """Interpolated rotations (order 0), angular rate (1, rad/s) or acceleration (2, rad/s²).
@@ -93,11 +150,13 @@ class RotationSpline:
         """
         if order not in (0, 1, 2):
             raise ValueError("`order` must be 0, 1 or 2.")
-        t = np.asarray(times, dtype=float)
+        t = np.asarray(in_memory(times, "times"), dtype=float)
         if t.ndim > 1:
             raise ValueError("`times` must be at most 1-dimensional.")
         single = t.ndim == 0
-        res = S.evaluate(self.times, self._keys, self._coeff, np.atleast_1d(t), order)
+        res = S.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
         if single:
             res = res[0]
-        return Rotation.from_quat(res, scalar_first=True) if order == 0 else res
+        if order:
+            return res
+        return Rotation(res, normalize=False, copy=False, scalar_first=True)   # already unit

@@ -320,14 +320,15 @@ def test_add_reduce_over_batch_axes(rng):
 
 # --- NumPy functions ---------------------------------------------------------------------------------------
 
-ISSUE_FUNCTIONS = {np.concatenate, np.stack, np.copy, np.broadcast_to, np.where, np.take, np.flip, np.roll,
-                   np.expand_dims, np.squeeze, np.zeros_like, np.ones_like, np.empty_like, np.allclose, np.isclose,
-                   np.array_equal}
+#: NumPy functions a QuatArray must handle (keep the batch, compare or lay out quaternions).
+SUPPORTED_FUNCTIONS = {np.concatenate, np.stack, np.copy, np.broadcast_to, np.where, np.take, np.flip, np.roll,
+                       np.expand_dims, np.squeeze, np.zeros_like, np.ones_like, np.empty_like, np.allclose,
+                       np.isclose, np.array_equal}
 
 
 def test_function_registries_complete_and_disjoint():
     regs = [set(_array.BATCH_FUNCTIONS), set(_array.COMPARISON_FUNCTIONS), set(_array.LAYOUT_FUNCTIONS)]
-    assert ISSUE_FUNCTIONS <= set().union(*regs)
+    assert SUPPORTED_FUNCTIONS <= set().union(*regs)
     for i in range(3):
         for j in range(i + 1, 3):
             assert not regs[i] & regs[j]

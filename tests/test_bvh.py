@@ -243,3 +243,158 @@ def test_errors_name_file_and_line(tmp_path, case):
         read_bvh(path)
     assert info.value.path == str(path)
     assert info.value.line == line
+
+
+# --------------------------------------------------------------------------- exact frame grids
+
+ONE_JOINT = ("HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition Zposition "
+             "Zrotation Xrotation Yrotation\n  End Site\n  {\n    OFFSET 0 1 0\n  }\n}\n")
+
+
+def bvh_file(tmp_path, frame_time, rows, name="clip.bvh", newline="\n", final=True):
+    """A one-joint BVH with `Frame Time` printed as given and frame lines as given (text), exact bytes."""
+    text = ONE_JOINT + f"MOTION\nFrames: {len(rows)}\nFrame Time: {frame_time}\n" + "\n".join(rows)
+    text = (text + "\n" if final else text).replace("\n", newline)
+    path = tmp_path / name
+    path.write_bytes(text.encode())
+    return path
+
+
+def printed(values, decimals, trim=False):
+    """Frame lines of `values` (K, C) as a %.Nf (or trimmed, %g-like) exporter prints them."""
+    cells = np.char.mod(f"%.{decimals}f", np.round(values, decimals) + 0.0)
+    if trim:
+        cells = np.char.rstrip(np.char.rstrip(cells, "0"), ".")
+    return [" ".join(row) for row in cells.tolist()]
+
+
+@pytest.mark.parametrize("text, n", [
+    ("0.0333333", 30), ("0.033333", 30), ("0.03333", 30), (".0083333", 120), ("0.008333", 120),
+    ("0.0166667", 60), ("0.0166666", 60), ("0.00416667", 240), ("8.33333e-03", 120), ("0.125", 8), ("1", 1),
+])
+def test_frame_time_printed_from_one_over_n_is_exactly_that(text, n):
+    from quatarray._bvh import read_frame_time
+    assert read_frame_time(text) == 1 / n
+
+
+def test_frame_time_rule_holds_for_every_rate_and_print():
+    """1/n for n up to 500, rounded or truncated to 4-9 significant digits, reads as exactly 1/n."""
+    import decimal
+    from quatarray._bvh import read_frame_time
+    for n in range(1, 501):
+        for digits in range(4, 10):
+            for rounding in (decimal.ROUND_HALF_EVEN, decimal.ROUND_DOWN):
+                text = format(decimal.Context(prec=digits, rounding=rounding).create_decimal(1 / n), "f")
+                assert read_frame_time(text) == 1 / n, text
+
+
+@pytest.mark.parametrize("text", ["0.3", "0.03456789", "0.1234567", "2.5", "0.0101"])
+def test_frame_time_not_near_one_over_n_stays_as_printed(text):
+    """Short prints near several 1/n (0.3, 0.0101) and values far from any stay as written."""
+    from quatarray._bvh import read_frame_time
+    assert read_frame_time(text) == float(text)
+
+
+def test_issue_reproducer_4_frames_at_30_fps(tmp_path):
+    """Zrotation 0/10/20/30 with Frame Time 0.0333333, --fps 30: the 4 frames, text unchanged."""
+    from quatarray.cli import resample_file
+    src = bvh_file(tmp_path, "0.0333333", [f"0 0 0 {z} 0 0" for z in (0, 10, 20, 30)])
+    clip = read_bvh(src)
+    assert clip.frame_time == 1 / 30
+    np.testing.assert_array_equal(clip.times, np.arange(4) / 30)
+    assert resample_file(src, tmp_path / "out.bvh", fps=30) == (4, 4)
+    assert (tmp_path / "out.bvh").read_text() == src.read_text()
+
+
+@pytest.mark.parametrize("frames", [7, 128, 1064])
+def test_own_rate_reproduces_every_frame_and_the_text(tmp_path, rng, frames):
+    from quatarray.cli import resample_file
+    values = random_frames(rng, frames, ["ZXY"], span=170.0)
+    src = bvh_file(tmp_path, "0.0333333", printed(values, 5))
+    out = tmp_path / "out.bvh"
+    assert resample_file(src, out, fps=30, method="squad") == (frames, frames)
+    np.testing.assert_allclose(read_bvh(out).frames, read_bvh(src).frames, rtol=0, atol=0.5e-5)
+    assert out.read_text() == src.read_text()
+
+
+@pytest.mark.parametrize("frames", [7, 128, 1064])
+def test_frame_counts_30_to_60_and_120_to_30(tmp_path, rng, frames):
+    from quatarray.cli import resample_file
+    values = random_frames(rng, frames, ["ZXY"])
+    src30 = bvh_file(tmp_path, "0.0333333", printed(values, 4), "a.bvh")
+    assert resample_file(src30, tmp_path / "a60.bvh", fps=60) == (frames, 2 * frames - 1)
+    a60 = read_bvh(tmp_path / "a60.bvh")
+    assert a60.frame_time == 1 / 60 and "Frame Time: 0.0166667\n" in (tmp_path / "a60.bvh").read_text()
+    np.testing.assert_allclose(a60.frames[::2], read_bvh(src30).frames, rtol=0, atol=0.5e-4)  # every key hit
+    src120 = bvh_file(tmp_path, ".0083333", printed(values, 4), "b.bvh")
+    assert resample_file(src120, tmp_path / "b30.bvh", fps=30) == (frames, (frames - 1) // 4 + 1)
+    np.testing.assert_allclose(read_bvh(tmp_path / "b30.bvh").frames, read_bvh(src120).frames[::4], atol=0.5e-4)
+
+
+def test_times_at_k_over_30_are_inside_the_clip(tmp_path, rng):
+    from quatarray.cli import resample_file
+    src = bvh_file(tmp_path, "0.033333", printed(random_frames(rng, 10, ["ZXY"]), 4))
+    times = tmp_path / "t.txt"
+    times.write_text("".join(f"{k / 30!r}\n" for k in range(10)))
+    assert resample_file(src, tmp_path / "out.bvh", times=times) == (10, 10)
+    np.testing.assert_allclose(read_bvh(tmp_path / "out.bvh").frames, read_bvh(src).frames, atol=0.5e-4)
+
+
+# --------------------------------------------------------------------------- faithful output
+
+def test_g_style_values_crlf_identity_is_byte_identical(tmp_path, rng):
+    """%g-style values (0, -5.14473, 12.5) and CRLF: an identity resample gives the same bytes."""
+    from quatarray.cli import resample_file
+    values = random_frames(rng, 40, ["ZXY"])
+    values[::3, 0] = 0.0
+    values[1::5, 5] = 12.5
+    src = bvh_file(tmp_path, "0.0333333", printed(values, 5, trim=True), newline="\r\n")
+    style = read_bvh(src).style
+    assert (style.decimals, style.trim, style.newline) == (5, True, "\r\n")
+    out = tmp_path / "out.bvh"
+    resample_file(src, out, fps=30)
+    assert out.read_bytes() == src.read_bytes()
+    no_final = bvh_file(tmp_path, "0.0333333", printed(values, 5, trim=True), "nf.bvh", "\r\n", final=False)
+    resample_file(no_final, out, fps=30)
+    assert out.read_bytes() == src.read_bytes()  # CRLF kept, a final line end added
+
+
+def test_identity_of_shipped_example_is_identical_text(tmp_path):
+    from quatarray.cli import resample_file
+    src = example_path("walk.bvh")
+    resample_file(src, tmp_path / "out.bvh", fps=8)
+    assert (tmp_path / "out.bvh").read_text() == open(src).read()
+
+
+@pytest.mark.parametrize("precision", [0, 2, 7, "full"])
+def test_precision_option(tmp_path, rng, precision):
+    from quatarray.cli import resample_file
+    src = bvh_file(tmp_path, "0.0333333", printed(random_frames(rng, 6, ["ZXY"]), 4))
+    out = tmp_path / "out.bvh"
+    resample_file(src, out, fps=45, precision=precision)
+    clip = read_bvh(src)
+    want = resample_motion(clip, np.arange(8) / 45, frame_time=1 / 45).frames
+    lines = out.read_text().split("\n")
+    rows = lines[lines.index("MOTION") + 3:-1]
+    if precision == "full":
+        np.testing.assert_array_equal(read_bvh(out).frames, want)
+    else:
+        assert {len(c.partition(".")[2]) for row in rows for c in row.split()} == {precision}
+        np.testing.assert_allclose(read_bvh(out).frames, want, rtol=0, atol=0.5 * 10.0 ** -precision * (1 + 1e-9))
+
+
+def test_spacing_of_k_over_n_times_gives_frame_time_one_over_n(tmp_path, rng):
+    clip = read_bvh(bvh_file(tmp_path, "0.0333333", printed(random_frames(rng, 10, ["ZXY"]), 4)))
+    t = np.array([k / 30 for k in range(1, 4)])
+    assert float(t[-1] - t[0]) / 2 != 1 / 30  # the spacing itself carries rounding
+    assert resample_motion(clip, t).frame_time == 1 / 30
+
+
+def test_channels_parsed_by_one_function(tmp_path):
+    """Lower-case channel names give the same Euler sequence to the joint and to rotation_groups."""
+    path = tmp_path / "lower.bvh"
+    path.write_text(ONE_JOINT.replace("Zrotation", "zrotation") + "MOTION\nFrames: 2\nFrame Time: 0.1\n"
+                    "0 0 0 10 20 30\n0 0 0 15 25 35\n")
+    clip = read_bvh(path)
+    assert clip.joints[0].rotation == ("ZXY", [3, 4, 5])
+    np.testing.assert_array_equal(clip.rotation_groups()["ZXY"], [[3, 4, 5]])

@@ -2,6 +2,7 @@
 
 import os
 import re
+import signal
 import subprocess
 import sys
 
@@ -252,7 +253,8 @@ def test_demo(tmp_path):
         assert f"  {method} " in res.stdout
     assert " ms" in res.stdout
     written = set(os.listdir(tmp_path / "out"))
-    assert {"demo_arm.csv", "demo_arm.npz", "demo_walk.bvh"} <= written
+    assert {"demo_arm.csv", "demo_arm.npz", "demo_walk.bvh", "demo_imu.csv"} <= written
+    assert read_csv(tmp_path / "out" / "demo_imu.csv", scalar_last=True).keys.shape == (60, 1, 4)
     np.testing.assert_array_equal(read_npz(tmp_path / "out" / "demo_arm.npz").keys, kf.keys)
     if not have_matplotlib():
         assert 'pip install "quatarray[plot]"' in res.stdout
@@ -286,3 +288,182 @@ def test_python_dash_m_and_console_entry_point_agree():
     assert cli.main.__module__ == "quatarray.cli"
     res = run("--help")
     assert res.returncode == 0 and "resample" in res.stdout and "demo" in res.stdout
+
+
+# --------------------------------------------------------------------------- hardened command line
+
+def one_line_error(res):
+    assert res.returncode == 2 and res.stdout == "", res
+    assert res.stderr.startswith("quatarray: error: ") and res.stderr.count("\n") == 1, res.stderr
+    assert "Traceback" not in res.stderr
+    return res.stderr
+
+
+def test_version():
+    from quatarray import __version__
+    res = run("--version")
+    assert res.returncode == 0 and res.stdout == f"quatarray {__version__}\n"
+
+
+def test_huge_fps_refused_before_allocating(tmp_path):
+    err = one_line_error(run("resample", example_path("arm.csv"), "-o", tmp_path / "o.csv", "--fps", "1e9"))
+    assert "asks for 4,000,000,001 frames of 13 values" in err and "the limit is 1,073,741,824 values" in err
+    assert os.listdir(tmp_path) == []
+
+
+def test_times_in_microseconds_refused(tmp_path):
+    src = tmp_path / "us.csv"
+    src.write_text(HEADER + "0,1,0,0,0\n4000000,0,1,0,0\n1e9,1,0,0,0\n")
+    err = one_line_error(run("resample", src, "-o", tmp_path / "o.npz", "--fps", "30"))
+    assert "asks for 30,000,000,001 frames" in err and "limit" in err
+
+
+def test_huge_header_cell(tmp_path):
+    src = tmp_path / "big.csv"
+    src.write_text("time,\"" + "a" * 200_000 + "\"\n0,1\n")
+    err = one_line_error(run("resample", src, "-o", tmp_path / "o.csv", "--fps", "30"))
+    assert f"{src}:1: bad header" in err and len(err) < 300
+
+
+def test_huge_bad_cell_is_cut(tmp_path):
+    src = tmp_path / "big.csv"
+    src.write_text(HEADER + "0,1,0,0,0\n1," + "x" * 1_000_000 + ",0,0,0\n")
+    err = one_line_error(run("resample", src, "-o", tmp_path / "o.csv", "--fps", "30"))
+    assert "(1000000 characters)" in err and len(err) < len(str(src)) + 150
+
+
+def test_sigterm_during_write_removes_the_temporary(tmp_path):
+    code = ("import sys, time\n"
+            "import quatarray.io as qio\n"
+            "from quatarray import cli\n"
+            "real = qio.write_rows\n"
+            "def slow(f, *args, **kwargs):\n"
+            "    real(f, *args, **kwargs)\n"
+            "    f.flush()\n"
+            "    print('writing', flush=True)\n"
+            "    time.sleep(60)\n"
+            "qio.write_rows = slow\n"
+            "sys.exit(cli.main(sys.argv[1:]))\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
+    out = tmp_path / "out.csv"
+    proc = subprocess.Popen([sys.executable, "-c", code, "resample", example_path("arm.csv"), "-o", str(out),
+                             "--fps", "30"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout.readline() == "writing\n"
+        assert [n for n in os.listdir(tmp_path) if n.endswith(".part")]
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+    finally:
+        proc.kill()
+        proc.communicate()
+    assert os.listdir(tmp_path) == []
+
+
+def test_output_directory_is_named(tmp_path):
+    folder = tmp_path / "outdir.csv"
+    folder.mkdir()
+    err = one_line_error(run("resample", example_path("arm.csv"), "-o", folder, "--fps", "30"))
+    assert err == f"quatarray: error: {folder}: Is a directory\n"
+    assert os.listdir(folder) == [] and os.listdir(tmp_path) == ["outdir.csv"]
+
+
+def test_writing_over_the_input_needs_force(tmp_path):
+    src = tmp_path / "arm.csv"
+    src.write_bytes(open(example_path("arm.csv"), "rb").read())
+    before = src.read_bytes()
+    err = one_line_error(run("resample", src, "-o", src, "--fps", "30"))
+    assert f"{src}: is the input file; give --force" in err and src.read_bytes() == before
+    link = tmp_path / "link.csv"
+    os.symlink(src, link)
+    one_line_error(run("resample", src, "-o", link, "--fps", "30"))
+    res = run("resample", src, "-o", src, "--fps", "30", "--force")
+    assert res.returncode == 0, res.stderr
+    assert len(read_csv(src).times) == len(fps_times(0.0, 4.0, 30))
+
+
+def test_existing_output_keeps_permissions(tmp_path):
+    out = tmp_path / "out.npz"
+    out.write_text("old")
+    os.chmod(out, 0o604)
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(out), "--fps", "30"]) == 0
+    assert os.stat(out).st_mode & 0o777 == 0o604 and read_npz(out).keys.shape[1:] == (3, 4)
+
+
+def test_extrapolation_error_names_the_flag(tmp_path):
+    times = tmp_path / "t.txt"
+    times.write_text("0\n5\n")
+    err = one_line_error(run("resample", example_path("arm.csv"), "-o", tmp_path / "o.csv", "--times", times))
+    assert "use --extrapolate clamp or extend" in err or "--extrapolate clamp or extend" in err
+
+
+@pytest.mark.parametrize("sep", ["\t", ";"])
+def test_tab_and_semicolon_files(tmp_path, sep):
+    src = tmp_path / "in.csv"
+    src.write_text(open(example_path("arm.csv")).read().replace(",", sep))
+    out = tmp_path / "out.csv"
+    assert cli.main(["resample", str(src), "-o", str(out), "--fps", "10"]) == 0
+    want = resample_keyframes(read_csv(example_path("arm.csv")), fps_times(0.0, 4.0, 10))
+    got = read_csv(out)
+    assert out.read_text().split("\n", 1)[0] == open(example_path("arm.csv")).readline().strip().replace(",", sep)
+    np.testing.assert_allclose(got.keys, want.keys, rtol=0, atol=0.5e-9 * (1 + 1e-6))
+
+
+def test_csv_npz_csv_keeps_the_header_and_crlf(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_bytes(open(example_path("arm.csv"), "rb").read().replace(b"\n", b"\r\n"))
+    times = tmp_path / "t.txt"
+    times.write_text("\n".join(line.split(",")[0] for line in open(example_path("arm.csv")).read().split("\n")[1:]))
+    assert cli.main(["resample", str(src), "-o", str(tmp_path / "same.csv"), "--times", str(times)]) == 0
+    same = (tmp_path / "same.csv").read_bytes()
+    assert same.count(b"\r\n") == same.count(b"\n") == 12 and len(same) == len(src.read_bytes())
+    assert cli.main(["resample", str(src), "-o", str(tmp_path / "a.npz"), "--fps", "20"]) == 0
+    assert read_npz(tmp_path / "a.npz").names == ("shoulder", "elbow", "wrist")
+    assert cli.main(["resample", str(tmp_path / "a.npz"), "-o", str(tmp_path / "b.csv"), "--fps", "20"]) == 0
+    assert (tmp_path / "b.csv").read_text().split("\n", 1)[0] == open(example_path("arm.csv")).readline().strip()
+
+
+@pytest.mark.parametrize("argv", [["--precision", "-1"], ["--precision", "two"], ["--precision", "31"]])
+def test_precision_usage_errors(argv, capsys):
+    with pytest.raises(SystemExit) as info:
+        cli.main(["resample", "a.csv", "-o", "b.csv", "--fps", "30", *argv])
+    assert info.value.code == 2 and "--precision: expected a number of decimals" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- README
+
+def readme_section(title):
+    text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    start = text.index(f"\n## {title}\n")
+    end = text.find("\n## ", start + 1)
+    return text[start:end if end >= 0 else None]
+
+
+def test_readme_resample_examples_run_as_written(tmp_path):
+    """Every bash block of the README's resample section runs, after `quatarray demo`, in a fresh folder."""
+    blocks = re.findall(r"```bash\n(.*?)```", readme_section("Resample a keyframe file"), re.S)
+    assert len(blocks) >= 3
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
+    script = (f'set -e\nquatarray() {{ "{sys.executable}" -m quatarray "$@"; }}\nquatarray demo >/dev/null\n'
+              + "\n".join(blocks))
+    res = subprocess.run(["bash", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    commands = [line for block in blocks for line in block.splitlines() if line.startswith("quatarray resample")]
+    for line in commands:
+        out = line.split(" -o ")[1].split()[0]
+        assert (tmp_path / out).exists(), line
+
+
+def test_readme_says_clone_and_cd_first():
+    section = readme_section("Two commands")
+    first_pip = section.index("pip install")
+    assert "git clone" in section[:first_pip] and "cd quatarray" in section[:first_pip]
+
+
+def test_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
+    def exhausted(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(cli, "resample_keyframes", exhausted)
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(tmp_path / "o.csv"), "--fps", "30"]) == 2
+    assert capsys.readouterr().err == f"quatarray: error: {example_path('arm.csv')}: out of memory (try a lower " \
+                                      "--fps or fewer --times)\n"

@@ -400,3 +400,46 @@ def test_rotvec_round_trip_inside_pi(v):
 def test_apply_is_matrix_times_vector(q, v):
     np.testing.assert_allclose(K.rotate(q, v), C.as_matrix(q) @ v, atol=1e-13)
     np.testing.assert_allclose(K.rotate(q, K.rotate(q, v), inverse=True), v, atol=1e-13)
+
+
+# --- accuracy against 40-digit references -----------------------------------------------
+
+def _ulp_of_largest(got, ref):
+    """|got - ref| per quaternion in ulps of its largest component (sign of ref chosen)."""
+    got = got * np.where(np.sum(got * ref, -1) < 0, -1, 1)[:, None]
+    return (np.abs(got - ref) / np.spacing(np.abs(ref).max(-1, keepdims=True))).max(-1)
+
+
+def _mp_axis_quat(mp, angle, k):
+    e = [mp.cos(angle / 2), 0, 0, 0]
+    e[k + 1] = mp.sin(angle / 2)
+    return e
+
+
+def _mp_mul(p, q):
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return [w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2]
+
+
+def test_from_rotvec_and_from_euler_ulp_levels(rng):
+    """The documented float64 accuracy (the half angles come from one tangent each):
+    from_rotvec within 3 ulp, from_euler within 5 ulp of the largest component."""
+    mp = pytest.importorskip("mpmath").mp
+    mp.dps = 40
+    v = rng.standard_normal((300, 3))
+    v *= rng.uniform(0, np.pi, (300, 1)) / np.linalg.norm(v, axis=1, keepdims=True)
+    ref = []
+    for x in v:
+        x = [mp.mpf(float(c)) for c in x]
+        th = mp.sqrt(sum(c * c for c in x))
+        ref.append([float(c) for c in [mp.cos(th / 2)] + [c * mp.sin(th / 2) / th for c in x]])
+    assert _ulp_of_largest(C.from_rotvec(v), np.array(ref)).max() <= 3
+    a = np.stack([rng.uniform(-np.pi, np.pi, 300), rng.uniform(-np.pi / 2, np.pi / 2, 300),
+                  rng.uniform(-np.pi, np.pi, 300)], -1)
+    ref = []
+    for ang in a:
+        qx, qy, qz = (_mp_axis_quat(mp, mp.mpf(float(x)), k) for k, x in enumerate(ang))
+        ref.append([float(c) for c in _mp_mul(qz, _mp_mul(qy, qx))])   # extrinsic xyz
+    assert _ulp_of_largest(E.from_euler("xyz", a), np.array(ref)).max() <= 5

@@ -335,6 +335,112 @@ def test_slerp_symmetry_and_unit_norm(seed, t):
 
 
 # ---------------------------------------------------------------------------
+# nearly antipodal pairs and the float32 hemisphere
+# ---------------------------------------------------------------------------
+
+def near_antipodal_pairs(rng, n, dtype=np.float64):
+    """Unit q0 and unit q1 with |q0 + q1| from about 1e-16 to 1e-1 (float64: 1e-7 to 1e-1
+    for float32), q1 not exactly -q0."""
+    q0 = random_quats(rng, (n,))
+    lo = -16 if dtype == np.float64 else -7
+    q1 = -q0 + np.logspace(lo, -1, n)[:, None] * random_quats(rng, (n,))
+    q1 /= np.linalg.norm(q1, axis=-1, keepdims=True)
+    q0, q1 = q0.astype(dtype), q1.astype(dtype)
+    keep = (q0 + q1 != 0).any(axis=-1)
+    return q0[keep], q1[keep]
+
+
+def unit_error(q):
+    """max | |q| - 1 | over the batch, in units of the dtype's eps (norm computed in float64)."""
+    q = plain(q)
+    return np.abs(np.linalg.norm(q.astype(np.float64), axis=-1) - 1).max() / np.finfo(q.dtype).eps
+
+
+def test_slerp_issue_example_nearly_antipodal_is_unit(path):
+    """slerp([0,.6,.8,0], [1e-16,-.6,-.8,0], 0.3, shortest=False) used to be [0.809, 0, 0, 0]."""
+    got = plain(slerp([[0, .6, .8, 0]], [[1e-16, -.6, -.8, 0]], [0.3], shortest=False))[0]
+    assert abs(np.linalg.norm(got) - 1) < 4 * np.finfo(float).eps
+    # the arc leaves q0 towards q0 + q1 = (1e-16, 0, 0, 0): w = sin(0.3 pi)
+    np.testing.assert_allclose(got, [np.sin(0.3 * np.pi), .6 * np.cos(0.3 * np.pi), .8 * np.cos(0.3 * np.pi), 0],
+                               atol=4e-16)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_nearly_antipodal_inputs_give_unit_outputs(rng, dtype, path):
+    """slerp(shortest=False), pairwise squad and bezier, with q1 ≈ -q0 (not exactly):
+    every output is unit to a few eps (the error used to grow like eps / |q0 + q1|)."""
+    q0, q1 = near_antipodal_pairs(rng, 60, dtype)
+    n = len(q0)
+    a, b = random_quats(rng, (n,), dtype), random_quats(rng, (n,), dtype)
+    for t in (0.1, 0.3, 0.5, 0.77, 1.0, 1.4):
+        tt = np.full(n, t, dtype)
+        assert unit_error(slerp(q0, q1, tt, shortest=False)) < 4, t
+        assert unit_error(slerp(q0, -q0, tt, shortest=False)) < 4, t
+        # squad's inner slerp(q0, q1) and its outer blend, Bézier's de Casteljau levels
+        assert unit_error(squad(q0, a, b, q1, tt)) < 8, t
+        assert unit_error(squad(q0, q1, q0, q1, tt)) < 8, t
+        assert unit_error(bezier(q0, q1, q0, q1, tt)) < 8, t
+
+
+def test_nearly_antipodal_slerp_follows_the_great_circle(rng, path):
+    """The output lies in the plane of q0 and q1 at angle t·Ω from q0 (Ω = angle(q0, q1)),
+    checked against 40-digit arithmetic on the float64 inputs as given."""
+    mpmath = pytest.importorskip("mpmath")
+    mpmath.mp.dps = 40
+    q0, q1 = near_antipodal_pairs(rng, 40)
+    t = rng.uniform(0, 1, len(q0))
+    got = plain(slerp(q0, q1, t, shortest=False))
+    for a, b, h, o in zip(q0, q1, t, got):
+        A, B, O = (mpmath.matrix([mpmath.mpf(float(x)) for x in v]) for v in (a, b, o))
+        A /= mpmath.norm(A)
+        B /= mpmath.norm(B)
+        omega = 2 * mpmath.atan2(mpmath.norm(B - A), mpmath.norm(B + A))
+        P = B - (A.T * B)[0] * A                       # in the plane, perpendicular to A
+        P /= mpmath.norm(P)
+        O /= mpmath.norm(O)
+        # components along A and P give the angle; nothing may stick out of the plane
+        ca, cp = (A.T * O)[0], (P.T * O)[0]
+        assert mpmath.norm(O - ca * A - cp * P) < 4 * np.finfo(float).eps
+        assert abs(mpmath.atan2(cp, ca) - float(h) * omega) < 4 * np.finfo(float).eps
+
+
+def test_frames_of_nearly_antipodal_keys_are_unit(rng):
+    """The great-circle frames Track evaluates: unit outputs along the whole arc."""
+    q0, q1 = near_antipodal_pairs(rng, 60)
+    F, phi = IK.frames(q0.T.copy(), q1.T.copy())
+    for u in (0.1, 0.5, 0.9, 1.0):
+        O = np.empty((4, len(q0)))
+        IK.frame_core(F.copy(), phi, u, O)
+        assert unit_error(O.T) < 4, u
+
+
+@pytest.mark.parametrize("rtype", ["slerp", "track"])
+def test_float32_hemisphere_from_the_exact_dot(rng, path, rtype):
+    """Rotations within 1e-9 rad of π apart (q0·q1 about 5e-10): float32 slerp takes the
+    short arc given by the sign of q0·q1 summed in float64 (it used to decide from
+    float32 |q1 - q0|² against |q1 + q0|², wrong in 43-46% of the samples)."""
+    n = 400
+    q0 = random_quats(rng, (n,))
+    axis = random_quats(rng, (n,))[:, 1:]
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    delta = rng.uniform(-1e-9, 1e-9, n)          # rotation angle π - delta
+    half = (np.pi - delta) / 2
+    r = np.concatenate([np.cos(half)[:, None], np.sin(half)[:, None] * axis], -1)
+    q1 = r_mul_arr(q0, r)
+    a32, b32 = q0.astype(np.float32), q1.astype(np.float32)
+    dot = np.sum(a32.astype(np.float64) * b32.astype(np.float64), -1)
+    sign = np.where(dot < 0, -1.0, 1.0)
+    t = np.float32(0.4)
+    if rtype == "slerp":
+        got = plain(slerp(a32, b32, t))
+    else:
+        got = np.array([plain(Track([0.0, 1.0], [a, b])(0.4)) for a, b in zip(a32, b32)])
+    assert got.dtype == np.float32
+    ref = np.array([r_slerp(a, b * s, 0.4) for a, b, s in zip(a32.astype(float), b32.astype(float), sign)])
+    assert np.abs(got - ref).max() < 20 * np.finfo(np.float32).eps
+
+
+# ---------------------------------------------------------------------------
 # lerp, nlerp, unflip
 # ---------------------------------------------------------------------------
 
@@ -812,6 +918,9 @@ def test_segment_index_equals_searchsorted(rng, kind):
     expected = np.searchsorted(times, t, side="right") - 1
     np.testing.assert_array_equal(index.find(t), expected)
     np.testing.assert_array_equal(SegmentIndex(times).find(t), expected)
+    order = np.argsort(t, kind="stable")
+    np.testing.assert_array_equal(index.find_sorted(t[order]), expected[order])   # sorted: runs per key
+    assert index.find_sorted(t) is None                                              # unsorted: refused
 
 
 # ---------------------------------------------------------------------------

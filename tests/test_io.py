@@ -328,3 +328,148 @@ def test_format_error_text():
     assert str(FormatError("bad", "a.csv")) == "a.csv: bad"
     assert str(FormatError("two\nlines")) == "two lines"
     assert isinstance(FormatError("x"), ValueError)
+
+
+# --------------------------------------------------------------------------- faithful text, separators, names
+
+def test_style_of_shipped_example():
+    style = read_csv(qio.example_path("arm.csv")).style
+    assert (style.decimals, style.trim, style.newline, style.delimiter) == (9, False, "\n", ",")
+    assert (style.time_decimals, style.time_trim) == (2, True)  # 0, 0.3, 0.55
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n"])
+@pytest.mark.parametrize("sep", [",", "\t", ";"])
+def test_csv_written_back_as_read(tmp_path, newline, sep):
+    """Separator, line endings, decimals (trimmed or fixed) and short times all survive read + write."""
+    text = (f"Time{sep}a.w{sep}a.x{sep}a.y{sep}a.z\n0{sep}1{sep}0{sep}0{sep}0\n"
+            f"0.25{sep}0.5{sep}0.5{sep}0.5{sep}0.5\n1.5{sep}0.70711{sep}0{sep}0.70711{sep}0\n").replace("\n", newline)
+    src = tmp_path / "in.csv"
+    src.write_bytes(text.encode())
+    kf = read_csv(src)
+    np.testing.assert_array_equal(kf.keys[:, 0], [[1, 0, 0, 0], [0.5] * 4, [0.70711, 0, 0.70711, 0]])
+    assert kf.style.delimiter == sep and kf.style.newline == newline
+    out = tmp_path / "out.csv"
+    write_csv(out, kf)
+    assert out.read_bytes() == text.replace("Time", "time").encode()
+
+
+def test_csv_time_header_any_case(tmp_path):
+    for word in ("Time", "TIME", "time"):
+        kf = read_csv(write_text(tmp_path / "k.csv", f"{word},a.w,a.x,a.y,a.z\n0,1,0,0,0\n1,0,1,0,0\n"))
+        np.testing.assert_array_equal(kf.times, [0, 1])
+
+
+def test_csv_other_separator_is_named(tmp_path):
+    with pytest.raises(FormatError, match=r"separator must be a comma, a tab or a semicolon"):
+        read_csv(write_text(tmp_path / "k.csv", "time|a.w|a.x|a.y|a.z\n0|1|0|0|0\n"))
+    with pytest.raises(FormatError, match=r"non-numeric value '0,5' in column 'a.x' \(decimal commas"):
+        read_csv(write_text(tmp_path / "k.csv", "time;a.w;a.x;a.y;a.z\n0;1;0,5;0;0\n"))
+
+
+def test_huge_header_cell_is_one_line_error(tmp_path):
+    path = write_text(tmp_path / "k.csv", "time," + "a" * 200_000 + ".w\n0,1\n")
+    with pytest.raises(FormatError) as info:
+        read_csv(path)
+    assert info.value.line == 1 and len(str(info.value)) < 300
+    path = write_text(tmp_path / "k.csv", "time,\"" + "a" * 200_000 + "\"\n0,1\n")
+    with pytest.raises(FormatError, match=r"bad header: field larger than field limit") as info:
+        read_csv(path)
+    assert info.value.line == 1
+
+
+def test_huge_bad_cell_is_cut_in_the_message(tmp_path):
+    path = write_text(tmp_path / "k.csv", HEADER + "0,1,0,0,0\n1," + "x" * 1_000_000 + ",0,0,0\n")
+    with pytest.raises(FormatError, match=r"non-numeric value 'x+\.\.\.' \(1000000 characters\)") as info:
+        read_csv(path)
+    assert len(str(info.value)) < len(str(path)) + 150
+
+
+def test_npz_keeps_track_names(tmp_path, rng):
+    kf = Keyframes(uneven_times(rng, 4), smooth_keys(rng, 4, (3,)), ("hip", "knee", "a b"))
+    write_npz(tmp_path / "k.npz", kf)
+    assert read_npz(tmp_path / "k.npz").names == kf.names
+    write_npz(tmp_path / "n.npz", Keyframes(kf.times, kf.keys))
+    assert read_npz(tmp_path / "n.npz").names is None and "names" not in np.load(tmp_path / "n.npz").files
+
+
+@pytest.mark.parametrize("names", [np.array(["a", "b"]), np.array([1, 2, 3]), np.array([["a", "b", "c"]])])
+def test_npz_bad_names(tmp_path, names):
+    path = npz_bytes(tmp_path, times=np.arange(2.0), keys=np.tile([1.0, 0, 0, 0], (2, 3, 1)), names=names)
+    with pytest.raises(FormatError, match=r"expected names of shape \(3,\), one string per track"):
+        read_npz(path)
+
+
+def test_size_is_checked_before_allocating():
+    with pytest.raises(ValueError, match=r"a rate of 1e\+09 fps over 4 s asks for 4,000,000,001 frames of 13 "
+                                         r"values .* the limit is 1,073,741,824 values"):
+        fps_times(0.0, 4.0, 1e9, per_frame=13)
+
+
+def test_extrapolation_error_names_the_option(rng):
+    kf = Keyframes(np.array([0.0, 1.0]), smooth_keys(rng, 2))
+    with pytest.raises(ValueError, match=r"--extrapolate clamp or extend \(extrapolate='clamp'"):
+        resample_keyframes(kf, np.array([2.0]))
+
+
+def test_existing_file_keeps_its_permissions(tmp_path, rng):
+    path = tmp_path / "k.csv"
+    path.write_text("old\n")
+    os.chmod(path, 0o640)
+    write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    assert os.stat(path).st_mode & 0o777 == 0o640 and read_csv(path).keys.shape == (3, 1, 4)
+
+
+def test_directory_target_is_named(tmp_path, rng):
+    with pytest.raises(IsADirectoryError) as info:
+        write_csv(tmp_path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    assert info.value.filename == str(tmp_path)
+    assert os.listdir(tmp_path) == []
+
+
+def test_failed_rename_names_the_target(tmp_path, rng, monkeypatch):
+    def refuse(src, dst):
+        raise PermissionError(13, "Permission denied", src)
+
+    monkeypatch.setattr(_text.os, "replace", refuse)
+    with pytest.raises(PermissionError) as info:
+        write_npz(tmp_path / "k.npz", Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    assert info.value.filename == str(tmp_path / "k.npz") and os.listdir(tmp_path) == []
+
+
+def test_file_modules_share_public_in_package_names_only():
+    """io, _bvh and cli import no `_private` name from another module; docstrings point at quatarray.io."""
+    import ast
+    import inspect
+    from quatarray import _bvh, cli
+    for module in (qio, _bvh, cli, _text):
+        source = inspect.getsource(module)
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.ImportFrom) and node.level and node.module:  # `from . import _mod` is a module
+                private = [a.name for a in node.names if a.name.startswith("_")]
+                assert not private, f"{module.__name__} imports {private} from {node.module}"
+        assert "quatarray._io" not in source and "quatarray._bvh import" not in source
+    assert set(qio.__all__) >= {"read_csv", "write_csv", "read_npz", "write_npz", "read_bvh", "write_bvh",
+                                "resample_motion", "resample_keyframes", "FormatError", "Keyframes", "Motion"}
+    assert all(hasattr(qio, name) for name in qio.__all__)
+
+
+def test_fps_grid_reaches_a_last_key_rounded_at_clock_times():
+    """EuRoC-style absolute times: a last key one ulp below t0 + 20 s is still reached at 200 Hz."""
+    t0 = 1403636579.7635556
+    t1 = np.nextafter(t0 + 20.0, -np.inf)
+    assert (t1 - t0) * 200 < 4000
+    t = fps_times(t0, t1, 200)
+    assert len(t) == 4001 and t[-1] == t1
+    assert len(fps_times(t0, t0 + 20.0 - 1 / 400, 200)) == 4000  # half a frame short is really short
+
+
+def test_style_measured_in_blocks_of_lines_is_the_same(tmp_path, monkeypatch, rng):
+    """Looking at a file 64 bytes of whole lines at a time finds the same decimals as in one go."""
+    rows = ["time,a.w,a.x,a.y,a.z"] + [f"{k / 7:.{k % 3 + 1}f},{w:.6f},0,{x:.3f},1.5e-7"
+                                       for k, (w, x) in enumerate(rng.uniform(-1, 1, (50, 2)))]
+    path = write_text(tmp_path / "k.csv", "\r\n".join(rows) + "\r\n")
+    whole = _text.measure_style(path, 1, 5)
+    assert whole == _text.TextStyle(8, True, "\r\n", ",", 3, True)  # 1.5e-7 has 8 decimals
+    monkeypatch.setattr(_text, "_MEASURE_BLOCK", 64)
+    assert _text.measure_style(path, 1, 5) == whole

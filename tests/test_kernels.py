@@ -182,6 +182,66 @@ def test_rotate_matches_two_products(q, v):
                                atol=1e-14 * (np.linalg.norm(v) + 1))
 
 
+# --- accuracy against 40-digit references -----------------------------------------------
+
+def _mp_log(q, mp):
+    w, x, y, z = (mp.mpf(float(c)) for c in q)
+    vn = mp.sqrt(x * x + y * y + z * z)
+    s = mp.atan2(vn, w) / vn if vn else 1 / w
+    return [mp.log(w * w + x * x + y * y + z * z) / 2, x * s, y * s, z * s]
+
+
+def _mp_exp(q, mp):
+    w, x, y, z = (mp.mpf(float(c)) for c in q)
+    vn = mp.sqrt(x * x + y * y + z * z)
+    s = mp.exp(w) * (mp.sin(vn) / vn if vn else 1)
+    return [mp.exp(w) * mp.cos(vn), x * s, y * s, z * s]
+
+
+def _near_identity(rng, n):
+    """(1 + δ) (cos θ/2, sin θ/2 axis), θ from 1e-8 to 1e-2 rad, |δ| from 1e-16 to 1e-8 (and 0)."""
+    theta = np.logspace(-8, -2, n)
+    delta = rng.choice([-1, 1], n) * np.logspace(-16, -8, n)[rng.permutation(n)]
+    delta[::7] = 0
+    axis = random_quats(rng, (n,))[:, 1:]
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    q = np.concatenate([np.cos(theta / 2)[:, None], np.sin(theta / 2)[:, None] * axis], -1)
+    return q * (1 + delta[:, None])
+
+
+def test_log_scalar_part_near_identity(rng):
+    """ln|q| = log1p((w - 1)(w + 1) + |v|²) / 2: near the identity the error is a few eps
+    times ln|q| + |v|² (log|q| used to keep the whole rounding error of |q| ≈ 1: up to
+    1e7 ulp, as the peers)."""
+    mp = pytest.importorskip("mpmath").mp
+    mp.dps = 40
+    q = _near_identity(rng, 300)
+    got = K.log(q)
+    eps = np.finfo(float).eps
+    for qi, gi in zip(q, got):
+        ref = _mp_log(qi, mp)
+        scale = abs(float(ref[0])) + float(np.sum(qi[1:] ** 2))
+        assert abs(float(gi[0] - ref[0])) <= 2 * eps * scale, (qi, gi[0], ref[0])
+        v = np.array([float(r) for r in ref[1:]])
+        assert np.abs(gi[1:] - v).max() <= 2 * eps * np.linalg.norm(v)
+
+
+@pytest.mark.parametrize("func", ["log", "exp"])
+def test_log_and_exp_within_a_few_ulp(rng, func):
+    """Every component within 3 eps of the output's norm, against 40-digit references, for
+    non-unit quaternions, angles up to π (log) and |v| up to 4 (exp)."""
+    mp = pytest.importorskip("mpmath").mp
+    mp.dps = 40
+    q = random_quats(rng, (400,)) * rng.uniform(0.5, 2, (400, 1))
+    if func == "exp":
+        q = q * rng.uniform(0, 4, (400, 1))
+    q = np.concatenate([q, _near_identity(rng, 50)])
+    got = getattr(K, func)(q)
+    ref = np.array([[float(c) for c in (_mp_log if func == "log" else _mp_exp)(qi, mp)] for qi in q])
+    err = np.abs(got - ref).max(axis=-1) / np.linalg.norm(ref, axis=-1)
+    assert err.max() <= 3 * np.finfo(float).eps, err.max()
+
+
 # --- special values -------------------------------------------------------------------
 
 def test_log_special_values():
@@ -286,3 +346,19 @@ def test_rotate_by_non_unit_quaternion_is_a_rotation(rng):
     v = rng.standard_normal((30, 3))
     np.testing.assert_allclose(K.rotate(q, v), K.rotate(q / 3.0, v), atol=1e-14)
     np.testing.assert_allclose(K.rotate(q[0], v), K.rotate(q[0] / 3.0, v), atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_arctan2_from_one_arctan_matches_numpy(rng, dtype):
+    """The arctan-of-the-ratio arctan2 is within 2 ulp of np.arctan2 in every quadrant,
+    at signed zeros and at huge and tiny ratios."""
+    y = (rng.standard_normal(20000) * 10.0 ** rng.uniform(-30, 30, 20000)).astype(dtype)
+    x = (rng.standard_normal(20000) * 10.0 ** rng.uniform(-30, 30, 20000)).astype(dtype)
+    z = np.array([0.0, -0.0], dtype)
+    y = np.concatenate([y, np.repeat(z, 2), z, z, np.ones(2, dtype), -np.ones(2, dtype), z])
+    x = np.concatenate([x, np.tile(z, 2), np.ones(2, dtype), -np.ones(2, dtype), z, z, np.full(2, np.inf, dtype)])
+    want = np.arctan2(y, x)
+    got = K.arctan2(y, x)
+    assert got.dtype == dtype
+    np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+    assert (np.abs(got - want) <= 2 * np.spacing(np.abs(want))).all()

@@ -69,3 +69,78 @@ def test_from_dual_quat_zero_real_part_is_identity_like_scipy():
     dq = np.zeros((2, 8))
     np.testing.assert_array_equal(RigidTransform.from_dual_quat(dq).as_matrix(),
                                   st.RigidTransform.from_dual_quat(dq).as_matrix())
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("shapes", [((600,), (600,)), ((2, 300), (2, 300)), ((), (700,)), ((700,), ()),
+                                    ((1, 400), (3, 1))], ids=str)
+def test_apply_and_compose_long_and_broadcast_match_scipy(dtype, shapes):
+    """The fused long-array path and the broadcasting paths of apply and *."""
+    tf_shape, v_shape = shapes
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=tf_shape + (4,))
+    t = rng.normal(size=tf_shape + (3,))
+    v = rng.normal(size=v_shape + (3,))
+    Rot = __import__("quatarray").Rotation
+    ours = RigidTransform.from_components(t.astype(dtype), Rot.from_quat(q.astype(dtype)))
+    ref = st.RigidTransform.from_components(t, st.Rotation.from_quat(q))
+    tol = 100 * np.finfo(dtype).eps * 4
+    for inverse in (False, True):
+        got = ours.apply(v.astype(dtype), inverse=inverse)
+        assert got.dtype == dtype
+        np.testing.assert_allclose(got, ref.apply(v, inverse=inverse), atol=tol)
+    np.testing.assert_allclose((ours * ours.inv()).as_matrix(), (ref * ref.inv()).as_matrix(), atol=tol)
+    np.testing.assert_allclose((ours * ours).as_matrix(), (ref * ref).as_matrix(), atol=tol)
+
+
+def test_normalize_false_keeps_the_matrix_and_copy_false_shares_it():
+    m = np.eye(4)
+    m[:3, 3] = [1, 2, 3]
+    tf = RigidTransform(m, normalize=False, copy=False)
+    m[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]       # 90° about z, written after construction
+    np.testing.assert_array_equal(tf.as_matrix(), m)
+    np.testing.assert_allclose(tf.apply([1.0, 0, 0]), [1, 3, 3], atol=1e-15)
+    np.testing.assert_allclose(tf.rotation.as_matrix(), m[:3, :3], atol=1e-15)
+    kept = RigidTransform(m, normalize=False)           # copy=True: later writes are not seen
+    m[:3, 3] = 0
+    np.testing.assert_array_equal(kept.translation, [1, 2, 3])
+    many = RigidTransform(np.stack([m, m]), normalize=False, copy=False)
+    many[1] = RigidTransform.from_translation([5.0, 0, 0])
+    np.testing.assert_array_equal(many.as_matrix()[1, :3, 3], [5, 0, 0])
+
+
+def test_pickle_iteration_and_inputs_unchanged():
+    import pickle
+    ours, ref, rng = _pair(np.float64)
+    back = pickle.loads(pickle.dumps(ours))
+    np.testing.assert_array_equal(back.as_matrix(), ours.as_matrix())
+    assert back.single == ours.single
+    items = list(ours)
+    assert len(items) == 7 and all(x.single for x in items)
+    np.testing.assert_allclose(items[3].as_matrix(), ref[3].as_matrix(), atol=1e-15)
+    v = rng.normal(size=(7, 3))
+    v.flags.writeable = False
+    before = v.copy()
+    ours.apply(v)
+    ours.apply(v, inverse=True)
+    np.testing.assert_array_equal(v, before)
+    with pytest.raises(TypeError, match="not iterable"):
+        iter(ours[0])
+
+
+@pytest.mark.parametrize("shape", [(10,), (10, 2), (10, 3, 3)], ids=str)
+def test_powers_equal_repeated_composition(shape):
+    """scipy's test_pow without its private-attribute check: integer powers are repeated
+    products, fractional ones square to the right power, a single transform stays single."""
+    rng = np.random.default_rng(100)
+    Rot = __import__("quatarray").Rotation
+    p = RigidTransform.from_components(rng.normal(size=shape + (3,)), Rot.from_quat(rng.normal(size=shape + (4,))))
+    for n in (-5, -2, -1, 0, 1, 2, 5):
+        r = RigidTransform.identity(shape=shape)
+        for _ in range(abs(n)):
+            r = r * (p if n > 0 else p.inv())
+        np.testing.assert_allclose((p ** n).as_matrix(), r.as_matrix(), atol=1e-12)
+    for f, whole in ((0.5, 1), (-0.5, -1), (1.5, 3), (-1.5, -3)):
+        half = p ** f
+        np.testing.assert_allclose((half * half).as_matrix(), (p ** whole).as_matrix(), atol=1e-12)
+    assert (RigidTransform.identity() ** 3).as_matrix().shape == (4, 4)

@@ -177,3 +177,18 @@ def test_track_spline_raises_outside(rng):
     times, keys = _track(rng, 4)
     with pytest.raises(ValueError):
         Track(times, keys, method="spline")(times[-1] + 1)
+
+
+def test_sorted_and_unsorted_queries_agree(rng):
+    """Sorted query arrays take the run-length segment lookup; the result is the same."""
+    keys = rng.standard_normal((50, 2, 4))
+    keys /= np.linalg.norm(keys, axis=-1, keepdims=True)
+    times = np.cumsum(rng.uniform(0.2, 1.0, 50))
+    spline = RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))
+    t = np.sort(np.concatenate([rng.uniform(times[0] - 2, times[-1] + 2, 20_000), times]))
+    perm = rng.permutation(t.size)
+    def values(x):
+        return x if isinstance(x, np.ndarray) else x.as_quat()
+
+    for order in (0, 1, 2):
+        np.testing.assert_array_equal(values(spline(t, order))[perm], values(spline(t[perm], order)))

@@ -1,0 +1,333 @@
+"""glTF 2.0 files (``.gltf``, ``.glb``): resample the animations and write the file back.
+
+The document is kept as the JSON object it was read as, and only what
+resampling changes is changed: the animation samplers (their ``input``,
+``output`` and ``interpolation``), the accessors and buffer views that held
+the old animation data, and the buffers, which are rewritten as one compact
+buffer.  Every other object and property -- nodes, meshes, skins, materials,
+images, ``extras``, extensions -- is written back as it was, with accessor and
+buffer-view indices renumbered where the compaction moved them (core
+properties, ``KHR_draco_mesh_compression`` and ``EXT_mesh_gpu_instancing``).
+A parsed object model such as pygltflib's would not do here: it drops
+properties it does not model (a node's default morph ``weights``, for one).
+
+Reading lives in `quatarray._gltf_read`, the samplers' maths in
+`quatarray._gltf_sampler`.  A ``.glb`` output holds its buffer in the ``BIN``
+chunk; a ``.gltf`` output embeds it as a data URI when the input did, and
+otherwise writes ``<name>.bin`` beside it.  Files are written atomically.
+Every problem with a file raises `FormatError` naming the file and the object.
+"""
+
+import base64
+import copy
+import json
+import os
+import struct
+import urllib.parse
+
+import numpy as np
+
+from ._gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
+from ._gltf_sampler import resample_sampler
+from ._text import FormatError, atomic_write, check_size
+from .io import fps_times
+
+__all__ = ["write_gltf", "resample_gltf", "keyframes_to_gltf"]
+
+_ALIGN = 4   # every buffer view starts at a multiple of the largest component size
+
+
+# --------------------------------------------------------------------------- writing
+
+def _accessor_slots(doc):
+    """(container, key) of every accessor reference outside the animations."""
+    for mesh in doc.get("meshes", []):
+        for prim in mesh.get("primitives", []):
+            attributes = prim.get("attributes", {})
+            yield from ((attributes, k) for k in attributes)
+            if "indices" in prim:
+                yield prim, "indices"
+            for target in prim.get("targets", []):
+                yield from ((target, k) for k in target)
+    for skin in doc.get("skins", []):
+        if "inverseBindMatrices" in skin:
+            yield skin, "inverseBindMatrices"
+    for node in doc.get("nodes", []):
+        attributes = (node.get("extensions", {}).get("EXT_mesh_gpu_instancing") or {}).get("attributes", {})
+        yield from ((attributes, k) for k in attributes)
+
+
+def _view_slots(doc, accessors):
+    """(container, key) of every buffer-view reference, in `accessors` and elsewhere."""
+    for acc in accessors:
+        if "bufferView" in acc:
+            yield acc, "bufferView"
+        sparse = acc.get("sparse") or {}
+        for part in ("indices", "values"):
+            if "bufferView" in (sparse.get(part) or {}):
+                yield sparse[part], "bufferView"
+    for image in doc.get("images", []):
+        if "bufferView" in image:
+            yield image, "bufferView"
+    for mesh in doc.get("meshes", []):
+        for prim in mesh.get("primitives", []):
+            draco = prim.get("extensions", {}).get("KHR_draco_mesh_compression")
+            if draco and "bufferView" in draco:
+                yield draco, "bufferView"
+
+
+def _targets(slots):
+    """The indices the slots hold (what is not an index is caught by `_renumber`)."""
+    return {c[k] for c, k in slots if type(c[k]) is int}
+
+
+def _renumber(slots, mapping, what, path):
+    for container, key in slots:
+        old = container[key]
+        if not (type(old) is int and old in mapping):
+            raise FormatError(f"a reference to {what} {old!r}, which does not exist", path)
+        container[key] = mapping[old]
+
+
+class _Blob:
+    """The new buffer: aligned buffer views appended one after the other."""
+
+    def __init__(self):
+        self.data = bytearray()
+        self.views = []
+
+    def add(self, data, view=None):
+        self.data += b"\0" * (-len(self.data) % _ALIGN)
+        view = dict(view or {})
+        view.update(buffer=0, byteOffset=len(self.data), byteLength=len(data))
+        self.data += data
+        self.views.append(view)
+        return len(self.views) - 1
+
+
+def _float_accessor(blob, accessors, values, kind, name=None, bounds=False):
+    """Append tightly packed float32 `values` (count, n) and an accessor for them; return its index."""
+    values = np.ascontiguousarray(values, dtype="<f4")
+    acc = {"bufferView": blob.add(values.tobytes()), "componentType": FLOAT, "count": len(values), "type": kind}
+    if bounds:
+        acc["min"], acc["max"] = values.min(axis=0).tolist(), values.max(axis=0).tolist()
+    if name is not None:
+        acc["name"] = name
+    accessors.append(acc)
+    return len(accessors) - 1
+
+
+def write_gltf(dst, gf, animations):
+    """Write `gf` to `dst` (``.glb`` or ``.gltf``) with the animations' samplers replaced.
+
+    Parameters
+    ----------
+    dst : str or os.PathLike
+    gf : GltfFile
+        Not modified.
+    animations : list
+        One entry per animation of the file: ``(times, outputs)`` with
+        ``times`` (M,) float32 shared by all its samplers and ``outputs`` a
+        list of ``(values (M, n), interpolation)``, one per sampler; or
+        None to leave that animation's samplers as they are.
+
+    Accessors and buffer views that only the replaced samplers used are
+    dropped; everything else is copied into one compact buffer.
+    """
+    dst = os.fspath(dst)
+    doc = copy.deepcopy(gf.json)
+    old_accessors = doc.get("accessors", [])
+    replaced = {s[k] for anim, new in zip(doc.get("animations", []), animations) if new is not None
+                for s in anim.get("samplers", []) for k in ("input", "output") if k in s}
+    kept_anim = {s[k] for anim, new in zip(doc.get("animations", []), animations) if new is None
+                 for s in anim.get("samplers", []) for k in ("input", "output") if k in s}
+    used = _targets(_accessor_slots(doc)) | kept_anim
+    keep = [i for i in range(len(old_accessors)) if i not in replaced or i in used]
+    accessor_map = {old: new for new, old in enumerate(keep)}
+    accessors = [old_accessors[i] for i in keep]
+    dropped = [old_accessors[i] for i in range(len(old_accessors)) if i not in accessor_map]
+    views = doc.get("bufferViews", [])
+    dead = _targets(_view_slots({}, dropped)) - _targets(_view_slots(doc, accessors))
+    view_map, blob = {}, _Blob()
+    for j, view in enumerate(views):
+        if j not in dead:
+            start = view.get("byteOffset", 0)
+            view_map[j] = blob.add(gf.buffers[view["buffer"]][start:start + view["byteLength"]], view)
+    _renumber(_accessor_slots(doc), accessor_map, "accessor", gf.path)
+    _renumber(_view_slots(doc, accessors), view_map, "bufferView", gf.path)
+    for anim, new in zip(doc.get("animations", []), animations):
+        samplers = anim.get("samplers", [])
+        if new is None:
+            _renumber([(s, k) for s in samplers for k in ("input", "output") if k in s], accessor_map,
+                      "accessor", gf.path)
+            continue
+        times, outputs = new
+        name = old_accessors[samplers[0]["input"]].get("name") if samplers else None
+        shared = _float_accessor(blob, accessors, np.reshape(times, (-1, 1)), "SCALAR", name, bounds=True)
+        for sampler, (values, interpolation) in zip(samplers, outputs):
+            old = old_accessors[sampler["output"]]
+            n = SIZES[old["type"]]
+            sampler.update(input=shared, interpolation=interpolation,
+                           output=_float_accessor(blob, accessors, np.reshape(values, (-1, n)), old["type"],
+                                                  old.get("name")))
+    blob.data += b"\0" * (-len(blob.data) % _ALIGN)
+    doc["bufferViews"], doc["accessors"] = blob.views, accessors
+    for key in ("bufferViews", "accessors"):
+        if not doc[key]:
+            del doc[key]
+    buffer = {k: v for k, v in (doc.get("buffers") or [{}])[0].items() if k not in ("uri", "byteLength")}
+    buffer["byteLength"] = len(blob.data)
+    doc["buffers"] = [buffer] if blob.data else []
+    if not doc["buffers"]:
+        del doc["buffers"]
+    _write_document(dst, doc, bytes(blob.data), gf.layout)
+
+
+def _json_bytes(doc, **style):
+    """UTF-8 JSON; names stay readable, but a lone surrogate escape (valid JSON) stays escaped."""
+    try:
+        return json.dumps(doc, ensure_ascii=False, **style).encode("utf-8")
+    except UnicodeEncodeError:
+        return json.dumps(doc, **style).encode("ascii")
+
+
+def _write_document(dst, doc, data, layout):
+    """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it."""
+    if os.path.splitext(dst)[1].lower() == ".glb":
+        text = _json_bytes(doc, separators=(",", ":"))
+        text += b" " * (-len(text) % 4)
+        chunks = struct.pack("<II", len(text), JSON_CHUNK) + text
+        if data:
+            chunks += struct.pack("<II", len(data), BIN_CHUNK) + data
+        with atomic_write(dst, binary=True) as f:
+            f.write(struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks)
+        return
+    if data and layout == "embedded":
+        doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
+    elif data:
+        name = os.path.splitext(os.path.basename(dst))[0] + ".bin"
+        doc["buffers"][0]["uri"] = urllib.parse.quote(name)
+        with atomic_write(os.path.join(os.path.dirname(dst), name), binary=True) as f:
+            f.write(data)
+    with atomic_write(dst, binary=True) as f:
+        f.write(_json_bytes(doc, indent=2) + b"\n")
+
+
+# --------------------------------------------------------------------------- resampling
+
+def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="raise"):
+    """Resample every animation of a glTF file and write it to `dst` (``.gltf`` or ``.glb``).
+
+    Each animation is sampled on one time grid shared by its samplers:
+    ``t0 + k / fps`` from its first to its last key time (over all its
+    samplers; a sampler whose keys end earlier holds its end values there,
+    as the spec says), or at `times`.  The samplers are written LINEAR at
+    those times (STEP samplers stay STEP, with the values they hold there).
+
+    Parameters
+    ----------
+    src, dst : str or os.PathLike
+    fps : float, optional
+    times : array_like, optional
+        Strictly increasing query times (seconds); give `fps` or `times`.
+    method : {None, 'slerp', 'squad', 'bezier', 'linear'}
+        None keeps each sampler's own interpolation; a method re-interpolates
+        the keys of LINEAR and CUBICSPLINE rotation samplers with that
+        `quatarray.interpolate.Track` curve.
+    extrapolate : {'raise', 'clamp', 'extend'}
+        `times` outside an animation's keys: 'raise' a ValueError, or 'clamp'
+        to its end values, as glTF players do; 'extend' is refused there
+        (glTF defines no extrapolation).
+
+    Returns
+    -------
+    tuple of int
+        ``(key times read, frames written)``, summed over the animations.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> from quatarray.io import example_path, read_csv
+    >>> from quatarray._gltf import keyframes_to_gltf, resample_gltf
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> src, dst = os.path.join(tmp.name, "arm.glb"), os.path.join(tmp.name, "arm_60.glb")
+    >>> keyframes_to_gltf(src, read_csv(example_path("arm.csv")))
+    >>> resample_gltf(src, dst, fps=60)
+    (11, 241)
+    """
+    gf = read_gltf(src)
+    animations = read_animations(gf)
+    if not any(animations):
+        raise FormatError("no animation samplers to resample", gf.path)
+    if times is not None:
+        times = np.asarray(times, np.float64)
+        if times.ndim != 1 or not len(times) or not np.isfinite(times).all() or (np.diff(times) <= 0).any():
+            raise ValueError("expected times to be finite and strictly increasing")
+    new, nkeys, nframes = [], 0, 0
+    for a, samplers in enumerate(animations):
+        if not samplers:
+            new.append(None)
+            continue
+        t0, t1 = min(s.times[0] for s in samplers), max(s.times[-1] for s in samplers)
+        per_frame = 1 + sum(s.values.shape[1] for s in samplers)   # a time and every sampler's values
+        if times is None:
+            t = _fps_grid(t0, t1, fps, per_frame)
+        else:
+            check_size(len(times), per_frame, "the query times")
+            t = times
+        grid = t.astype(np.float32)   # key times are float32: 0.1 s is the key stored as 0.1
+        if (np.diff(grid) <= 0).any():
+            raise ValueError(f"times closer than float32 key times can hold near {float(t[-1])!r} s")
+        if extrapolate != "clamp" and (grid[0] < t0 or grid[-1] > t1):
+            bad = t[0] if grid[0] < t0 else t[-1]
+            raise ValueError(f"query time {float(bad)!r} is outside animation {a}'s key times [{float(t0)!r}, "
+                             f"{float(t1)!r}] and extrapolate is {extrapolate!r} (glTF holds the end values: "
+                             "use --extrapolate clamp)")
+        t = grid.astype(np.float64)   # the values belong to the times as written
+        outputs = [resample_sampler(s.times, s.values, s.interpolation, t, s.path == "rotation", method)
+                   for s in samplers]
+        new.append((grid, outputs))
+        nkeys += len(np.unique(np.concatenate([s.times for s in samplers])))
+        nframes += len(t)
+    write_gltf(dst, gf, new)
+    return nkeys, nframes
+
+
+def _fps_grid(t0, t1, fps, per_frame):
+    """`fps_times` from t0 to t1, where t1 counts as reached within float32 rounding.
+
+    Key times are float32 in glTF: a last key at k / fps is stored a little
+    below it as often as not, and the grid must still include it.
+    """
+    slack = 4 * float(np.spacing(np.float32(max(abs(t0), abs(t1)))))
+    return np.minimum(fps_times(t0, t1 + slack, fps, per_frame), t1)
+
+
+# --------------------------------------------------------------------------- an example file
+
+def keyframes_to_gltf(path, keyframes, *, offset=(0.0, 0.3, 0.0)):
+    """Write quaternion keyframes as a glTF animation of a chain of nodes (one per track).
+
+    Track j becomes node j, a child of node j - 1, translated by `offset`;
+    its keys become a LINEAR rotation sampler (scalar-last, as glTF stores
+    them).  ``.glb`` or ``.gltf`` (buffer embedded), written atomically.
+    Used by ``quatarray demo`` to make an example file.
+    """
+    keys = np.asarray(keyframes.keys, np.float64)
+    keys = keys.reshape(len(keys), -1, 4)
+    names = keyframes.names or tuple(f"q{j}" for j in range(keys.shape[1]))
+    blob, accessors = _Blob(), []
+    shared = _float_accessor(blob, accessors, np.reshape(keyframes.times, (-1, 1)), "SCALAR", "times", bounds=True)
+    nodes, samplers, channels = [], [], []
+    for j, name in enumerate(names):
+        nodes.append({"name": name, "translation": list(offset) if j else [0.0, 0.0, 0.0]})
+        if j + 1 < len(names):
+            nodes[-1]["children"] = [j + 1]
+        out = _float_accessor(blob, accessors, np.roll(keys[:, j], -1, axis=-1), "VEC4", f"{name} rotation")
+        samplers.append({"input": shared, "output": out, "interpolation": "LINEAR"})
+        channels.append({"sampler": j, "target": {"node": j, "path": "rotation"}})
+    doc = {"asset": {"version": "2.0", "generator": "quatarray"}, "scene": 0,
+           "scenes": [{"nodes": [0]}], "nodes": nodes,
+           "animations": [{"name": "keyframes", "samplers": samplers, "channels": channels}],
+           "accessors": accessors, "bufferViews": blob.views, "buffers": [{"byteLength": len(blob.data)}]}
+    _write_document(os.fspath(path), doc, bytes(blob.data), "embedded")

@@ -1,0 +1,201 @@
+"""The documentation: a warning-free Sphinx build, the guide's doctests, and three pages
+rendered in headless Chromium.
+
+Needs the ``docs`` extra (``pip install -e ".[docs]"``) and, for the browser test,
+Debian's ``chromium`` and ``chromium-driver``. Without them these tests skip with the
+reason, except in CI (environment variable ``CI`` set), where they fail.
+
+The HTML goes to ``docs/_build/html`` (the README's build command writes there too) and
+the screenshots to ``docs/_build/screenshots``: build artefacts, ignored by git.
+"""
+
+import functools
+import http.server
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import urllib.parse
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+BUILD = DOCS / "_build"
+DOCS_EXTRA = ("sphinx", "numpydoc", "pydata_sphinx_theme", "matplotlib", "scipy", "mpmath")
+
+
+def _unavailable(reason):
+    """Skip outside CI; in CI a missing tool is a failure, not a silent skip."""
+    if os.environ.get("CI"):
+        pytest.fail(f"{reason} (CI is set, so the documentation checks must run)", pytrace=False)
+    pytest.skip(reason)
+
+
+def _docs_extra():
+    missing = [m for m in DOCS_EXTRA if importlib.util.find_spec(m) is None]
+    if missing:
+        _unavailable(f"the docs extra is not installed (missing {', '.join(missing)}): "
+                     f'pip install -e ".[docs]"')
+
+
+def _sphinx(builder, outdir):
+    """Run a builder; the doctrees are where the README's command keeps them, so that a
+    later ``python -m sphinx -W -b html docs docs/_build/html`` is incremental."""
+    cmd = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", builder,
+           "-d", str(BUILD / "html" / ".doctrees"), str(DOCS), str(outdir)]
+    if builder == "html":
+        cmd.insert(3, "-E")        # a fresh environment: every page read, every warning seen
+    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900)
+
+
+@pytest.fixture(scope="module")
+def html():
+    _docs_extra()
+    out = BUILD / "html"
+    run = _sphinx("html", out)
+    assert run.returncode == 0, f"sphinx-build -W failed:\n{run.stdout}\n{run.stderr}"
+    return out
+
+
+def test_build_is_warning_free(html):
+    for page in ("index.html", "guide/interpolation.html", "api/index.html",
+                 "api/generated/quatarray.Rotation.html", "api/generated/quatarray.QuatArray.html"):
+        assert (html / page).is_file(), page
+
+
+def test_api_reference_lists_every_public_name(html):
+    import quatarray
+    text = "".join(p.read_text(encoding="utf-8") for p in (html / "api").glob("*.html"))
+    names = [n for n in quatarray.__all__ if not isinstance(getattr(quatarray, n), type(quatarray))]
+    missing = [n for n in names if f"quatarray.{n}.html" not in text]
+    assert not missing, f"public names without a reference page: {missing}"
+
+
+def test_quatarray_page_has_our_members_not_ndarrays(html):
+    text = (html / "api" / "generated" / "quatarray.QuatArray.html").read_text(encoding="utf-8")
+    assert 'id="quatarray.QuatArray.rotate"' in text
+    assert 'id="quatarray.QuatArray.normalized"' in text
+    for inherited in ("argmax", "tobytes", "cumsum", "searchsorted"):
+        assert f'id="quatarray.QuatArray.{inherited}"' not in text, inherited
+
+
+def test_guide_doctests(html):
+    run = _sphinx("doctest", BUILD / "doctest")
+    assert run.returncode == 0, f"doctests of the guide failed:\n{run.stdout}\n{run.stderr}"
+    report = (BUILD / "doctest" / "output.txt").read_text(encoding="utf-8")
+    assert "0 failures in tests" in report
+    tested = [line for line in report.splitlines() if line.startswith("Document: guide/")]
+    assert len(tested) >= 5, report
+
+
+# ---- the browser --------------------------------------------------------------------
+
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync", "--window-size=1280,1000",
+                  "--hide-scrollbars")
+
+PAGES = {  # page: minimum number of plots (images of at least 300 x 150 CSS pixels)
+    "index.html": 1,
+    "api/generated/quatarray.Rotation.html": 0,
+    "guide/interpolation.html": 3,
+}
+
+
+@pytest.fixture(scope="module")
+def server(html):
+    handler = functools.partial(_QuietHandler, directory=str(html))
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{httpd.server_address[1]}/"
+    httpd.shutdown()
+    httpd.server_close()
+
+
+class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    if importlib.util.find_spec("selenium") is None:
+        _unavailable('selenium is not installed: pip install -e ".[docs]"')
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver_path = shutil.which("chromedriver")
+    if not (chromium and driver_path):
+        _unavailable("Chromium is not installed: apt-get install chromium chromium-driver")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = chromium
+    for flag in CHROMIUM_FLAGS:
+        options.add_argument(flag)
+    options.add_argument(f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}")
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    driver.set_page_load_timeout(60)
+    yield driver
+    driver.quit()
+
+
+def _screenshot(driver, name):
+    """A full-page PNG in docs/_build/screenshots (a build artefact)."""
+    import base64
+    folder = BUILD / "screenshots"
+    folder.mkdir(parents=True, exist_ok=True)
+    width, height = driver.execute_script(
+        "return [document.documentElement.scrollWidth, document.documentElement.scrollHeight]")
+    shot = driver.execute_cdp_cmd("Page.captureScreenshot", {
+        "format": "png", "captureBeyondViewport": True,
+        "clip": {"x": 0, "y": 0, "width": width, "height": min(height, 16000), "scale": 1}})
+    path = folder / (name.replace("/", "_").replace(".html", "") + ".png")
+    path.write_bytes(base64.b64decode(shot["data"]))
+    return path
+
+
+@pytest.mark.parametrize("page", list(PAGES))
+def test_page_in_chromium(browser, server, page):
+    url = urllib.parse.urljoin(server, page)
+    browser.get_log("browser")                                   # drop earlier pages' entries
+    browser.get(url)
+    assert browser.execute_script("return document.readyState") == "complete"
+    assert "quatarray" in browser.title
+
+    # no console errors (a failed resource, a script error, ...)
+    errors = [e for e in browser.get_log("browser") if e["level"] in ("SEVERE", "ERROR")]
+    assert not errors, errors
+
+    # the navigation links resolve: header, sidebars, tables of contents, previous/next
+    links = browser.execute_script("""
+        const sel = 'nav a[href], .bd-sidebar-primary a[href], .toctree-wrapper a[href], '
+                  + '.prev-next-area a[href]';
+        return Array.from(document.querySelectorAll(sel), a => a.href);""")
+    internal = sorted({h for h in links if h.startswith(server)})
+    assert len(internal) >= 5, links
+    for href in internal:
+        target, _, fragment = href.partition("#")
+        with urllib.request.urlopen(target) as response:
+            assert response.status == 200, href
+            body = response.read().decode("utf-8")
+        if fragment:
+            assert f'id="{urllib.parse.unquote(fragment)}"' in body, href
+
+    # every image loaded; the plots are there at a readable size
+    images = browser.execute_script("""
+        return Array.from(document.images, i => [i.currentSrc, i.complete, i.naturalWidth,
+                                                  i.naturalHeight, i.width, i.height]);""")
+    broken = [i for i in images if not i[1] or i[2] == 0]
+    assert not broken, broken
+    plots = [i for i in images if "/_images/" in i[0] and i[4] >= 300 and i[5] >= 150]
+    assert len(plots) >= PAGES[page], images
+
+    path = _screenshot(browser, page)
+    assert path.stat().st_size > 10_000
