@@ -253,6 +253,11 @@ RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigi
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
+#: Rotation methods timed on one rotation (N = 1) against scipy's (benchmarks.single)
+SINGLE_METHODS = ("from_quat", "as_quat", "from_matrix", "as_matrix", "from_rotvec", "as_rotvec",
+                  "from_mrp", "as_mrp", "from_euler", "as_euler", "from_davenport", "as_davenport",
+                  "apply", "mul", "pow", "inv", "magnitude", "approx_equal", "mean", "reduce",
+                  "identity", "random", "align_vectors")
 
 
 def _rows(full):
@@ -262,6 +267,7 @@ def _rows(full):
     from .pairwise import Pairwise
     from .resample import Resample
     from .rotate import RotateVectors
+    from .single import SingleRotation
     from .tracks import OneQuery, Tracks
 
     qa, sp, nq, qn = "quatarray", "scipy", "numpy-quaternion", "quaternionic"
@@ -277,7 +283,7 @@ def _rows(full):
     f64 = ["float64"]
     dtypes = _common.DTYPES if full else f64
     add("product", Algebra, "time_product", _common.SIZES if full else [1, BIG], _common.DTYPES, (qa, sp, nq, qn))
-    for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power"):
+    for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power", "rotation_power"):
         add(op, Algebra, f"time_{op}", sizes, dtypes, (qa, nq, qn) if op in PEER_OPS else (qa, sp))
     add("rotate", RotateVectors, "time_rotate", sizes, dtypes, (qa, nq, qn))
     add("apply", RotateVectors, "time_apply", _common.SIZES if full else [1, BIG], dtypes, (qa, sp))
@@ -289,6 +295,8 @@ def _rows(full):
     if full:
         add("nlerp", Pairwise, "time_nlerp", sizes, dtypes, LIBS)
     rows.append(Row("Slerp(t), one query", OneQuery, "time_slerp_call", ("float64",), libs=(qa, sp), n=1))
+    for method in SINGLE_METHODS:   # N = 1: one rotation, where the per-call cost decides
+        rows.append(Row(f"Rotation {method}", SingleRotation, f"time_{method}", (), libs=(qa, sp), n=1))
     tracks = [(10_000, BIG)] + ([(10, 10), (10, BIG), (10_000, 10)] if full else [])
     for k, m in tracks:
         for method, libs in (("slerp", (qa, sp)), ("squad", (qa, nq, qn))) + ((("bezier", (qa, sp)),) if full else ()):
@@ -414,6 +422,9 @@ def targets(results, memory, imports):
         check(f"{op}: scipy / quatarray >= 1", ratio(op, "scipy"), lambda v: v >= 1)
     check("N=1 product: scipy / quatarray >= 1", ratio("product", "scipy", n=1), lambda v: v >= 1)
     check("N=1 apply: scipy / quatarray >= 1", ratio("apply", "scipy", n=1), lambda v: v >= 1)
+    for method in SINGLE_METHODS:
+        check(f"N=1 Rotation.{method}: scipy / quatarray >= 1", ratio(f"Rotation {method}", "scipy", n=1),
+              lambda v: v >= 1)
     check("N=1 one-query Slerp(t): scipy / quatarray >= 1", ratio("Slerp(t), one query", "scipy", n=1),
           lambda v: v >= 1)
     if imports:

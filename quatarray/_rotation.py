@@ -11,7 +11,7 @@ float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
 the batch shape (one per rotation).
 """
 
-import math
+import functools
 import warnings
 
 import numpy as np
@@ -365,12 +365,13 @@ class Rotation:
         if a.shape[-1] != n or (ax2.ndim > 2 and not _broadcastable(ax2.shape[:-2], a.shape[:-1])):
             raise ValueError(f"Expected `angles` to match number of axes, got {a.shape} angles "
                              f"and {ax2.shape} axes.")
-        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
-        dots = np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1))
-        if (dots > 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
         if ax2.ndim == 2:
+            if any(abs(c) > 1e-7 for c in _cosines(ax2)):
+                raise ValueError("Consecutive axes must be orthogonal.")
             return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees))
+        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
+        if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
         # axes with a batch shape: one elementary turn per axis, composed in order
         dtype = np.result_type(a.dtype, ax2.dtype)
         angle = np.deg2rad(a) if degrees else a
@@ -398,13 +399,14 @@ class Rotation:
         if ax.ndim > 2 and not _broadcastable(ax.shape[:-2], self._q.shape[:-1]):
             raise ValueError(f"Expected `axes` to match number of rotations, got {ax.shape} axes "
                              f"and {self._q.shape} rotations.")
-        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
-        dots = np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)
-        if (dots >= 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
         if ax.ndim == 2:
+            if any(c >= 1e-7 for c in _cosines(ax)):   # scipy's test, without abs
+                raise ValueError("Consecutive axes must be orthogonal.")
             return E.as_davenport(self._q, ax, order, degrees=degrees,
                                   suppress_warnings=suppress_warnings)
+        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
+        if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
         # one set of axes per rotation: each distinct set read by the raw function
         batch = np.broadcast_shapes(ax.shape[:-2], self._q.shape[:-1])
         qb = np.broadcast_to(self._q, batch + (4,)).reshape(-1, 4)
@@ -453,9 +455,10 @@ class Rotation:
         else:
             return NotImplemented
         p = self._q
-        if p.ndim > 1 or q.ndim > 1:
-            _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
-                             f"{q.shape[:-1]} rotations in second object.")
+        if p.ndim == 1 and q.ndim == 1:  # two single rotations: from_quat normalises in Python floats
+            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True))
+        _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
+                         f"{q.shape[:-1]} rotations in second object.")
         return type(self)._wrap(K.normalize(K.multiply(p, q)))
 
     def __rmul__(self, other):
@@ -554,9 +557,10 @@ class Rotation:
             atol = 1e-8 if p.dtype == q.dtype == np.float64 else 1e-5
         elif degrees:
             atol = np.deg2rad(atol)
-        _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
-                         f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
+        if p.ndim > 1 or q.ndim > 1:
+            _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
+                             f"rotations in first and {q.shape[:-1]} rotations in second object.")
+        res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
@@ -576,6 +580,8 @@ class Rotation:
         array([10.,  0.,  0.])
         """
         q = self._q
+        if q.ndim == 1 and weights is None and axis is None:  # the mean of one rotation is itself
+            return type(self)._wrap(C.canonical(q))
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]
@@ -843,6 +849,8 @@ def _random(num=None, rng=None, *, shape=None, legacy=False):
     return Rotation(rng.normal(size=size + (4,)))
 
 
+# named `random` for Python's own argument errors ("random() takes from 0 to 2 positional
+# arguments"), which scipy's tests match
 _random.__name__ = _random.__qualname__ = "random"
 
 
@@ -887,6 +895,14 @@ def _batch_key(indexer, shape):
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
 
 
+def _cosines(axes):
+    """Cosines between consecutive rows of a few axes (n, 3), in Python floats."""
+    rows = axes.tolist()
+    norms = [(x * x + y * y + z * z) ** 0.5 for x, y, z in rows]
+    return [(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / (nu * nv) if nu * nv else float("nan")
+            for u, v, nu, nv in zip(rows, rows[1:], norms, norms[1:])]   # nan: zero axes, refused later
+
+
 def _coerce(r, name):
     """Raw quaternions of a Rotation (or a scipy Rotation) argument."""
     if isinstance(r, Rotation):
@@ -900,6 +916,12 @@ def _check_euler_seq(seq, n=None):
     """scipy's checks and messages for an Euler sequence."""
     if not isinstance(seq, str):
         raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    _check_str_seq(seq, n)
+
+
+@functools.lru_cache(maxsize=128)
+def _check_str_seq(seq, n):
+    """`_check_euler_seq` for a str, remembered (it costs as much as one rotation's conversion)."""
     if n is not None and len(seq) != n:
         raise ValueError(f"Expected {n} axes, got {seq}.")
     if not 1 <= len(seq) <= 3:

@@ -696,6 +696,7 @@ class Slerp(Track):
         if np.any(np.diff(t) <= 0):
             raise ValueError("Times must be in strictly increasing order.")
         self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations")
+        self._range = (float(t[0]), float(t[-1]))
 
     @property
     def timedelta(self):
@@ -729,7 +730,7 @@ class Slerp(Track):
         t = float_array(times, "times")
         if t.ndim > 1:
             raise ValueError(f"`times` must be at most 1-dimensional. Got shape {t.shape}")
-        t0, t1 = self.times[0], self.times[-1]
-        if t.size and not ((t >= t0).all() and (t <= t1).all()):
+        t0, t1 = self._range
+        if not (t0 <= float(t) <= t1 if t.ndim == 0 else t.size == 0 or t0 <= t.min() and t.max() <= t1):
             raise ValueError(f"Interpolation times must be within the range [{t0}, {t1}], both inclusive.")
         return Rotation._wrap(self._evaluate(t, "times").view(np.ndarray))
