@@ -655,7 +655,10 @@ class Rotation:
         score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
         best = score.reshape(score.shape[0], -1).argmax(axis=1)
         li, ri = np.divmod(best, rs.shape[0])
-        reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
+        if p.ndim == 1:   # one rotation: single products (Python floats)
+            reduced = K.multiply(ls[li[0]], K.multiply(p, rs[ri[0]]))
+        else:
+            reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
