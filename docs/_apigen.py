@@ -29,7 +29,8 @@ GROUPS = [
     ("files", "Files and command line",
      "Readers, writers and resampling of keyframe files; see :doc:`/guide/files`."),
     ("dask", "Scaling out (Dask)",
-     "Chunked arrays of quaternions and out-of-core resampling with Dask."),
+     "The in-memory kernels on Dask arrays, chunk by chunk, and keyframe tracks evaluated at "
+     "chunked times; see :doc:`/guide/dask`."),
     ("testing", "Testing helpers",
      "Assertions that compare quaternion arrays (``numpy.testing`` applies componentwise ufuncs "
      "that `QuatArray` refuses)."),

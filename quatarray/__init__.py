@@ -1,8 +1,11 @@
 """quatarray: vectorised NumPy arrays of quaternions.
 
-`QuatArray` (alias `Rotation`, a drop-in for `scipy.spatial.transform.Rotation`),
-keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`, `bezier`, `Track`,
-and scipy's `Slerp`), and `quatarray.testing` for assertions.
+`QuatArray`, an ndarray of scalar-first quaternions ``(..., 4)`` for quaternion
+algebra; `Rotation`, scipy 1.17's ``scipy.spatial.transform.Rotation`` over a
+`QuatArray` (``r.as_quatarray()`` and ``Rotation.from_quatarray(q)`` convert
+without copying); keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`,
+`bezier`, `Track`, and scipy's `Slerp`, which returns `Rotation`); and
+`quatarray.testing` for assertions.
 `set_num_threads`, `get_num_threads` and `num_threads` control how many
 threads long batches use.
 """

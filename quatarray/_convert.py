@@ -219,6 +219,37 @@ def _shepperd(mat, q):
     q /= np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
+def _shepperd_one(m00, m01, m02, m10, m11, m12, m20, m21, m22):
+    """`_shepperd` for one matrix of Python floats: the unit quaternion (w, x, y, z)."""
+    tr = m00 + m11 + m22
+    choice, best = 1, m00
+    for col, value in ((2, m11), (3, m22), (0, tr)):
+        if value > best:
+            choice, best = col, value
+    q = ((1.0 + tr, m21 - m12, m02 - m20, m10 - m01),
+         (m21 - m12, 1.0 - tr + 2 * m00, m10 + m01, m20 + m02),
+         (m02 - m20, m10 + m01, 1.0 - tr + 2 * m11, m21 + m12),
+         (m10 - m01, m20 + m02, m21 + m12, 1.0 - tr + 2 * m22))[choice]
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return [c / n for c in q]
+
+
+def _from_matrix_one(m, assume_valid, tol_diag, tol_off):
+    """One matrix in Python floats, or None when it needs the array path (not a
+    rotation within the tolerances: projection or an error message)."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m.reshape(9).tolist()
+    if not assume_valid:
+        det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+               + m02 * (m10 * m21 - m11 * m20))
+        diag = max(abs(m00 * m00 + m01 * m01 + m02 * m02 - 1.0), abs(m10 * m10 + m11 * m11 + m12 * m12 - 1.0),
+                   abs(m20 * m20 + m21 * m21 + m22 * m22 - 1.0))
+        off = max(abs(m00 * m10 + m01 * m11 + m02 * m12), abs(m00 * m20 + m01 * m21 + m02 * m22),
+                  abs(m10 * m20 + m11 * m21 + m12 * m22))
+        if not (0 < det < math.inf and diag <= tol_diag and off <= tol_off):
+            return None
+    return np.array(_shepperd_one(m00, m01, m02, m10, m11, m12, m20, m21, m22), m.dtype)
+
+
 def _k_from_matrix(mat, q, status, tol_diag, tol_off):
     _shepperd(mat, q)
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
@@ -333,6 +364,12 @@ def from_matrix(matrix, assume_valid=False):
     m = float_array(matrix, "matrix")
     if m.ndim < 2 or m.shape[-2:] != (3, 3):
         raise ValueError(f"expected matrix of shape (..., 3, 3), got {m.shape}")
+    eps = np.finfo(m.dtype).eps
+    tol_off = 1e-12 if m.dtype == np.float64 else 64 * eps
+    if m.shape == (3, 3):  # one matrix: Python floats, unless it is not a rotation
+        one = _from_matrix_one(m, assume_valid, 1e-5 + tol_off, tol_off)
+        if one is not None:
+            return one
     batch = m.shape[:-2]
     flat = m.reshape(-1, 9)
     n = flat.shape[0]
@@ -341,8 +378,6 @@ def from_matrix(matrix, assume_valid=False):
     if assume_valid:
         _blockwise(_k_shepperd, [flat], [qflat])
         return out
-    eps = np.finfo(m.dtype).eps
-    tol_off = 1e-12 if m.dtype == np.float64 else 64 * eps
     status = np.empty((n, 1), np.int8)
     _blockwise(_k_from_matrix, [flat], [qflat, status], tol_diag=1e-5 + tol_off, tol_off=tol_off)
     status = status[:, 0]
@@ -400,13 +435,20 @@ def _vector_norm(q):
     return np.sqrt(v2, out=v2)
 
 
+def _flip_one(w, x, y, z):
+    """`_flip_mask` for one quaternion of Python floats."""
+    if w != 0:
+        return w < 0
+    return (x < 0) or (x == 0 and ((y < 0) or (y == 0 and z < 0)))
+
+
 def _k_as_rotvec(q, o, factor):
     nv = _vector_norm(q)
     w, x, y, z = q
     half = arctan2(nv, np.abs(w))
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
-    np.negative(scale, out=scale, where=_flip_mask(w, x, y, z))
+    scale = np.where(_flip_mask(w, x, y, z), -scale, scale)   # not a masked negative: cheaper
     scale *= factor
     np.multiply(x, scale, out=o[0])
     np.multiply(y, scale, out=o[1])
@@ -439,8 +481,14 @@ def as_rotvec(q, degrees=False):
     array([ 0.,  0., 90.])
     """
     q = quat_array(q, "quat")
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
     factor = 2.0 * (180.0 / np.pi if degrees else 1.0)
+    if q.shape == (4,):  # one rotation: Python floats (a few µs instead of a block run)
+        (w, x, y, z), _ = _scale.guard_one(q.tolist())
+        nv = math.sqrt(x * x + y * y + z * z)
+        scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * factor
+        scale = -scale if _flip_one(w, x, y, z) else scale
+        return np.array([x * scale, y * scale, z * scale], q.dtype)
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=factor)
     return out
 
@@ -492,8 +540,15 @@ def from_rotvec(rotvec, degrees=False):
     array([0.707107, 0.      , 0.      , 0.707107])
     """
     v = finite(_vec3(rotvec, "rotvec"), "rotvec")
-    out = np.empty(v.shape[:-1] + (4,), v.dtype)
     factor = np.pi / 180.0 if degrees else 1.0
+    if v.shape == (3,):  # one rotation: Python floats, the same half-angle tangent
+        x, y, z = v.tolist()
+        theta = max(math.sqrt(x * x + y * y + z * z) * factor, float(ANGLE_FLOOR[v.dtype]))
+        t = math.tan(theta * 0.25)
+        d = 1.0 / (1.0 + t * t)
+        scale = 2.0 * t * d / theta * factor
+        return np.array([(1.0 - t) * (1.0 + t) * d, x * scale, y * scale, z * scale], v.dtype)
+    out = np.empty(v.shape[:-1] + (4,), v.dtype)
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
     return out
 
@@ -535,7 +590,7 @@ def _k_as_mrp(q, o):
     n = np.sqrt(_scale.guarded_sqnorm(q))
     w, x, y, z = q
     k = 1.0 / (n + np.abs(w))
-    np.negative(k, out=k, where=w < 0)
+    k = np.where(w < 0, -k, k)
     np.multiply(x, k, out=o[0])
     np.multiply(y, k, out=o[1])
     np.multiply(z, k, out=o[2])
@@ -561,6 +616,12 @@ def as_mrp(q):
     array([0., 0., 1.])
     """
     q = quat_array(q, "quat")
+    if q.shape == (4,):  # one rotation: Python floats
+        (w, x, y, z), _ = _scale.guard_one(q.tolist())
+        d = math.sqrt(w * w + x * x + y * y + z * z) + abs(w)
+        k = 1.0 / d if d else math.inf   # zero quaternion: nan out, as the block path gives
+        k = -k if w < 0 else k
+        return np.array([x * k, y * k, z * k], q.dtype)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
@@ -596,6 +657,11 @@ def from_mrp(mrp):
     array([0., 0., 0., 1.])
     """
     p = finite(_vec3(mrp, "mrp"), "mrp")
+    if p.shape == (3,):  # one rotation: Python floats
+        x, y, z = p.tolist()
+        n = x * x + y * y + z * z
+        d = 1.0 / (1.0 + n)
+        return np.array([(1.0 - n) * d, 2.0 * x * d, 2.0 * y * d, 2.0 * z * d], p.dtype)
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
     return out

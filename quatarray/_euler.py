@@ -8,6 +8,8 @@ Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
 `_convert`.
 """
 
+import functools
+import math
 import re
 import warnings
 
@@ -15,7 +17,7 @@ import numpy as np
 
 from . import _scale
 from ._convert import _blockwise, _half_angle
-from ._kernels import arctan2, multiply_rows
+from ._kernels import arctan2, hamilton, multiply_rows
 from ._validate import finite, float_array, quat_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
@@ -38,6 +40,13 @@ def check_seq(seq, n=None):
     """
     if not isinstance(seq, str):
         raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    axes, intrinsic = _check_str_seq(seq, n)
+    return list(axes), intrinsic
+
+
+@functools.lru_cache(maxsize=128)
+def _check_str_seq(seq, n):
+    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs)."""
     if n is not None and len(seq) != n:
         raise ValueError(f"expected seq of {n} axes, got {seq!r} ({len(seq)} axes)")
     if not 1 <= len(seq) <= 3:
@@ -48,7 +57,13 @@ def check_seq(seq, n=None):
                          f"(intrinsic), not mixed, got {seq!r}")
     if any(a == b for a, b in zip(seq, seq[1:])):
         raise ValueError(f"expected consecutive axes of seq to be different, got {seq!r}")
-    return ["xyz".index(a) for a in seq.lower()], intrinsic
+    return tuple("xyz".index(a) for a in seq.lower()), intrinsic
+
+
+def _negate(x):
+    """-x in place.  Not ``np.negative(x, out=x)``: NumPy 2.4 reads the wrong elements for
+    float32 rows 16 bytes apart (the component rows of an (m, 4) output)."""
+    return np.multiply(x, -1, out=x)
 
 
 def _lin(c, a, sign, s, b, out=None):
@@ -59,7 +74,7 @@ def _lin(c, a, sign, s, b, out=None):
         return np.multiply(c, a, out=out)
     sb = np.multiply(s, b, out=out if a is None else None)
     if a is None:
-        return sb if sign > 0 else np.negative(sb, out=sb)
+        return sb if sign > 0 else _negate(sb)
     ca = np.multiply(c, a, out=out)
     return np.add(ca, sb, out=ca) if sign > 0 else np.subtract(ca, sb, out=ca)
 
@@ -133,8 +148,18 @@ def from_euler(seq, angles, degrees=False):
         a = a.reshape(1)
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
-    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     scale = np.pi / 720.0 if degrees else 0.25
+    if a.shape == (len(axes),):  # one rotation: Python floats, elementary turns composed
+        q = None
+        for axis, angle in zip(axes, a.tolist()):
+            t = math.tan(angle * scale)
+            d = 1.0 / (1.0 + t * t)
+            e = [(1.0 - t) * (1.0 + t) * d, 0.0, 0.0, 0.0]
+            e[axis + 1] = 2.0 * t * d
+            e = (complex(e[0], e[1]), complex(e[2], e[3]))  # (w + x i) + (y + z i) j
+            q = e if q is None else (hamilton(*q, *e) if intrinsic else hamilton(*e, *q))
+        return np.array([q[0].real, q[0].imag, q[1].real, q[1].imag], a.dtype)
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
     return out
@@ -164,12 +189,35 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
         np.copyto(o[0], lock_angle, where=locked)
     if not symmetric:
         if sign < 0:
-            np.negative(o[third], out=o[third])
+            _negate(o[third])
         middle -= lamb
     for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
-        np.add(row, 2 * np.pi, out=row, where=row < -np.pi)
-        np.subtract(row, 2 * np.pi, out=row, where=row > np.pi)
+        # np.where, not ufuncs with where=: masked loops cost several times more
+        np.copyto(row, np.where(row < -np.pi, row + 2 * np.pi, np.where(row > np.pi, row - 2 * np.pi, row)))
     return gimbal
+
+
+def _angles_one(a, b, c, d, extrinsic, symmetric, sign, lamb):
+    """`_angles` for one rotation in Python floats: ([first, middle, third], gimbal)."""
+    first, third = (0, 2) if extrinsic else (2, 0)
+    half_sum, half_diff = math.atan2(b, a), math.atan2(d, c)
+    o = [0.0, 2.0 * math.atan2(math.sqrt(c * c + d * d), math.sqrt(a * a + b * b)), 0.0]
+    o[first], o[third] = half_sum - half_diff, half_sum + half_diff
+    case1 = o[1] <= _GIMBAL_EPS
+    gimbal = case1 or abs(o[1] - math.pi) <= _GIMBAL_EPS
+    if gimbal:
+        o[2] = 0.0
+        o[0] = 2 * half_sum if case1 else (-2 if extrinsic else 2) * half_diff
+    if not symmetric:
+        if sign < 0:
+            o[third] = -o[third]
+        o[1] -= lamb
+    for n in (0, 2):
+        if o[n] < -math.pi:
+            o[n] += 2 * math.pi
+        elif o[n] > math.pi:
+            o[n] -= 2 * math.pi
+    return o, gimbal
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
@@ -226,6 +274,14 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     if symmetric:
         k = 3 - i - j
     sign = (i - j) * (j - k) * (k - i) // 2
+    if q.shape == (4,):  # one rotation: Python floats
+        c, _ = _scale.guard_one(q.tolist())
+        w, qi, qj, qk = c[0], c[i + 1], c[j + 1], c[k + 1] * sign
+        abcd = (w, qi, qj, qk) if symmetric else (w - qj, qi + qk, qj + w, qk - qi)
+        angles, gimbal = _angles_one(*abcd, not intrinsic, symmetric, sign, math.pi / 2)
+        _warn_gimbal(gimbal, suppress_warnings)
+        out = np.array(angles, q.dtype)
+        return np.rad2deg(out, out=out) if degrees else out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
                         symmetric=symmetric, sign=sign, extrinsic=not intrinsic)
@@ -311,8 +367,17 @@ def from_davenport(axes, order, angles, degrees=False):
     if a.shape[-1] != ax.shape[0]:
         raise ValueError(f"Expected `angles` to match number of axes: expected angles of shape "
                          f"(..., {ax.shape[0]}), got {a.shape}")
-    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     scale = np.pi / 720.0 if degrees else 0.25
+    if a.ndim == 1:  # one rotation: Python floats, the turns composed with `hamilton`
+        q = None
+        for (x, y, z), angle in zip(ax.tolist(), a.tolist()):
+            t = math.tan(angle * scale)
+            d = 1.0 / (1.0 + t * t)
+            s = 2.0 * t * d
+            e = (complex((1.0 - t) * (1.0 + t) * d, s * x), complex(s * y, s * z))
+            q = e if q is None else (hamilton(*e, *q) if extrinsic else hamilton(*q, *e))
+        return np.array([q[0].real, q[0].imag, q[1].real, q[1].imag], a.dtype)
+    out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
                axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale)
     return out
@@ -322,7 +387,7 @@ def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
     _scale.guarded_sqnorm(abcd)
     gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
     if flip:
-        np.negative(o[1], out=o[1])
+        _negate(o[1])
     return gimbal
 
 
@@ -356,8 +421,32 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     array([90., 30., 10.])
     """
     extrinsic = check_order(order)
-    n1, n2, n3 = _unit_axes(axes, 3)
     q = quat_array(q, "quat")
+    key = float_array(axes, "axes").astype(np.float64, copy=False)
+    lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
+    if q.shape == (4,):  # one rotation: Python floats
+        c, _ = _scale.guard_one(q.tolist())
+        abcd = [sum(row[i] * c[i] for i in range(4)) for row in lmat]
+        angles, gimbal = _angles_one(*abcd, extrinsic, False, 1, lamb)
+        if flip:
+            angles[1] = -angles[1]
+        _warn_gimbal(gimbal, suppress_warnings)
+        out = np.array(angles, q.dtype)
+        return np.rad2deg(out, out=out) if degrees else out
+    with np.errstate(invalid="ignore", over="ignore"):   # nan, inf and overflow: the kernel's guard
+        abcd = q.reshape(-1, 4) @ np.array(lmat, q.dtype).T
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
+                        extrinsic=extrinsic, lamb=lamb, flip=flip)
+    _warn_gimbal(gimbal, suppress_warnings)
+    return np.rad2deg(out, out=out) if degrees else out
+
+
+@functools.lru_cache(maxsize=64)
+def _davenport_frame(axes_bytes, shape, extrinsic):
+    """(4x4 matrix L as nested tuples, λ, flip) for `as_davenport`'s axes, remembered:
+    the same few axes serve many calls, and building L costs more than one rotation."""
+    n1, n2, n3 = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3)
     if not extrinsic:
         n1, n3 = n3, n1
     ncross = np.cross(n1, n2)
@@ -374,11 +463,4 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     proj = np.zeros((4, 4))
     proj[0, 0] = 1
     proj[1:, 1:] = [n1, n2, ncross]
-    lmat = (proj @ left).astype(q.dtype)
-    with np.errstate(invalid="ignore", over="ignore"):   # nan, inf and overflow: the kernel's guard
-        abcd = q.reshape(-1, 4) @ lmat.T
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
-                        extrinsic=extrinsic, lamb=lamb, flip=flip)
-    _warn_gimbal(gimbal, suppress_warnings)
-    return np.rad2deg(out, out=out) if degrees else out
+    return tuple(map(tuple, (proj @ left).tolist())), lamb, flip

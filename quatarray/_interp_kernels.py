@@ -183,14 +183,24 @@ def hemisphere(A, B, a2, b2, out):
     """
     np.subtract(b2, a2, out=out)
     if out.dtype == np.float32:
-        unsure = np.abs(out) <= 64 * np.finfo(np.float32).eps * (a2 + b2)
+        unsure = np.abs(out) <= _UNSURE32 * (a2 + b2)
         if unsure.any():
             s = out.shape
-            A64 = np.broadcast_to(A, (4,) + s)[:, unsure].astype(np.float64)
-            B64 = np.broadcast_to(B, (4,) + s)[:, unsure].astype(np.float64)
-            d = vdot(A64, B64, 0)
-            out[unsure] = np.sign(d)      # 0 stays +0: ties keep B
+            at = _where(unsure)
+            d = vdot(np.broadcast_to(A, (4,) + s)[at].astype(np.float64),
+                     np.broadcast_to(B, (4,) + s)[at].astype(np.float64), 0)
+            out[at[1:]] = np.sign(d)      # 0 stays +0: ties keep B
     return out
+
+
+#: |b² - a²| below this times a² + b² leaves the float32 sign of A·B in doubt.
+_UNSURE32 = np.float32(64 * np.finfo(np.float32).eps)
+
+
+def _where(mask):
+    """Index of the True elements of `mask` for (k, *mask.shape) arrays: integer
+    indices, since boolean indexing of every component row rescans the mask."""
+    return (slice(None),) + np.nonzero(mask)
 
 
 def wide_arcs(A, B, h, O, wide):
@@ -205,9 +215,10 @@ def wide_arcs(A, B, h, O, wide):
     from it on.
     """
     s = O.shape[1:]
-    a = np.broadcast_to(A, (4,) + s)[:, wide]
-    b = np.broadcast_to(B, (4,) + s)[:, wide]
-    hh = np.broadcast_to(h, s)[wide]
+    at = _where(wide)
+    a = np.broadcast_to(A, (4,) + s)[at]
+    b = np.broadcast_to(B, (4,) + s)[at]
+    hh = np.broadcast_to(h, s)[at[1:]]
     S = a + b
     D = b - a
     P = S - (vdot(a, S, 0) / vdot(a, a, 0)) * a
@@ -219,7 +230,7 @@ def wide_arcs(A, B, h, O, wide):
     res = np.cos(ang) * a + (np.sin(ang) / pn) * P
     if flat.any():
         res[:, flat] = np.where(hh[flat] < 0.5, a[:, flat], b[:, flat])
-    O[:, wide] = res.astype(O.dtype, copy=False)
+    O[at] = res.astype(O.dtype, copy=False)
 
 
 def slerp_core(A, B, h, O, shortest):
@@ -353,18 +364,17 @@ def _wide_tangents(k0, k1, P, phi, wide):
     1 / b); the component of S = k0 + k1 orthogonal to k0 does not (as in
     `wide_arcs`).  k1 = -c k0 exactly: no unique arc, p = 0 and phi = 0.
     """
-    a = k0[:, wide]
-    S = a + k1[:, wide]
+    at = _where(wide)
+    a = k0[at]
+    S = a + k1[at]
     S -= (vdot(a, S, 0) / vdot(a, a, 0)) * a
     n = np.sqrt(vdot(S, S, 0))
     flat = ~(n > 0)
     n[flat] = np.inf                         # p = 0
     S /= n
-    P[:, wide] = S
+    P[at] = S
     if flat.any():
-        sub = phi[wide]
-        sub[flat] = 0
-        phi[wide] = sub
+        phi[tuple(i[flat] for i in at[1:])] = 0
 
 
 def frame_core(F, phi, u, O):

@@ -5,6 +5,8 @@ not as a unit dual quaternion: `apply` then costs one quaternion rotation
 and one addition, `rotation`/`translation` are free, and matrices convert
 without the dual part's products.  Dual quaternions are produced on demand
 by the raw `_dualquat` conversions, which are exact inverses of each other.
+The price: `as_matrix` converts (a few microseconds for one transform),
+where scipy, which stores matrices, copies.
 
 The one exception is scipy's ``RigidTransform(matrix, normalize=False)``:
 scipy then keeps the matrix exactly as given (with ``copy=False`` sharing

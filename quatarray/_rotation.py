@@ -11,7 +11,7 @@ float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
 the batch shape (one per rotation).
 """
 
-import math
+import functools
 import warnings
 
 import numpy as np
@@ -101,7 +101,10 @@ class Rotation:
 
     __slots__ = ("_q", "__weakref__")
 
-    def __init__(self, quat, normalize=True, copy=True, *, scalar_first=False):
+    def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
+        if _is_scipy_rotation(quat):
+            raise TypeError("expected quat to be an array of quaternions, got a scipy Rotation; "
+                            "convert it with quatarray.Rotation.from_scipy")
         q = float_array(quat, "quat")
         if q.ndim == 0 or q.shape[-1] != 4:
             raise ValueError(f"Expected `quat` to have shape (..., 4), got {q.shape}.")
@@ -363,12 +366,13 @@ class Rotation:
         if a.shape[-1] != n or (ax2.ndim > 2 and not _broadcastable(ax2.shape[:-2], a.shape[:-1])):
             raise ValueError(f"Expected `angles` to match number of axes, got {a.shape} angles "
                              f"and {ax2.shape} axes.")
-        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
-        dots = np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1))
-        if (dots > 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
         if ax2.ndim == 2:
+            if any(abs(c) > 1e-7 for c in _cosines(ax2)):
+                raise ValueError("Consecutive axes must be orthogonal.")
             return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees))
+        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
+        if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
         # axes with a batch shape: one elementary turn per axis, composed in order
         dtype = np.result_type(a.dtype, ax2.dtype)
         angle = np.deg2rad(a) if degrees else a
@@ -396,13 +400,14 @@ class Rotation:
         if ax.ndim > 2 and not _broadcastable(ax.shape[:-2], self._q.shape[:-1]):
             raise ValueError(f"Expected `axes` to match number of rotations, got {ax.shape} axes "
                              f"and {self._q.shape} rotations.")
-        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
-        dots = np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)
-        if (dots >= 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
         if ax.ndim == 2:
+            if any(c >= 1e-7 for c in _cosines(ax)):   # scipy's test, without abs
+                raise ValueError("Consecutive axes must be orthogonal.")
             return E.as_davenport(self._q, ax, order, degrees=degrees,
                                   suppress_warnings=suppress_warnings)
+        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
+        if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
+            raise ValueError("Consecutive axes must be orthogonal.")
         # one set of axes per rotation: each distinct set read by the raw function
         batch = np.broadcast_shapes(ax.shape[:-2], self._q.shape[:-1])
         qb = np.broadcast_to(self._q, batch + (4,)).reshape(-1, 4)
@@ -437,8 +442,9 @@ class Rotation:
             raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
         q = self._q
         if q.ndim > 1 or v.ndim > 1:
-            _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[:-1]} rotations to "
-                                      f"{v.shape[:-1]} vectors.")
+            _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[0]} rotations to {v.shape[0]} vectors."
+                       if q.ndim <= 2 and v.ndim <= 2 else  # scipy's two wordings
+                       f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape} vectors.")
         return K.rotate(q, v, inverse)
 
     def __mul__(self, other):
@@ -450,9 +456,10 @@ class Rotation:
         else:
             return NotImplemented
         p = self._q
-        if p.ndim > 1 or q.ndim > 1:
-            _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
-                             f"{q.shape[:-1]} rotations in second object.")
+        if p.ndim == 1 and q.ndim == 1:  # two single rotations: from_quat normalises in Python floats
+            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True))
+        _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
+                         f"{q.shape[:-1]} rotations in second object.")
         return type(self)._wrap(K.normalize(K.multiply(p, q)))
 
     def __rmul__(self, other):
@@ -551,9 +558,10 @@ class Rotation:
             atol = 1e-8 if p.dtype == q.dtype == np.float64 else 1e-5
         elif degrees:
             atol = np.deg2rad(atol)
-        _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
-                         f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
+        if p.ndim > 1 or q.ndim > 1:
+            _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
+                             f"rotations in first and {q.shape[:-1]} rotations in second object.")
+        res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
@@ -573,6 +581,8 @@ class Rotation:
         array([10.,  0.,  0.])
         """
         q = self._q
+        if q.ndim == 1 and weights is None and axis is None:  # the mean of one rotation is itself
+            return type(self)._wrap(C.canonical(q))
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]
@@ -608,10 +618,11 @@ class Rotation:
         keep = tuple(a for a in range(nb) if a not in axes)
         order = keep + axes + (nb,)
         kshape = tuple(batch[a] for a in keep)
-        qm = q64.transpose(order).reshape(kshape + (-1, 4))
-        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))
+        # components in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
+        qm = q64.transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
+        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
         _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
-        return type(self)._wrap(C.canonical(vectors[..., -1]).astype(q.dtype))
+        return type(self)._wrap(C.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype))
 
     def reduce(self, left=None, right=None, return_indices=False):
         """Reduce each rotation p to the smallest l · p · r over l in `left`, r in `right`.
@@ -646,11 +657,14 @@ class Rotation:
         score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
         best = score.reshape(score.shape[0], -1).argmax(axis=1)
         li, ri = np.divmod(best, rs.shape[0])
-        reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
+        if p.ndim == 1:   # one rotation: single products (Python floats)
+            reduced = K.multiply(ls[li[0]], K.multiply(p, rs[ri[0]]))
+        else:
+            reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
-        shape = p.shape[:-1]
+        shape = p.shape[:-1] or (1,)  # scipy: shape (1,) for a single rotation
         return (rot, li.reshape(shape) if left is not None else None,
                 ri.reshape(shape) if right is not None else None)
 
@@ -803,7 +817,7 @@ class Rotation:
     def __getitem__(self, indexer):
         if self._q.ndim == 1:
             raise TypeError("Single rotation is not subscriptable.")
-        return type(self)._wrap(np.array(self._q[_batch_key(indexer)], copy=True))
+        return type(self)._wrap(np.array(self._q[_batch_key(indexer, self.shape)], copy=True))
 
     def __setitem__(self, indexer, value):
         if self._q.ndim == 1:
@@ -812,7 +826,7 @@ class Rotation:
             value = Rotation.from_scipy(value)
         if not isinstance(value, Rotation):
             raise TypeError(f"value must be a Rotation object, got {type(value).__name__}")
-        self._q[_batch_key(indexer)] = value._q
+        self._q[_batch_key(indexer, self.shape)] = value._q
 
     def __getstate__(self):
         return self._q
@@ -844,6 +858,8 @@ def _random(num=None, rng=None, *, shape=None, legacy=False):
     return Rotation(rng.normal(size=size + (4,)))
 
 
+# named `random` for Python's own argument errors ("random() takes from 0 to 2 positional
+# arguments"), which scipy's tests match
 _random.__name__ = _random.__qualname__ = "random"
 
 
@@ -875,11 +891,25 @@ def _broadcastable(a, b):
     return True
 
 
-def _batch_key(indexer):
+def _batch_key(indexer, shape):
     """An index into the batch axes of a (..., 4) array (the component axis stays whole)."""
     key = indexer if isinstance(indexer, tuple) else (indexer,)
     key = tuple(k._q if isinstance(k, Rotation) else k for k in key)
+    used = sum(0 if k is None or k is Ellipsis else
+               np.ndim(k) if isinstance(k, (np.ndarray, list)) and np.asarray(k).dtype == bool else 1
+               for k in key)
+    if used > len(shape):
+        raise IndexError(f"too many indices for rotations of shape {shape}: {used} batch axes "
+                         f"indexed, {len(shape)} present")
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
+
+
+def _cosines(axes):
+    """Cosines between consecutive rows of a few axes (n, 3), in Python floats."""
+    rows = axes.tolist()
+    norms = [(x * x + y * y + z * z) ** 0.5 for x, y, z in rows]
+    return [(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / (nu * nv) if nu * nv else float("nan")
+            for u, v, nu, nv in zip(rows, rows[1:], norms, norms[1:])]   # nan: zero axes, refused later
 
 
 def _coerce(r, name):
@@ -895,6 +925,12 @@ def _check_euler_seq(seq, n=None):
     """scipy's checks and messages for an Euler sequence."""
     if not isinstance(seq, str):
         raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
+    _check_str_seq(seq, n)
+
+
+@functools.lru_cache(maxsize=128)
+def _check_str_seq(seq, n):
+    """`_check_euler_seq` for a str, remembered (it costs as much as one rotation's conversion)."""
     if n is not None and len(seq) != n:
         raise ValueError(f"Expected {n} axes, got {seq}.")
     if not 1 <= len(seq) <= 3:

@@ -15,34 +15,40 @@ __all__ = ["group_quats"]
 _PHI = (1 + 5 ** 0.5) / 2
 
 
-def _one_per_pair(q):
-    """Drop -q when q is already listed (unit quaternions, exact entries)."""
-    q = C.canonical(np.asarray(q, np.float64))
-    _, first = np.unique(np.round(q, 12), axis=0, return_index=True)
-    return q[np.sort(first)]
+def _scalar_first(q_xyzw):
+    return np.asarray(q_xyzw, np.float64)[:, [3, 0, 1, 2]] + 0.0
 
+
+# I, O and T list their elements in scipy's order and with scipy's signs, so that
+# ``create_group(g)[k]`` and the indices `reduce` returns are scipy's.
 
 def _tetrahedral():
-    """±1, ±i, ±j, ±k and (±1 ± i ± j ± k) / 2: 12 rotations."""
-    halves = np.array(list(product((0.5, -0.5), repeat=4)))
-    return _one_per_pair(np.concatenate([np.eye(4), halves]))
+    """±1, ±i, ±j, ±k and (±1 ± i ± j ± k) / 2: 12 rotations (listed as x, y, z, w)."""
+    halves = [(0.5, y, z, w) for w in (0.5, -0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
+    return _scalar_first(np.concatenate([np.eye(4), halves]))
 
 
 def _octahedral():
-    """T plus the 12 quarter and half turns (two components ±1/√2): 24 rotations."""
-    c = np.sqrt(0.5)
-    pairs = [np.eye(4)[i] * s + np.eye(4)[j] * t
-             for i in range(4) for j in range(i + 1, 4) for s in (c, -c) for t in (c, -c)]
-    return _one_per_pair(np.concatenate([_tetrahedral(), pairs]))
+    """T plus the 6 quarter turns and 6 half turns with two components ±1/√2: 24 rotations."""
+    pairs = np.array([[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1], [0, 0, -1, 1], [0, -1, 0, 1], [-1, 0, 0, 1],
+                      [0, 1, 1, 0], [0, -1, 1, 0], [1, 0, 1, 0], [-1, 0, 1, 0], [1, 1, 0, 0], [-1, 1, 0, 0]])
+    return np.concatenate([_tetrahedral(), _scalar_first(pairs * np.sqrt(0.5))])
 
 
 def _icosahedral():
-    """T plus the even permutations of (0, ±1, ±1/φ, ±φ) / 2 (as w, x, y, z): 60 rotations."""
+    """T plus the even permutations of (±1/2, ±1/(2φ), ±φ/2, 0) (as x, y, z, w): 60 rotations.
+
+    Of each pair ±q the one whose first non-zero component is positive, in
+    lexicographic order of the symbols +1/2 < +1/(2φ) < +φ/2 < -1/2 < ... < 0.
+    """
+    base = (0.5, 0.5 / _PHI, _PHI / 2, 0.0)
+    rank = {v: k for k, v in enumerate(base[:3] + tuple(-v for v in base[:3]) + (0.0,))}
     even = [p for p in permutations(range(4))
             if sum(p[i] > p[j] for i in range(4) for j in range(i + 1, 4)) % 2 == 0]
-    values = [(0.0, a * 0.5, b * 0.5 / _PHI, c * _PHI / 2) for a, b, c in product((1, -1), repeat=3)]
-    extra = [[v[p.index(i)] for i in range(4)] for p in even for v in values]
-    return _one_per_pair(np.concatenate([_tetrahedral(), extra]))
+    rows = {tuple(base[i] * s + 0.0 for i, s in zip(p, signs))
+            for p in even for signs in product((1, -1), repeat=4)}
+    rows = sorted((r for r in rows if next(v for v in r if v) > 0), key=lambda r: [rank[v] for v in r])
+    return np.concatenate([_tetrahedral(), _scalar_first(rows)])
 
 
 def _cyclic(n, axis):
@@ -58,7 +64,8 @@ def _dicyclic(n, axis):
     rotvec = np.zeros((n, 3))
     rotvec[:, (axis + 1) % 3] = np.pi * np.cos(theta)
     rotvec[:, (axis + 2) % 3] = np.pi * np.sin(theta)
-    return np.concatenate([_cyclic(n, axis), C.from_rotvec(rotvec)])
+    # scipy round-trips Cn through rotation vectors here: turns above π come out with w > 0
+    return C.from_rotvec(np.concatenate([C.as_rotvec(_cyclic(n, axis)), rotvec]))
 
 
 def group_quats(symbol, order=1, axis=2):

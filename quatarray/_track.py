@@ -48,6 +48,13 @@ class Timeline:
         self.index = SegmentIndex(times)
         self.dt = np.append(np.diff(times), np.inf)   # phantom segment after the last key: u = 0
 
+    def __getstate__(self):
+        # pickles (e.g. shipped to Dask workers) carry the times; the lookup is rebuilt from them
+        return {"times": self.times, "extrapolate": self.extrapolate}
+
+    def __setstate__(self, state):
+        self.__init__(state["times"], state["extrapolate"])
+
     def queries(self, t, name):
         """(shape of t, t as flat float64 (clamped with 'clamp'), mask of clamped queries or None)."""
         t = float_array(t, name)
@@ -75,13 +82,18 @@ class Timeline:
                         f"[{first!r}, {last!r}] (extrapolate='extend'), got {bad!r}")
         return t.shape, flat, outside
 
-    def segments(self, tb, velocity):
+    def find_all(self, flat):
+        """Segments of all queries at once when they are sorted and many (else None)."""
+        return self.index.find_sorted(flat) if flat.size > _blocks.BLOCK else None
+
+    def segments(self, tb, velocity, found=None):
         """Segment index i and parameter u (float64) of the queries tb.
 
         Without `velocity`, a query at (or, with 'clamp', past) the last key
         gets the phantom segment K-1; with it, the last real segment.
+        `found` is this block's part of `find_all`, if any.
         """
-        i = self.index.find(tb)
+        i = self.index.find(tb) if found is None else found.copy()
         K = len(self.times)
         if velocity or self.extrapolate == "extend":
             np.clip(i, 0, K - 2, out=i)
@@ -226,10 +238,11 @@ def evaluate(timeline, table, flat, block_fn, width):
     """
     M, B = flat.size, table.shape[2]
     out = np.empty((M, B, width), table.dtype)
+    found = timeline.find_all(flat)
 
     def block(qt):
         sm, sb = qt
-        i, u = timeline.segments(flat[sm], False)
+        i, u = timeline.segments(flat[sm], False, None if found is None else found[sm])
         G = gather(table, i, sb)
         uu = u.astype(table.dtype)[:, None]
         block_fn(G, uu, soa(out[sm, sb]))
@@ -245,9 +258,10 @@ def angular_velocity(timeline, method, table, flat, outside, frame):
     """
     M, B = flat.size, table.shape[2]
     out = np.empty((M, B, 3), np.float64)
+    found = timeline.find_all(flat)
     for sm, sb in qt_blocks(M, B):
         tb = flat[sm]
-        i, u = timeline.segments(tb, True)
+        i, u = timeline.segments(tb, True, None if found is None else found[sm])
         tab = table[:, :, sb]
         G = np.take(tab, i, axis=1, mode="clip").astype(np.float64, copy=False)
         uu = u[:, None]

@@ -8,7 +8,24 @@ import math
 
 import numpy as np
 
-__all__ = ["float_array", "quat_array", "all_finite", "finite", "batch_shape"]
+__all__ = ["float_array", "quat_array", "all_finite", "finite", "batch_shape", "in_memory", "batch_axis"]
+
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def in_memory(x, name):
+    """Raise `TypeError` for a Dask array (or other Dask collection), which NumPy would compute silently.
+
+    Detected by the type's module, so Dask is never imported here.
+
+    >>> from quatarray._validate import in_memory
+    >>> in_memory([1.0], "t")
+    [1.0]
+    """
+    if type(x).__module__.split(".")[0] == "dask":
+        raise TypeError(f"expected {name} in memory (array_like), got a Dask {type(x).__name__}; "
+                        f"use quatarray.dask for Dask arrays (same names, lazy results)")
+    return x
 
 
 def float_array(x, name, last=None, dtype=None):
@@ -35,6 +52,7 @@ def float_array(x, name, last=None, dtype=None):
     if isinstance(x, np.ndarray):
         a = x.view(np.ndarray) if type(x) is not np.ndarray else x
     else:
+        in_memory(x, name)
         try:
             a = np.asarray(x)
         except (ValueError, TypeError) as exc:
@@ -60,7 +78,14 @@ def quat_array(x, name):
     >>> from quatarray._validate import quat_array
     >>> quat_array([1, 0, 0, 0], "q")
     array([1., 0., 0., 0.])
+
+    A plain float32 / float64 ndarray of that shape is returned at once (what
+    `float_array` would return, without its checks: they cost more than the
+    maths of one rotation).  Finiteness and magnitude are the callers' kernels'
+    business (`_scale.guard`, `_scale.guard_one`).
     """
+    if type(x) is np.ndarray and x.dtype in _FLOATS and x.shape[-1:] == (4,):
+        return x
     return float_array(x, name, last=4)
 
 
@@ -133,3 +158,19 @@ def batch_shape(num, shape):
         raise ValueError(f"`shape` must be an int or a tuple of ints or None: expected a tuple of "
                          f"non-negative ints, got {shape!r}")
     return tuple(int(n) for n in shape)
+
+
+def batch_axis(axis, batch, name="q"):
+    """`axis` as an index into the batch shape `batch` of `name` (negative counts from the end).
+
+    >>> from quatarray._validate import batch_axis
+    >>> batch_axis(-1, (5, 3))
+    1
+    """
+    nb = len(batch)
+    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
+        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
+    if not -nb <= axis < nb:
+        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of {name} with batch shape "
+                         f"{tuple(batch)}), got {axis}")
+    return int(axis) % nb

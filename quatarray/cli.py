@@ -311,6 +311,8 @@ def build_parser():
                    help="decimals of the values written to CSV or BVH (default: as many as the input has; "
                         "'full': the shortest text that reads back exactly)")
     p.add_argument("--force", action="store_true", help="allow OUT to be IN (replaced atomically)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Zarr stores: run on this distributed scheduler")
+    p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
     p.set_defaults(run=_run_resample)
 
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",
@@ -323,6 +325,16 @@ def build_parser():
 
 def _run_resample(args):
     start = time.perf_counter()
+    from ._zarr import is_zarr, resample_zarr   # Dask and Zarr are imported only for .zarr stores
+    if is_zarr(args.input) or is_zarr(args.output):
+        if not (is_zarr(args.input) and is_zarr(args.output)):
+            raise FormatError("Zarr stores resample to Zarr stores only (both IN and OUT end in .zarr)", args.output)
+        nkeys, nframes = resample_zarr(args.input, args.output, fps=args.fps, times=args.times,
+                                       method=args.method or "slerp", extrapolate=args.extrapolate,
+                                       scheduler=args.scheduler, progress=False if args.quiet else None)
+        print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
+              f"({args.method or 'slerp'}, {time.perf_counter() - start:.2f} s)")
+        return 0
     nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
                                    extrapolate=args.extrapolate, scalar_last=args.scalar_last,
                                    precision=args.precision, force=args.force)
@@ -356,6 +368,8 @@ def main(argv=None):
         message = f"{where}: {exc}"
     except MemoryError:
         message = f"{where}: out of memory (try a lower --fps or fewer --times)"
+    except ImportError as exc:   # an optional dependency (Zarr stores need the dask extra)
+        message = str(exc)
     except KeyboardInterrupt:
         return 130
     print("quatarray: error: " + " ".join(message.split()), file=sys.stderr)

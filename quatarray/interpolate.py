@@ -31,7 +31,7 @@ from . import _interp_spline as ISp
 from . import _kernels as Kn
 from . import _track as TR
 from ._array import QuatArray
-from ._validate import finite, float_array, quat_array
+from ._validate import batch_axis, finite, float_array, quat_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -221,13 +221,7 @@ def unflip(q, axis=0):
                [-0.6, -0.8, -0. , -0. ]])
     """
     q = _finite_quat(q, "q")
-    nb = q.ndim - 1
-    if isinstance(axis, bool) or not isinstance(axis, (int, np.integer)):
-        raise TypeError(f"expected axis to be an int (a batch axis), got {type(axis).__name__}")
-    if not -nb <= axis < nb:
-        raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of q with batch shape "
-                         f"{q.shape[:-1]}), got {axis}")
-    return QuatArray._wrap(IK.unflip(q, int(axis) % nb))
+    return QuatArray._wrap(IK.unflip(q, batch_axis(axis, q.shape[:-1])))
 
 
 def squad(q0, a, b, q1, t):
@@ -641,6 +635,23 @@ class Track:
         return w.reshape(tshape + self._batch + (3,))
 
 
+def _scipy_ties(keys):
+    """Keys (K, ..., 4) signed so that a pair exactly 90° apart in S³ (a half turn between
+    keys, dot product 0) turns the way scipy's Slerp does: the relative rotation
+    ``conj(q[k]) q[k+1]`` canonical (first non-zero of its vector part positive).
+    Other pairs are left to `unflip` (the same choice as scipy's)."""
+    keys = np.asarray(keys)   # raw array (the kernels' arguments)
+    d = IK.vdot(keys[1:].astype(np.float64), keys[:-1])
+    if not (d == 0).any():
+        return keys
+    from ._convert import _flip_mask
+    rel = Kn.multiply(Kn.conjugate(keys[:-1]), keys[1:])
+    x, y, z = rel[..., 1], rel[..., 2], rel[..., 3]
+    step = np.where((d < 0) | ((d == 0) & _flip_mask(np.zeros_like(x), x, y, z)), -1, 1)
+    sign = np.concatenate([np.ones_like(step[:1]), np.cumprod(step, axis=0)])
+    return keys * sign[..., None].astype(keys.dtype)
+
+
 class Slerp(Track):
     """scipy's ``Slerp(times, rotations)``: spherical linear interpolation returning `Rotation`.
 
@@ -698,12 +709,26 @@ class Slerp(Track):
                              f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
         if np.any(np.diff(t) <= 0):
             raise ValueError("Times must be in strictly increasing order.")
-        self._setup(t, rotations.as_quatarray(), "slerp", "raise", "times", "rotations")
+        self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations")
+        self._range = (float(t[0]), float(t[-1]))
 
     @property
     def timedelta(self):
         """Differences between consecutive key times, shape (K - 1,) (as in scipy)."""
         return np.diff(self.times)
+
+    @property
+    def rotations(self):
+        """The key rotations but the last, a `Rotation` of shape (K - 1, ...) (scipy's attribute)."""
+        from ._rotation import Rotation
+        return Rotation._wrap(self._keys[:-1].copy())
+
+    @property
+    def rotvecs(self):
+        """Rotation vectors from each key to the next, shape (K - 1, ..., 3) (scipy's attribute)."""
+        from ._rotation import Rotation
+        keys = Rotation._wrap(self._keys)
+        return (keys[:-1].inv() * keys[1:]).as_rotvec()
 
     def __call__(self, times):
         """Interpolated rotations at `times` (scalar or 1-D), as a `Rotation`.
@@ -719,7 +744,7 @@ class Slerp(Track):
         t = float_array(times, "times")
         if t.ndim > 1:
             raise ValueError(f"`times` must be at most 1-dimensional. Got shape {t.shape}")
-        t0, t1 = self.times[0], self.times[-1]
-        if t.size and not ((t >= t0).all() and (t <= t1).all()):
+        t0, t1 = self._range
+        if not (t0 <= float(t) <= t1 if t.ndim == 0 else t.size == 0 or t0 <= t.min() and t.max() <= t1):
             raise ValueError(f"Interpolation times must be within the range [{t0}, {t1}], both inclusive.")
         return Rotation._wrap(self._evaluate(t, "times").view(np.ndarray))

@@ -12,7 +12,7 @@ from . import _kernels, _scale
 from ._array import QuatArray
 from ._interp_lookup import SegmentIndex
 from ._rotation import Rotation
-from ._validate import float_array
+from ._validate import float_array, in_memory
 
 __all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
            "angular_acceleration_nonlinear_term"]
@@ -71,6 +71,7 @@ def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
 
 
 def _keys(rotations):
+    in_memory(rotations, "rotations")
     if isinstance(rotations, Rotation):
         return rotations.as_quatarray().view(np.ndarray)
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
@@ -111,6 +112,7 @@ class RotationSpline:
     """
 
     MAX_ITER = S.MAX_ITER
+    TOL = S.TOL[np.dtype(np.float64)]   # scipy's class attribute (float32 keys iterate to their own)
 
     def __init__(self, times, rotations):
         keys = _keys(rotations)
@@ -118,7 +120,7 @@ class RotationSpline:
             raise ValueError("`rotations` must be a sequence of rotations.")
         if len(keys) == 1:
             raise ValueError("`rotations` must contain at least 2 rotations.")
-        times = np.asarray(times, dtype=float)
+        times = np.asarray(in_memory(times, "times"), dtype=float)
         if times.ndim != 1:
             raise ValueError("`times` must be 1-dimensional.")
         if len(times) != len(keys):
@@ -155,7 +157,7 @@ class RotationSpline:
         """
         if order not in (0, 1, 2):
             raise ValueError("`order` must be 0, 1 or 2.")
-        t = np.asarray(times, dtype=float)
+        t = np.asarray(in_memory(times, "times"), dtype=float)
         if t.ndim > 1:
             raise ValueError("`times` must be at most 1-dimensional.")
         single = t.ndim == 0

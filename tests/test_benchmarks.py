@@ -15,7 +15,7 @@ import pytest
 
 from benchmarks import _common
 
-MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid"]
+MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid", "chunked", "single"]
 
 
 def _classes():

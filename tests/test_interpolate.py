@@ -925,6 +925,17 @@ def test_segment_index_equals_searchsorted(rng, kind):
     assert index.find_sorted(t) is None                                              # unsorted: refused
 
 
+@pytest.mark.parametrize("method", ["linear", "slerp", "squad", "bezier"])
+def test_track_sorted_queries_take_the_run_lookup_with_the_same_result(rng, method):
+    keys = rng.standard_normal((60, 4))
+    times = np.cumsum(rng.uniform(0.1, 1, 60))
+    track = Track(times, keys, method=method, extrapolate="clamp")
+    t = np.sort(np.concatenate([rng.uniform(times[0] - 1, times[-1] + 1, 10_000), times]))
+    perm = rng.permutation(t.size)
+    np.testing.assert_array_equal(np.asarray(track(t))[perm], np.asarray(track(t[perm])))
+    np.testing.assert_array_equal(track.angular_velocity(t)[perm], track.angular_velocity(t[perm]))
+
+
 # ---------------------------------------------------------------------------
 # bad input
 # ---------------------------------------------------------------------------

@@ -113,6 +113,18 @@ def test_block_tridiagonal_solve_matches_dense(rng):
             dense[3 * i:3 * i + 3, 3 * i + 3:3 * i + 6] = upper[i]
     x = S.block_tridiagonal_solve(lower, diag, upper, rhs)
     assert np.allclose(x.ravel(), np.linalg.solve(dense, rhs.ravel()), atol=1e-12)
+    # one factorisation serves several right-hand sides (the fixed-point iteration's use)
+    levels = S.block_tridiagonal_factor(lower, diag, upper)
+    for b in (rhs, rng.standard_normal((n, 3))):
+        assert np.allclose(S.block_tridiagonal_apply(levels, b).ravel(), np.linalg.solve(dense, b.ravel()), atol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_closed_form_3x3_inverse(rng, dtype):
+    m = (rng.standard_normal((50, 3, 3)) + 3 * np.eye(3)).astype(dtype)
+    inv = S.inv3(m)
+    assert inv.dtype == dtype
+    np.testing.assert_allclose(inv @ m, np.broadcast_to(np.eye(3), m.shape), atol=200 * np.finfo(dtype).eps)
 
 
 @pytest.mark.parametrize("args, match", [
