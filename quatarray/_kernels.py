@@ -558,11 +558,13 @@ def _matrix_one(q, dtype):
     (w, x, y, z), _ = _scale.guard_one(q.tolist() if q.ndim == 1 else q.reshape(4).tolist())
     n2 = w * w + x * x + y * y + z * z
     s = 2.0 / n2 if n2 else float("nan")
-    return np.array([  # a flat list: half the cost of nested ones
+    m = np.array([  # a flat list (half the cost of nested ones), typed by the scalar type
         1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w),
         s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w),
         s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y),
-    ], dtype).reshape(3, 3)
+    ], np.dtype(dtype).type)
+    m.shape = (3, 3)  # in place: cheaper than reshape's new view
+    return m
 
 
 def _rotate_scalar(q, u, dtype, inverse=False):
