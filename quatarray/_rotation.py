@@ -652,15 +652,25 @@ class Rotation:
         ls = _coerce(left, "left").reshape(-1, 4) if left is not None else eye
         rs = _coerce(right, "right").reshape(-1, 4) if right is not None else eye
         pf = p.reshape(-1, 4)
-        # |w| of l p r = |(l p) · conj(r)|: the largest gives the smallest angle
-        lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
-        score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
-        best = score.reshape(score.shape[0], -1).argmax(axis=1)
-        li, ri = np.divmod(best, rs.shape[0])
-        if p.ndim == 1:   # one rotation: single products (Python floats)
-            reduced = K.multiply(ls[li[0]], K.multiply(p, rs[ri[0]]))
+        if left is None or right is None:
+            # one side: |w| of c p (or p c) is |c · conj(p)|, a matrix product; the largest
+            # gives the smallest angle
+            score = np.abs((pf * np.array([1, -1, -1, -1], p.dtype)) @ (rs if left is None else ls).T)
+            best = score.argmax(axis=1)
+            zero = np.zeros_like(best)
+            li, ri = (zero, best) if left is None else (best, zero)
         else:
-            reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
+            # |w| of l p r = |(l p) · conj(r)|
+            lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
+            score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
+            best = score.reshape(score.shape[0], -1).argmax(axis=1)
+            li, ri = np.divmod(best, rs.shape[0])
+        if p.ndim == 1:   # one rotation: single products (Python floats)
+            reduced = p if left is None else K.multiply(ls[li[0]], p)
+            reduced = reduced if right is None else K.multiply(reduced, rs[ri[0]])
+        else:
+            reduced = pf if left is None else K.multiply(ls[li], pf)
+            reduced = (reduced if right is None else K.multiply(reduced, rs[ri])).reshape(p.shape)
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
