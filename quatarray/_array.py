@@ -10,9 +10,16 @@ result.  Three policies keep it from surprising a NumPy user:
   product for `multiply`, ...).  Any other ufunc raises `TypeError` instead of
   applying componentwise maths.
 * **NumPy functions** go through `BATCH_FUNCTIONS` (keep the class; axes and
-  shapes refer to *batch* axes), `COMPARISON_FUNCTIONS` (per quaternion) and
-  `LAYOUT_FUNCTIONS` (class kept only when the last axis stays last).  Every
-  other function sees plain ndarrays and returns plain results.
+  shapes refer to *batch* axes, e.g. ``np.sum`` and ``np.mean`` of quaternions),
+  `COMPARISON_FUNCTIONS` (per quaternion), `LAYOUT_FUNCTIONS` (class kept only
+  when the last axis stays last) and `PLAIN_FUNCTIONS` (about the array, not
+  its values: ``np.shape``, ``np.shares_memory``, ...).  Any other function
+  raises `TypeError`, as a ufunc without a quaternion meaning does; use
+  ``q.ndarray`` for componentwise maths.
+
+NaN and infinite input is refused with a `ValueError` naming the argument by
+every operation with a quaternion meaning; indexing, layout functions,
+comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 """
 
 import numpy as np
@@ -20,9 +27,9 @@ import numpy as np
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
-from ._validate import batch_shape, float_array
+from ._validate import all_finite, batch_shape, finite, float_array
 
-__all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS"]
+__all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS", "PLAIN_FUNCTIONS"]
 
 
 def _raw(x):
@@ -124,8 +131,40 @@ class QuatArray(np.ndarray):
     copy : bool, default True
         Copy `data` (so that later in-place operations never modify it).
 
+    Attributes
+    ----------
+    batch_shape : tuple
+        ``shape[:-1]``.
+    w, x, y, z, vec : ndarray
+        Plain views of the components (batch shape; ``vec`` is (..., 3)).
+    ndarray : ndarray
+        Plain view of the whole (..., 4) array.
+
+    Methods
+    -------
+    conj(), norm(), normalized(), inverse(), exp(), log(), power(t), dot(other)
+        Quaternion algebra; also ``~q``, ``abs(q)``, ``np.exp(q)``,
+        ``np.log(q)``, ``q ** t``.
+    rotate(v)
+        Rotate vectors (..., 3) by q/|q|.
+    identity(num=None, *, shape=None)
+        Identity quaternions.
+    as_matrix(), as_rotvec(), as_mrp(), as_euler(seq), as_davenport(axes, order)
+        Conversions of the rotation q/|q| (scalar-first; `Rotation` has scipy's API).
+    from_matrix, from_rotvec, from_mrp, from_euler, from_davenport
+        The inverse conversions (class methods, unit results).
+
+    Operators: ``p * q`` (Hamilton product), ``p / q`` (p q⁻¹), ``p + q``,
+    ``p - q``, ``q ** t``, ``==`` per quaternion, with NumPy broadcasting of
+    batch shapes; real operands act as real quaternions.  In-place operators
+    follow NumPy's casting rule (``p32 *= p64`` computes in float64 and
+    rounds to float32).  See the module docstring for indexing, ufuncs,
+    NumPy functions and the refusal of NaN and infinite input.
+
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray import QuatArray
     >>> q = QuatArray([[1, 0, 0, 0], [0, 1, 0, 0]])
     >>> q
     QuatArray([[1., 0., 0., 0.],
@@ -230,16 +269,19 @@ class QuatArray(np.ndarray):
     def conj(self):
         """Conjugate (w, -x, -y, -z); also ``~q``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([1, 2, 3, 4]).conj()
         QuatArray([ 1., -2., -3., -4.])
         """
-        return self._wrap(K.conjugate(_raw(self)))
+        q = _raw(self)
+        return self._wrap(_finite_result(K.conjugate(q), ("the quaternions", q)))
 
     conjugate = conj
 
     def norm(self):
         """Norm |q| as a plain array of batch shape; also ``abs(q)``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([[1, 2, 2, 4]]).norm()
         array([5.])
         """
@@ -248,6 +290,7 @@ class QuatArray(np.ndarray):
     def normalized(self):
         """q / |q|; zero quaternions raise `ValueError`.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 3, 0, 4]).normalized()
         QuatArray([0. , 0.6, 0. , 0.8])
         """
@@ -256,6 +299,7 @@ class QuatArray(np.ndarray):
     def inverse(self):
         """conj(q) / |q|² (general quaternions); a zero quaternion raises `ZeroDivisionError`.
 
+        >>> from quatarray import QuatArray
         >>> q = QuatArray([1, 1, 1, 1])
         >>> q * q.inverse()
         QuatArray([1., 0., 0., 0.])
@@ -265,14 +309,16 @@ class QuatArray(np.ndarray):
     def exp(self):
         """Quaternion exponential; also ``np.exp(q)``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 0]).exp()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(K.exp(_raw(self)))
+        return self._wrap(K.exp(finite(_raw(self), "the quaternions")))
 
     def log(self):
         """Principal logarithm (ln|q|, θ v/|v|) with θ in [0, π]; also ``np.log(q)``.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([1, 0, 0, 0]).log()
         QuatArray([0., 0., 0., 0.])
         """
@@ -281,31 +327,44 @@ class QuatArray(np.ndarray):
     def power(self, t):
         """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped); also ``q ** t``.
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> k = QuatArray([0, 0, 0, 1])
         >>> np.allclose(k.power(2), [-1, 0, 0, 0])
         True
         """
-        return self._wrap(K.power(_raw(self), _real(t, "t")))
+        return self._wrap(K.power(_raw(self), finite(_real(t, "t"), "t")))
 
     def dot(self, other):
         """4-D inner product with `other` (a QuatArray), batch shape.
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([1, 2, 3, 4]).dot(QuatArray([1, 1, 1, 1]))
         np.float64(10.0)
         """
-        return K.dot(_raw(self), _quat(other, "other"))
+        p, q = _raw(self), _operand(other, "other")
+        _check_batches("dot", p, True, q, True)
+        return _finite_result(K.dot(p, q), ("the quaternions", p), ("other", q))
 
     def rotate(self, v):
         """Rotate vectors `v` (..., 3) by q/|q|, i.e. q v q⁻¹, broadcasting batch shapes.
 
         Zero quaternions raise `ValueError`.
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> q = QuatArray([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
         >>> np.round(q.rotate([1, 0, 0]), 12)
         array([0., 1., 0.])
         """
         q = _raw(self)
-        v = float_array(v, "v", last=3)
+        v = finite(float_array(v, "v", last=3), "v")
+        if q.shape[:-1] != v.shape[:-1]:
+            try:
+                np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+            except ValueError:
+                raise ValueError(f"expected v of a batch shape that broadcasts with the quaternions' "
+                                 f"{q.shape[:-1]}, got v of batch shape {v.shape[:-1]}") from None
         res = K.rotate(q, v)
         if not np.isfinite(res).all() and np.isfinite(q).all() and np.isfinite(v).all():
             raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
@@ -318,6 +377,7 @@ class QuatArray(np.ndarray):
         `num` gives a batch of shape ``(num,)`` (scipy's convention), `shape`
         any batch shape; with neither, a single quaternion of shape (4,).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray.identity(2)
         QuatArray([[1., 0., 0., 0.],
                    [1., 0., 0., 0.]])
@@ -330,6 +390,7 @@ class QuatArray(np.ndarray):
     def as_matrix(self):
         """Rotation matrices of q/|q|, shape (..., 3, 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 1]).as_matrix() + 0.0
         array([[-1.,  0.,  0.],
                [ 0., -1.,  0.],
@@ -341,6 +402,8 @@ class QuatArray(np.ndarray):
     def from_matrix(cls, matrix, *, assume_valid=False):
         """Unit quaternions of rotation matrices (..., 3, 3) (non-orthogonal ones projected).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> QuatArray.from_matrix(np.eye(3))
         QuatArray([1., 0., 0., 0.])
         """
@@ -349,6 +412,7 @@ class QuatArray(np.ndarray):
     def as_rotvec(self, degrees=False):
         """Rotation vectors (axis × angle, angle in [0, π]) of q/|q|, shape (..., 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 1]).as_rotvec()
         array([0.        , 0.        , 3.14159265])
         """
@@ -358,6 +422,8 @@ class QuatArray(np.ndarray):
     def from_rotvec(cls, rotvec, degrees=False):
         """Unit quaternions of rotation vectors (..., 3).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> np.allclose(QuatArray.from_rotvec([0, 0, 180], degrees=True), [0, 0, 0, 1])
         True
         """
@@ -366,6 +432,7 @@ class QuatArray(np.ndarray):
     def as_mrp(self):
         """Modified Rodrigues parameters ``axis · tan(angle / 4)`` of q/|q|, shape (..., 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray([0, 0, 0, 1]).as_mrp()
         array([0., 0., 1.])
         """
@@ -375,6 +442,7 @@ class QuatArray(np.ndarray):
     def from_mrp(cls, mrp):
         """Unit quaternions of modified Rodrigues parameters (..., 3).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray.from_mrp([0, 0, 1])
         QuatArray([0., 0., 0., 1.])
         """
@@ -383,6 +451,7 @@ class QuatArray(np.ndarray):
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles (..., 3) of q/|q|, scipy's conventions ('xyz' extrinsic, 'XYZ' intrinsic).
 
+        >>> from quatarray import QuatArray
         >>> QuatArray.from_euler("ZXY", [30, 20, 10], degrees=True).as_euler("ZXY", degrees=True).round(9)
         array([30., 20., 10.])
         """
@@ -392,6 +461,8 @@ class QuatArray(np.ndarray):
     def from_euler(cls, seq, angles, degrees=False):
         """Unit quaternions of Euler angles (..., len(seq)).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> np.allclose(QuatArray.from_euler("z", 180, degrees=True), [0, 0, 0, 1])
         True
         """
@@ -400,6 +471,8 @@ class QuatArray(np.ndarray):
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles (..., 3) of q/|q| about three axes (3, 3).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> q = QuatArray.from_euler("zxz", [10, 20, 30], degrees=True)
         >>> q.as_davenport(np.eye(3)[[2, 0, 2]], "e", degrees=True).round(9)
         array([10., 20., 30.])
@@ -410,6 +483,8 @@ class QuatArray(np.ndarray):
     def from_davenport(cls, axes, order, angles, degrees=False):
         """Unit quaternions of Davenport angles about 1 to 3 axes (n, 3).
 
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
         >>> np.allclose(QuatArray.from_davenport([0, 0, 1], "e", 180, degrees=True), [0, 0, 0, 1])
         True
         """
@@ -470,8 +545,11 @@ class QuatArray(np.ndarray):
             if ufunc in _BINARY and len(inputs) == 2:
                 return _binary(ufunc, *inputs, out=out)
             if ufunc in _UNARY and len(inputs) == 1:
-                res = _UNARY[ufunc](_quat(inputs[0], "argument"))
-                return _finish_plain(res, out) if ufunc in _PLAIN_UNARY else _finish(res, out)
+                q = _operand(inputs[0], "argument")
+                if ufunc in _PLAIN_UNARY:
+                    return _finish_plain(_UNARY[ufunc](q), out)
+                res = _UNARY[ufunc](q)
+                return _finish(_finite_result(res, (f"the argument of {ufunc.__name__}", q)), out)
         elif method in ("reduce", "accumulate") and ufunc in (np.multiply, np.add):
             return _reduce(ufunc, method, *inputs, out=out, **kwargs)
         raise TypeError(
@@ -479,15 +557,12 @@ class QuatArray(np.ndarray):
             f"use q.ndarray for componentwise maths on the components")
 
     def __array_function__(self, func, types, args, kwargs):
-        handler = BATCH_FUNCTIONS.get(func) or COMPARISON_FUNCTIONS.get(func) or LAYOUT_FUNCTIONS.get(func)
-        if handler is not None:
-            return handler(*args, **kwargs)
-        return func(*_plain(args), **_plain(kwargs))
+        return _dispatch(func, args, kwargs)
 
 
 # --- operand handling ------------------------------------------------------------
 
-def _quat(x, name):
+def _operand(x, name):
     """Raw quaternion array of a QuatArray operand; plain arrays are refused."""
     if isinstance(x, QuatArray):
         return _raw(x)
@@ -496,12 +571,17 @@ def _quat(x, name):
 
 
 def _finish(res, out):
-    """Wrap a raw quaternion result (..., 4), or copy it into `out`."""
+    """Wrap a raw quaternion result (..., 4), or copy it into `out`.
+
+    The copy follows NumPy's rule for in-place operations: the result is
+    computed in the operands' common dtype and cast to `out`'s if that is a
+    ``same_kind`` cast (``p32 *= p64`` computes in float64 and rounds to
+    float32); other casts raise `TypeError`."""
     if out is None:
         return res.view(QuatArray)
     if out.shape != res.shape:
-        raise ValueError(f"expected out of shape {res.shape}, got {out.shape}")
-    out.view(np.ndarray)[...] = res
+        raise ValueError(f"expected out of shape {res.shape} (the broadcast result), got {out.shape}")
+    np.copyto(out.view(np.ndarray), res, casting="same_kind")
     return out
 
 
@@ -521,53 +601,102 @@ def _lift(s, dtype_like):
     return q
 
 
+_SYMBOLS = {np.multiply: "*", np.divide: "/", np.add: "+", np.subtract: "-", np.power: "**",
+            np.float_power: "**", np.equal: "==", np.not_equal: "!="}
+
+
+def _batch_of(x, is_quat):
+    shape = x.shape if isinstance(x, np.ndarray) else np.shape(x)
+    return shape[:-1] if is_quat else shape
+
+
+def _check_batches(ufunc, A, qa, B, qb):
+    """A ValueError naming the operands and their batch shapes, instead of
+    NumPy's message about the (..., 4) arrays."""
+    sa, sb = _batch_of(A, qa), _batch_of(B, qb)
+    if sa == sb or not sa or not sb:
+        return
+    try:
+        np.broadcast_shapes(sa, sb)
+    except ValueError:
+        kind = {True: "QuatArray", False: "real"}
+        raise ValueError(
+            f"expected operands of {_SYMBOLS.get(ufunc, getattr(ufunc, '__name__', ufunc))} with broadcastable batch shapes, got "
+            f"left {kind[qa]} operand of batch shape {sa} and right {kind[qb]} operand of batch shape {sb}"
+        ) from None
+
+
+def _finite_result(res, *named):
+    """The API's non-finite policy for results computed without a guard.
+
+    NaN and infinities in the operands reach the result of these operations,
+    so one sum of the result decides the common case; only a result that is
+    not finite (non-finite operands, or finite ones that overflowed, which
+    is allowed as in NumPy) has its operands looked at one by one."""
+    if not all_finite(res):
+        for name, x in named:
+            finite(x, name)
+    return res
+
+
 def _binary(ufunc, a, b, out=None):
     qa, qb = isinstance(a, QuatArray), isinstance(b, QuatArray)
     name = ufunc.__name__
     A = _raw(a) if qa else _real(a, "left operand of " + name)
     B = _raw(b) if qb else _real(b, "right operand of " + name)
-    raw_out = _raw(out) if isinstance(out, QuatArray) else out
-    if ufunc is np.multiply:
-        if qa and qb:
-            if raw_out is not None:
-                K.multiply(A, B, out=raw_out)
-                return out
-            return _finish(K.multiply(A, B), None)
-        return _finish(np.multiply(A if qa else _per_quat(A), B if qb else _per_quat(B)), out)
-    if ufunc is np.divide:
-        if qb:
-            Binv = K.inverse(B)
-            if qa:
-                return _finish(K.multiply(A, Binv), out)
-            return _finish(_per_quat(A) * Binv, out)
-        return _finish(np.divide(A, _per_quat(B)), out)
-    if ufunc in (np.add, np.subtract):
-        if not qa:
-            A = _lift(A, B)
-        if not qb:
-            B = _lift(B, A)
-        return _finish(ufunc(A, B), out)
-    if ufunc in (np.power, np.float_power):
-        if qb or not qa:
-            raise TypeError(f"expected a QuatArray raised to a real exponent, got {type(a).__name__} ** {type(b).__name__}")
-        if ufunc is np.float_power:
-            A = A.astype(np.float64)
-        return _finish(K.power(A, B), out)
-    if ufunc in (np.equal, np.not_equal):
+    _check_batches(ufunc, A, qa, B, qb)
+    if ufunc in (np.equal, np.not_equal):   # comparisons accept nan (nan != nan)
         if not qa:
             A = _lift(A, B)
         if not qb:
             B = _lift(B, A)
         res = np.all(A == B, axis=-1)
         return _finish_plain(res if ufunc is np.equal else ~res, out)
-    raise TypeError(f"ufunc {name!r} is not a binary quaternion operation")  # pragma: no cover
+    res = _compute(ufunc, A, qa, B, qb, a, b)
+    if not all_finite(res):
+        symbol = _SYMBOLS[ufunc]
+        finite(A, f"the left operand of {symbol}")
+        finite(B, f"the right operand of {symbol}")
+    return _finish(res, out)
+
+
+def _compute(ufunc, A, qa, B, qb, a, b):
+    """The raw result of a binary operation (the quaternion meaning of `ufunc`)."""
+    if ufunc is np.multiply:
+        if qa and qb:
+            return K.multiply(A, B)
+        return np.multiply(A if qa else _per_quat(A), B if qb else _per_quat(B))
+    if ufunc is np.divide:
+        if qb:
+            Binv = K.inverse(B)
+            return K.multiply(A, Binv) if qa else _per_quat(A) * Binv
+        return np.divide(A, _per_quat(B))
+    if ufunc in (np.add, np.subtract):
+        if not qa:
+            A = _lift(A, B)
+        if not qb:
+            B = _lift(B, A)
+        return ufunc(A, B)
+    if ufunc in (np.power, np.float_power):
+        if qb or not qa:
+            raise TypeError(f"expected a QuatArray raised to a real exponent, got {type(a).__name__} ** {type(b).__name__}")
+        if ufunc is np.float_power:
+            A = A.astype(np.float64)
+        return K.power(A, B)
+    if ufunc in (np.equal, np.not_equal):
+        if not qa:
+            A = _lift(A, B)
+        if not qb:
+            B = _lift(B, A)
+        raise AssertionError("comparisons are handled by _binary")  # pragma: no cover
+    raise TypeError(f"ufunc {ufunc.__name__!r} is not a binary quaternion operation")  # pragma: no cover
 
 
 _BINARY = {np.multiply, np.divide, np.add, np.subtract, np.power, np.float_power, np.equal, np.not_equal}
 
 
 _UNARY = {
-    np.exp: K.exp,
+    np.exp: lambda q: K.exp(finite(q, "the argument of exp")),   # exp(-inf) is finite
     np.log: K.log,
     np.sqrt: lambda q: K.power(q, 0.5),
     np.conjugate: K.conjugate,
@@ -581,7 +710,8 @@ _UNARY = {
 """Unary ufuncs with a quaternion meaning (all others raise `TypeError`)."""
 
 _PLAIN_UNARY = {np.absolute, np.isnan, np.isfinite}
-"""The unary ufuncs whose results are per quaternion, not quaternions."""
+"""The unary ufuncs whose results are per quaternion, not quaternions (`absolute`
+refuses nan and inf in its kernel; `isnan` and `isfinite` test for them)."""
 
 
 def _ordered_product(a, axis):
@@ -613,12 +743,17 @@ def _reduce(ufunc, method, q, axis=0, dtype=None, out=None, keepdims=False, wher
     bad = sorted(kwargs) + (["dtype"] if dtype is not None else []) + ([] if where is True else ["where"])
     if bad:
         raise TypeError(f"QuatArray {ufunc.__name__}.{method} supports axis, out and keepdims only, got {bad}")
-    raw = _quat(q, "argument")
+    raw = _operand(q, "argument")
+    with np.errstate(invalid="ignore"):   # inf * 0: refused by the check below
+        return _reduce_raw(ufunc, method, raw, axis, out, keepdims)
+
+
+def _reduce_raw(ufunc, method, raw, axis, out, keepdims):
     nb = raw.ndim - 1
     if method == "accumulate":
         ax = _batch_axis(axis, nb)
         res = _ordered_scan(raw, ax) if ufunc is np.multiply else np.add.accumulate(raw, axis=ax)
-        return _finish(res, out)
+        return _finish(_finite_result(res, ("the quaternions", raw)), out)
     axes = _batch_axes(axis, nb)
     if ufunc is np.add:
         res = np.add.reduce(raw, axis=axes, keepdims=keepdims)
@@ -628,40 +763,92 @@ def _reduce(ufunc, method, q, axis=0, dtype=None, out=None, keepdims=False, wher
             res = _ordered_product(res, ax)
             if keepdims:
                 res = np.expand_dims(res, ax)
-    return _finish(res, out)
+    return _finish(_finite_result(res, ("the quaternions", raw)), out)
 
 
 # --- NumPy function registries -------------------------------------------------------
+#
+# Every NumPy function a QuatArray reaches goes through one of these tables
+# (astropy's pattern): a handler is registered next to its code with
+# `_implements`, its signature is NumPy's (tests/test_array.py checks it with
+# `inspect`), and a function in no table raises `TypeError`, as a ufunc
+# without a quaternion meaning does.
 
-def _quats(seq, name):
-    return [_quat(a, f"{name}[{i}]") for i, a in enumerate(seq)]
+BATCH_FUNCTIONS = {}
+"""NumPy functions that keep the class; axes and shapes refer to batch axes."""
+
+COMPARISON_FUNCTIONS = {}
+"""Comparisons per quaternion: `isclose` returns a bool array of batch shape."""
+
+LAYOUT_FUNCTIONS = {}
+"""Functions that rearrange axes: the class is kept only when the last axis
+stays last and whole (a C-order reshape to (..., 4) keeps every quaternion)."""
+
+PLAIN_FUNCTIONS = {
+    np.shape, np.ndim, np.size, np.result_type, np.shares_memory, np.may_share_memory,
+    np.array_repr, np.array_str, np.array2string, np.save, np.savez, np.savez_compressed,
+    np.iscomplexobj, np.isrealobj,
+}
+"""Functions about the array rather than its values (or that store it): they see
+the plain (..., 4) components and return what NumPy returns for them."""
+
+_NOVALUE = np._NoValue
 
 
-def _concatenate(arrays, axis=0, out=None, **kwargs):
-    raws = _quats(arrays, "arrays")
+def _implements(table, *funcs):
+    """Register the decorated handler for `funcs` in `table`."""
+    def register(handler):
+        for func in funcs:
+            table[func] = handler
+        return handler
+    return register
+
+
+def _dispatch(func, args, kwargs):
+    handler = BATCH_FUNCTIONS.get(func) or COMPARISON_FUNCTIONS.get(func) or LAYOUT_FUNCTIONS.get(func)
+    if handler is not None:
+        return handler(*args, **kwargs)
+    if func in PLAIN_FUNCTIONS:
+        return func(*_plain(args), **_plain(kwargs))
+    name = getattr(func, "__name__", repr(func))
+    raise TypeError(f"NumPy function {name!r} has no quaternion meaning for QuatArray; "
+                    f"use q.ndarray for componentwise maths on the components")
+
+
+def _operands(seq, name):
+    return [_operand(a, f"{name}[{i}]") for i, a in enumerate(seq)]
+
+
+@_implements(BATCH_FUNCTIONS, np.concatenate)
+def _concatenate(arrays, axis=0, out=None, *, dtype=None, casting="same_kind"):
+    raws = _operands(arrays, "arrays")
     if axis is None:
         raws = [r.reshape(-1, 4) for r in raws]
         axis = 0
     nb = raws[0].ndim - 1
-    res = np.concatenate(raws, axis=_batch_axis(axis, nb), **kwargs)
+    res = np.concatenate(raws, axis=_batch_axis(axis, nb), dtype=dtype, casting=casting)
     return _finish(res, out)
 
 
-def _stack(arrays, axis=0, out=None, **kwargs):
-    raws = _quats(arrays, "arrays")
+@_implements(BATCH_FUNCTIONS, np.stack)
+def _stack(arrays, axis=0, out=None, *, dtype=None, casting="same_kind"):
+    raws = _operands(arrays, "arrays")
     nb = raws[0].ndim - 1
-    return _finish(np.stack(raws, axis=_batch_axis(axis, nb, extra=1), **kwargs), out)
+    return _finish(np.stack(raws, axis=_batch_axis(axis, nb, extra=1), dtype=dtype, casting=casting), out)
 
 
-def _copy(a, order="K", subok=True):
-    return QuatArray._wrap(np.copy(_quat(a, "a"), order=order))
+@_implements(BATCH_FUNCTIONS, np.copy)
+def _copy(a, order="K", subok=False):
+    return QuatArray._wrap(np.copy(_operand(a, "a"), order=order))
 
 
-def _broadcast_to(array, shape, subok=True):
+@_implements(BATCH_FUNCTIONS, np.broadcast_to)
+def _broadcast_to(array, shape, subok=False):
     shape = (shape,) if isinstance(shape, (int, np.integer)) else tuple(shape)
-    return QuatArray._wrap(np.broadcast_to(_quat(array, "array"), shape + (4,)))
+    return QuatArray._wrap(np.broadcast_to(_operand(array, "array"), shape + (4,)))
 
 
+@_implements(BATCH_FUNCTIONS, np.where)
 def _where(condition, *xy):
     if len(xy) != 2:
         return np.where(_plain(condition))
@@ -674,41 +861,46 @@ def _where(condition, *xy):
     return QuatArray._wrap(np.where(cond[..., None], X, Y))
 
 
+@_implements(BATCH_FUNCTIONS, np.take)
 def _take(a, indices, axis=None, out=None, mode="raise"):
-    raw = _quat(a, "a")
+    raw = _operand(a, "a")
     if axis is None:
         raw, axis = raw.reshape(-1, 4), 0
     res = np.take(raw, _plain(indices), axis=_batch_axis(axis, raw.ndim - 1), mode=mode)
     return _finish(res, out)
 
 
+@_implements(BATCH_FUNCTIONS, np.flip)
 def _flip(m, axis=None):
-    raw = _quat(m, "m")
+    raw = _operand(m, "m")
     return QuatArray._wrap(np.flip(raw, axis=_batch_axes(axis, raw.ndim - 1)))
 
 
+@_implements(BATCH_FUNCTIONS, np.roll)
 def _roll(a, shift, axis=None):
-    raw = _quat(a, "a")
+    raw = _operand(a, "a")
     if axis is None:
         return QuatArray._wrap(np.roll(raw.reshape(-1, 4), shift, axis=0).reshape(raw.shape))
     return QuatArray._wrap(np.roll(raw, shift, axis=_batch_axes(axis, raw.ndim - 1)))
 
 
+@_implements(BATCH_FUNCTIONS, np.expand_dims)
 def _expand_dims(a, axis):
-    raw = _quat(a, "a")
+    raw = _operand(a, "a")
     axes = axis if isinstance(axis, tuple) else (axis,)
     nb_new = raw.ndim - 1 + len(axes)
     axes = tuple(_batch_axis(ax, nb_new) for ax in axes)
     return QuatArray._wrap(np.expand_dims(raw, axes))
 
 
+@_implements(BATCH_FUNCTIONS, np.squeeze)
 def _squeeze(a, axis=None):
     return a.squeeze(axis) if isinstance(a, QuatArray) else np.squeeze(a, axis)
 
 
 def _like(fill):
-    def like(prototype, dtype=None, order="K", subok=True, shape=None, **kwargs):
-        raw = _quat(prototype, "prototype")
+    def like(a, dtype=None, order="K", subok=True, shape=None, *, device=None):
+        raw = _operand(a, "a")
         dtype = raw.dtype if dtype is None else np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
             raise TypeError(f"expected dtype float32 or float64 for a QuatArray, got {dtype}")
@@ -721,22 +913,33 @@ def _like(fill):
     return like
 
 
-BATCH_FUNCTIONS = {
-    np.concatenate: _concatenate,
-    np.stack: _stack,
-    np.copy: _copy,
-    np.broadcast_to: _broadcast_to,
-    np.where: _where,
-    np.take: _take,
-    np.flip: _flip,
-    np.roll: _roll,
-    np.expand_dims: _expand_dims,
-    np.squeeze: _squeeze,
-    np.zeros_like: _like(0.0),
-    np.ones_like: _like(1.0),  # the quaternion 1 = (1, 0, 0, 0), as numpy-quaternion's ones_like
-    np.empty_like: _like(None),
-}
-"""NumPy functions that keep the class; axes and shapes refer to batch axes."""
+_implements(BATCH_FUNCTIONS, np.zeros_like)(_like(0.0))
+_implements(BATCH_FUNCTIONS, np.ones_like)(_like(1.0))  # the quaternion 1 = (1, 0, 0, 0), as numpy-quaternion's
+_implements(BATCH_FUNCTIONS, np.empty_like)(_like(None))
+
+
+def _no_extras(name, **given):
+    extra = sorted(k for k, v in given.items() if v is not None and v is not _NOVALUE)
+    if extra:
+        raise TypeError(f"np.{name} of a QuatArray supports axis, out and keepdims only, got {extra}")
+
+
+@_implements(BATCH_FUNCTIONS, np.sum)
+def _sum(a, axis=None, dtype=None, out=None, keepdims=_NOVALUE, initial=_NOVALUE, where=_NOVALUE):
+    """Sum of quaternions over batch axes (all of them by default)."""
+    _no_extras("sum", dtype=dtype, initial=initial, where=where)
+    return _reduce(np.add, "reduce", a, axis=axis, out=out, keepdims=keepdims is True)
+
+
+@_implements(BATCH_FUNCTIONS, np.mean)
+def _mean(a, axis=None, dtype=None, out=None, keepdims=_NOVALUE, *, where=_NOVALUE):
+    """Arithmetic mean of quaternions over batch axes (not normalised; for the
+    mean rotation see `Rotation.mean`)."""
+    _no_extras("mean", dtype=dtype, where=where)
+    raw = _operand(a, "a")
+    count = int(np.prod([raw.shape[ax] for ax in _batch_axes(axis, raw.ndim - 1)]))
+    res = _reduce(np.add, "reduce", a, axis=axis, keepdims=keepdims is True)
+    return _finish(_raw(res) / count, out)
 
 
 def _pair(a, b):
@@ -745,27 +948,22 @@ def _pair(a, b):
     return A, B
 
 
+@_implements(COMPARISON_FUNCTIONS, np.isclose)
 def _isclose(a, b, rtol=1e-05, atol=1e-08, equal_nan=False):
     A, B = _pair(a, b)
     return np.all(np.isclose(A, B, rtol=rtol, atol=atol, equal_nan=equal_nan), axis=-1)
 
 
+@_implements(COMPARISON_FUNCTIONS, np.allclose)
 def _allclose(a, b, rtol=1e-05, atol=1e-08, equal_nan=False):
     A, B = _pair(a, b)
     return bool(np.allclose(A, B, rtol=rtol, atol=atol, equal_nan=equal_nan))
 
 
+@_implements(COMPARISON_FUNCTIONS, np.array_equal)
 def _array_equal(a1, a2, equal_nan=False):
     A, B = _pair(a1, a2)
     return bool(np.array_equal(A, B, equal_nan=equal_nan))
-
-
-COMPARISON_FUNCTIONS = {
-    np.isclose: _isclose,
-    np.allclose: _allclose,
-    np.array_equal: _array_equal,
-}
-"""Comparisons per quaternion: `isclose` returns a bool array of batch shape."""
 
 
 def _last_axis_stays(func, ndim, *args, **kwargs):
@@ -775,22 +973,42 @@ def _last_axis_stays(func, ndim, *args, **kwargs):
     return probe.ndim == ndim and probe.shape[-1] == 2
 
 
-def _permutation(func):
-    def apply(a, *args, **kwargs):
-        if not isinstance(a, QuatArray):  # pragma: no cover - NumPy dispatches here only for QuatArrays
-            return func(_plain(a), *_plain(args), **_plain(kwargs))
-        res = func(_raw(a), *args, **kwargs)
-        return res.view(QuatArray) if _last_axis_stays(func, a.ndim, *args, **kwargs) else res
-    return apply
+def _permuted(func, a, *args, **kwargs):
+    if not isinstance(a, QuatArray):  # pragma: no cover - NumPy dispatches here only for QuatArrays
+        return func(_plain(a), *_plain(args), **_plain(kwargs))
+    res = func(_raw(a), *args, **kwargs)
+    return res.view(QuatArray) if _last_axis_stays(func, a.ndim, *args, **kwargs) else res
 
 
-LAYOUT_FUNCTIONS = {
-    np.reshape: lambda a, *args, **kwargs: a.reshape(*args, **kwargs),
-    np.ravel: lambda a, order="C": a.ravel(order),
-    np.transpose: _permutation(np.transpose),
-    np.swapaxes: _permutation(np.swapaxes),
-    np.moveaxis: _permutation(np.moveaxis),
-    np.rollaxis: _permutation(np.rollaxis),
-}
-"""Functions that rearrange axes: the class is kept only when the last axis
-stays last and whole (a C-order reshape to (..., 4) keeps every quaternion)."""
+@_implements(LAYOUT_FUNCTIONS, np.reshape)
+def _reshape(a, /, shape=None, order="C", *, newshape=None, copy=None):
+    if shape is None:
+        shape = newshape
+    if copy is not None:
+        return a.reshape(shape, order=order, copy=copy)
+    return a.reshape(shape, order=order)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.ravel)
+def _ravel(a, order="C"):
+    return a.ravel(order)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.transpose)
+def _transpose(a, axes=None):
+    return _permuted(np.transpose, a, axes)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.swapaxes)
+def _swapaxes(a, axis1, axis2):
+    return _permuted(np.swapaxes, a, axis1, axis2)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.moveaxis)
+def _moveaxis(a, source, destination):
+    return _permuted(np.moveaxis, a, source, destination)
+
+
+@_implements(LAYOUT_FUNCTIONS, np.rollaxis)
+def _rollaxis(a, axis, start=0):
+    return _permuted(np.rollaxis, a, axis, start)

@@ -29,10 +29,10 @@ import math
 
 import numpy as np
 
-from . import _blocks
+from . import _blocks, _scale
 from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2
 from ._kernels import half_angle as _half_angle
-from ._validate import float_array
+from ._validate import finite, float_array, quat_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
@@ -42,9 +42,6 @@ __all__ = [
 _POLAR_MAXITER = 60
 """Newton steps allowed for the polar factor before falling back to an SVD."""
 
-"""Middle Euler angle this close to 0 or π counts as gimbal lock (scipy's value)."""
-
-
 
 # --- the block engine, quietly ------------------------------------------------------
 
@@ -53,15 +50,6 @@ def _blockwise(kernel, ins, outs, **params):
     zero, infinite and nan input themselves (nan out, or a status flag)."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return _blocks.blockwise(kernel, ins, outs, **params)
-
-
-_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
-
-
-def _quat(q, name="quat"):
-    if type(q) is np.ndarray and q.dtype in _FLOATS and q.shape[-1:] == (4,):
-        return q   # already what float_array would return (saves its checks on one rotation)
-    return float_array(q, name, last=4)
 
 
 def _vec3(v, name):
@@ -79,7 +67,7 @@ def _k_from_quat(q, o, order):
     return bad
 
 
-def from_quat(quat, scalar_first=False):
+def from_quat(quat, scalar_first=False, name="quat"):
     """Unit scalar-first quaternions from quaternions in either order (scipy's `from_quat`).
 
     Parameters
@@ -87,6 +75,8 @@ def from_quat(quat, scalar_first=False):
     quat : array_like, shape (..., 4)
         ``(x, y, z, w)``, or ``(w, x, y, z)`` with ``scalar_first=True``.
     scalar_first : bool, default False
+    name : str, default "quat"
+        What to call `quat` in error messages.
 
     Returns
     -------
@@ -100,10 +90,11 @@ def from_quat(quat, scalar_first=False):
 
     Examples
     --------
+    >>> from quatarray._convert import from_quat
     >>> from_quat([0, 0, 3, 4])
     array([0.8, 0. , 0. , 0.6])
     """
-    q = _quat(quat)
+    q = quat_array(quat, "quat")
     order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
     if q.ndim == 1:  # one quaternion: Python floats (no block run)
         c = q.tolist()
@@ -116,11 +107,11 @@ def from_quat(quat, scalar_first=False):
         finite = np.isfinite(flat).all(axis=1)
         if not finite.all():
             first = int(np.argmin(finite))
-            raise ValueError(f"expected finite quat, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
+            raise ValueError(f"expected finite {name}, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
         scale = np.abs(flat).max(axis=1)
         if not (scale > 0).all():
             first = int(np.argmin(scale > 0))
-            raise ValueError(f"Found zero norm quaternions in `quat`: expected non-zero quaternions, "
+            raise ValueError(f"Found zero norm quaternions in `{name}`: expected non-zero quaternions, "
                              f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
         # norms that over- or underflow: normalise after scaling by the largest component
         with np.errstate(over="ignore", under="ignore"):
@@ -141,7 +132,7 @@ def _index(flat_index, batch):
 
 def _k_as_matrix(q, o):
     w, x, y, z = q
-    s = 2.0 / (w * w + x * x + y * y + z * z)
+    s = np.divide(2.0, _scale.guarded_sqnorm(q))
     xs, ys, zs = x * s, y * s, z * s
     wx, wy, wz = w * xs, w * ys, w * zs
     xx, xy, xz = x * xs, x * ys, x * zs
@@ -172,13 +163,15 @@ def as_matrix(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import as_matrix
     >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])  # 90° about z
     >>> np.round(as_matrix(q), 12) + 0.0
     array([[ 0., -1.,  0.],
            [ 1.,  0.,  0.],
            [ 0.,  0.,  1.]])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     if q.shape == (4,):  # one rotation: Python floats (no block run)
         return _matrix_one(q, q.dtype)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
@@ -310,6 +303,29 @@ def _svd_polar(mat):
     return u @ vt
 
 
+def _rescaled_matrices(flat, qflat, status, tol_off):
+    """Try again, scaled by a power of two near their largest entry, the finite
+    matrices whose determinant over- or underflowed (``1e103 * I`` is the
+    identity, as in scipy); updates `qflat` and `status` in place and returns
+    the matrices with those rows scaled (a copy; `flat` itself is not modified)."""
+    redo = np.flatnonzero(status == 2)
+    sub = flat[redo]
+    ok = np.isfinite(sub).all(axis=1) & (sub != 0).any(axis=1)
+    redo, sub = redo[ok], sub[ok]
+    if not redo.size:
+        return flat
+    _, e = np.frexp(np.abs(sub).max(axis=1))
+    sub = np.ldexp(sub, -e[:, None])
+    qsub = np.empty((len(sub), 4), flat.dtype)
+    ssub = np.empty((len(sub), 1), np.int8)
+    _blockwise(_k_from_matrix, [sub], [qsub, ssub], tol_diag=1e-5 + tol_off, tol_off=tol_off)
+    qflat[redo] = qsub
+    status[redo] = ssub[:, 0]
+    flat = flat.copy()
+    flat[redo] = sub
+    return flat
+
+
 def from_matrix(matrix, assume_valid=False):
     """Quaternions of rotation matrices, as scipy's ``Rotation.from_matrix``.
 
@@ -338,6 +354,8 @@ def from_matrix(matrix, assume_valid=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import from_matrix
     >>> np.round(from_matrix([[0, -1, 0], [1, 0, 0], [0, 0, 1]]), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     >>> np.round(from_matrix(2 * np.eye(3)), 12)  # projected to the nearest rotation
@@ -364,12 +382,15 @@ def from_matrix(matrix, assume_valid=False):
     _blockwise(_k_from_matrix, [flat], [qflat, status], tol_diag=1e-5 + tol_off, tol_off=tol_off)
     status = status[:, 0]
     if n and status.max() == 2:
+        given, flat = flat, _rescaled_matrices(flat, qflat, status, tol_off)
+    if n and status.max() == 2:
         first = int(np.argmax(status == 2))
         where = _index(first, batch)
-        bad = flat[first].reshape(3, 3)
+        bad = given[first].reshape(3, 3)
         if not np.isfinite(bad).all():
             raise ValueError(f"expected finite values in matrix, got nan or inf in matrix {where}")
-        det = float(np.linalg.det(bad.astype(np.float64)))
+        with np.errstate(over="ignore", under="ignore"):
+            det = float(np.linalg.det(bad.astype(np.float64)))
         raise ValueError(
             "Non-positive determinant (left-handed or null coordinate frame) in rotation "
             f"matrix {where}: expected det > 0, got det = {det:.6g} for\n{bad}")
@@ -400,6 +421,20 @@ def _flip_mask(w, x, y, z):
     return flip
 
 
+def _vector_norm(q):
+    """|v| of a block's scratch copy `q`, rescaled in place first where |q|² would
+    over- or underflow (|v|² + w² is checked: two more ufuncs than |v| alone)."""
+    work = _blocks.scratch()
+    v2, n2 = work.rows(2, q.shape[1:], q.dtype)
+    _scale.sum_squares(q, v2, 1)
+    np.multiply(q[0], q[0], out=n2)
+    n2 += v2
+    if not _scale.fits(n2):
+        _scale.guard(q, n2)
+        _scale.sum_squares(q, v2, 1)
+    return np.sqrt(v2, out=v2)
+
+
 def _flip_one(w, x, y, z):
     """`_flip_mask` for one quaternion of Python floats."""
     if w != 0:
@@ -408,8 +443,8 @@ def _flip_one(w, x, y, z):
 
 
 def _k_as_rotvec(q, o, factor):
+    nv = _vector_norm(q)
     w, x, y, z = q
-    nv = np.sqrt(x * x + y * y + z * z)
     half = arctan2(nv, np.abs(w))
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
@@ -439,14 +474,16 @@ def as_rotvec(q, degrees=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import as_rotvec
     >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
     >>> as_rotvec(q, degrees=True)
     array([ 0.,  0., 90.])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     factor = 2.0 * (180.0 / np.pi if degrees else 1.0)
     if q.shape == (4,):  # one rotation: Python floats (a few µs instead of a block run)
-        w, x, y, z = q.tolist()
+        (w, x, y, z), _ = _scale.guard_one(q.tolist())
         nv = math.sqrt(x * x + y * y + z * z)
         scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * factor
         scale = -scale if _flip_one(w, x, y, z) else scale
@@ -497,10 +534,12 @@ def from_rotvec(rotvec, degrees=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import from_rotvec
     >>> np.round(from_rotvec([0, 0, 90], degrees=True), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
-    v = _vec3(rotvec, "rotvec")
+    v = finite(_vec3(rotvec, "rotvec"), "rotvec")
     factor = np.pi / 180.0 if degrees else 1.0
     if v.shape == (3,):  # one rotation: Python floats, the same half-angle tangent
         x, y, z = v.tolist()
@@ -515,8 +554,7 @@ def from_rotvec(rotvec, degrees=False):
 
 
 def _k_magnitude(q, o):
-    w, x, y, z = q
-    arctan2(np.sqrt(x * x + y * y + z * z), np.abs(w), out=o[0])
+    arctan2(_vector_norm(q), np.abs(q[0]), out=o[0])
     o[0] *= 2.0
 
 
@@ -533,13 +571,15 @@ def magnitude(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import magnitude
     >>> magnitude(np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [-1, 1, 0, 0]]))
     array([0.        , 3.14159265, 1.57079633])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1], q.dtype)
     if q.shape == (4,):  # one rotation: Python floats
-        w, x, y, z = q.tolist()
+        (w, x, y, z), _ = _scale.guard_one(q.tolist())
         out[()] = 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
         return out
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
@@ -547,8 +587,9 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
+    n = np.sqrt(_scale.guarded_sqnorm(q))
     w, x, y, z = q
-    k = 1.0 / (np.sqrt(w * w + x * x + y * y + z * z) + np.abs(w))
+    k = 1.0 / (n + np.abs(w))
     k = np.where(w < 0, -k, k)
     np.multiply(x, k, out=o[0])
     np.multiply(y, k, out=o[1])
@@ -569,13 +610,16 @@ def as_mrp(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import as_mrp
     >>> np.round(as_mrp(np.array([0.0, 0, 0, 1])), 12)  # 180° about z
     array([0., 0., 1.])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     if q.shape == (4,):  # one rotation: Python floats
-        w, x, y, z = q.tolist()
-        k = 1.0 / (math.sqrt(w * w + x * x + y * y + z * z) + abs(w))
+        (w, x, y, z), _ = _scale.guard_one(q.tolist())
+        d = math.sqrt(w * w + x * x + y * y + z * z) + abs(w)
+        k = 1.0 / d if d else math.inf   # zero quaternion: nan out, as the block path gives
         k = -k if w < 0 else k
         return np.array([x * k, y * k, z * k], q.dtype)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
@@ -608,10 +652,11 @@ def from_mrp(mrp):
 
     Examples
     --------
+    >>> from quatarray._convert import from_mrp
     >>> from_mrp([0, 0, 1])
     array([0., 0., 0., 1.])
     """
-    p = _vec3(mrp, "mrp")
+    p = finite(_vec3(mrp, "mrp"), "mrp")
     if p.shape == (3,):  # one rotation: Python floats
         x, y, z = p.tolist()
         n = x * x + y * y + z * z
@@ -638,11 +683,13 @@ def canonical(q):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._convert import canonical
     >>> canonical(np.array([[-1.0, 0, 0, 0], [0, 0, -1, 1]]))
     array([[ 1.,  0.,  0.,  0.],
            [-0., -0.,  1., -1.]])
     """
-    q = _quat(q)
+    q = quat_array(q, "quat")
     flip = _flip_mask(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     return np.where(flip[..., None], -q, q)
 

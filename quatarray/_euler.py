@@ -15,9 +15,10 @@ import warnings
 
 import numpy as np
 
-from ._convert import _blockwise, _half_angle, _quat
+from . import _scale
+from ._convert import _blockwise, _half_angle
 from ._kernels import arctan2, hamilton, multiply_rows
-from ._validate import float_array
+from ._validate import finite, float_array, quat_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
 
@@ -145,7 +146,7 @@ def from_euler(seq, angles, degrees=False):
            [0.707107, 0.      , 0.707107, 0.      ]])
     """
     axes, intrinsic = check_seq(seq)
-    a = float_array(angles, "angles")
+    a = finite(float_array(angles, "angles"), "angles")
     if a.ndim == 0:
         a = a.reshape(1)
     if a.shape[-1] != len(axes):
@@ -223,6 +224,7 @@ def _angles_one(a, b, c, d, extrinsic, symmetric, sign, lamb):
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
+    _scale.guarded_sqnorm(q)
     w = q[0]
     qi, qj, qk = q[i + 1], q[j + 1], q[k + 1]
     qk = qk if sign > 0 else -qk
@@ -271,14 +273,14 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     array([90., 30., 10.])
     """
     axes, intrinsic = check_seq(seq, 3)
-    q = _quat(q)
+    q = quat_array(q, "quat")
     i, j, k = axes[::-1] if intrinsic else axes
     symmetric = i == k
     if symmetric:
         k = 3 - i - j
     sign = (i - j) * (j - k) * (k - i) // 2
     if q.shape == (4,):  # one rotation: Python floats
-        c = q.tolist()
+        c, _ = _scale.guard_one(q.tolist())
         w, qi, qj, qk = c[0], c[i + 1], c[j + 1], c[k + 1] * sign
         abcd = (w, qi, qj, qk) if symmetric else (w - qj, qi + qk, qj + w, qk - qi)
         angles, gimbal = _angles_one(*abcd, not intrinsic, symmetric, sign, math.pi / 2)
@@ -367,7 +369,7 @@ def from_davenport(axes, order, angles, degrees=False):
     """
     extrinsic = check_order(order)
     ax = _unit_axes(axes)
-    a = float_array(angles, "angles")
+    a = finite(float_array(angles, "angles"), "angles")
     if a.ndim == 0:
         a = a.reshape(1)
     if a.shape[-1] != ax.shape[0]:
@@ -390,6 +392,7 @@ def from_davenport(axes, order, angles, degrees=False):
 
 
 def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
+    _scale.guarded_sqnorm(abcd)
     gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
     if flip:
         _negate(o[1])
@@ -428,11 +431,11 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     array([90., 30., 10.])
     """
     extrinsic = check_order(order)
-    q = _quat(q)
+    q = quat_array(q, "quat")
     key = float_array(axes, "axes").astype(np.float64, copy=False)
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
     if q.shape == (4,):  # one rotation: Python floats
-        c = q.tolist()
+        c, _ = _scale.guard_one(q.tolist())
         abcd = [sum(row[i] * c[i] for i in range(4)) for row in lmat]
         angles, gimbal = _angles_one(*abcd, extrinsic, False, 1, lamb)
         if flip:
@@ -440,7 +443,8 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
         _warn_gimbal(gimbal, suppress_warnings)
         out = np.array(angles, q.dtype)
         return np.rad2deg(out, out=out) if degrees else out
-    abcd = q.reshape(-1, 4) @ np.array(lmat, q.dtype).T
+    with np.errstate(invalid="ignore", over="ignore"):   # nan, inf and overflow: the kernel's guard
+        abcd = q.reshape(-1, 4) @ np.array(lmat, q.dtype).T
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
                         extrinsic=extrinsic, lamb=lamb, flip=flip)

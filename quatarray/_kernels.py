@@ -6,11 +6,13 @@ Long inputs are processed in cache-sized blocks by the block engine
 (`_blocks`) into a preallocated output.
 """
 
+import math
 from math import prod
 
 import numpy as np
 
-from . import _blocks
+from . import _blocks, _scale
+from ._blocks import soa
 
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
@@ -291,15 +293,30 @@ def sqnorm(q):
     return np.einsum("...i,...i->...", q, q)
 
 
+def _k_norm(q, o):
+    n = _scale.sum_squares(q, o[0])
+    e = _scale.guard(q, n)
+    np.sqrt(n, out=n)
+    _scale.unscale(n, e)
+
+
 def norm(q):
-    """Norm |q|, batch shape; overflow-safe like `np.hypot`.
+    """Norm |q|, batch shape; neither overflows nor underflows before the result does.
 
     >>> import numpy as np
     >>> from quatarray._kernels import norm
-    >>> norm(np.array([[1., 2, 2, 4], [0, 0, 0, 0]]))
-    array([5., 0.])
+    >>> norm(np.array([[1., 2, 2, 4], [0, 0, 0, 0], [1e300, 0, 0, 0]]))
+    array([5.e+000, 0.e+000, 1.e+300])
     """
-    return np.linalg.norm(q, axis=-1)
+    q = np.asarray(q)
+    dtype = result_dtype(q)
+    if q.shape == (4,):
+        c, e = _scale.guard_one(q.tolist())
+        return dtype.type(math.ldexp(math.sqrt(sum(x * x for x in c)), e))
+    out = np.empty(q.shape[:-1] + (1,), dtype)
+    with np.errstate(over="ignore"):   # squares that overflow are rescaled
+        _blocks.blockwise(_k_norm, [q], [out], dtype=dtype)
+    return out[..., 0]
 
 
 def dot(p, q):
@@ -314,23 +331,15 @@ def dot(p, q):
     return np.einsum("...i,...i->...", p, q, dtype=dtype)
 
 
-_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero (or nan) quaternion"
+_ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quaternion"
 
 
 def _k_normalize(q, o):
-    n = _sum_sq(q, 0, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    n = _scale.guarded_sqnorm(q)   # q is the block's scratch copy: rescaled in place if needed
     np.sqrt(n, out=n)
     if not (n > 0).all():
         raise ValueError(_ZERO_NORMALIZE)
     np.divide(q, n, out=o)
-
-
-def _sum_sq(q, start, out):
-    """out = q[start]² + ... + q[3]² for components-first rows."""
-    np.multiply(q[start], q[start], out=out)
-    for k in range(start + 1, len(q)):
-        out += q[k] * q[k]
-    return out
 
 
 def normalize(q, out=None):
@@ -343,10 +352,12 @@ def normalize(q, out=None):
     """
     res = _out(out, q.shape, result_dtype(q))
     if res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype and not np.may_share_memory(q, res):
-        _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
+        with np.errstate(over="ignore"):   # squares that overflow are rescaled
+            _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
         return res
     target = np.empty(q.shape, res.dtype)
-    _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
+    with np.errstate(over="ignore"):
+        _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
 
@@ -363,9 +374,10 @@ def _normalize_flat(q, out):
         np.add(sq[:, 0], sq[:, 1], out=t)    # half the cost of einsum's length-4 reductions
         t += sq[:, 2]
         t += sq[:, 3]
+        if not _scale.fits(t):   # extreme magnitudes, zeros or nan: the general kernel
+            _k_normalize(soa(blk).copy(), soa(o))
+            return
         np.sqrt(t, t)
-        if not (t > 0).all():
-            raise ValueError(_ZERO_NORMALIZE)
         for c in range(4):
             np.divide(blk[:, c], t, o[:, c])
 
@@ -373,12 +385,16 @@ def _normalize_flat(q, out):
 
 
 def _k_inverse(q, o):
-    n2 = _sum_sq(q, 0, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    n2 = _scale.sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    e = _scale.guard(q, n2)
     if not (n2 > 0).all():
         raise ZeroDivisionError("quaternion inverse: expected non-zero quaternions, got a zero quaternion")
     np.divide(q[0], n2, out=o[0])
     np.negative(n2, out=n2)
     np.divide(q[1:], n2, out=o[1:])
+    if e is not None:   # q was scaled by 2**-e: its inverse by 2**e
+        np.negative(e, out=e)
+        _scale.unscale(o, e)
 
 
 def inverse(q):
@@ -392,12 +408,13 @@ def inverse(q):
     array([ 0. , -0.5, -0. , -0. ])
     """
     res = np.empty(q.shape, result_dtype(q))
-    _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
+    with np.errstate(over="ignore"):   # squares that overflow are rescaled
+        _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
     return res
 
 
 def _k_exp(q, o):
-    vn = _sum_sq(q, 1, o[0])
+    vn = _scale.sum_squares(q, o[0], 1)
     np.sqrt(vn, out=vn)
     ew = np.exp(q[0])
     # cos|v| and sin|v| / |v| (limit 1 at |v| = 0) from one tangent
@@ -425,7 +442,7 @@ def exp(q):
 
 
 def _log_parts(q):
-    """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|) for the principal log of
+    """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|, e) for the principal log of
     components-first rows.
 
     ln|q| is ``log1p((w - 1)(w + 1) + |v|²) / 2``, accurate near the identity
@@ -433,9 +450,13 @@ def _log_parts(q):
     taken as ``log(u) · d / (u - 1)`` with u = 1 + d (exact for u ≠ 1, d where
     u = 1), one call to log.  The scale has its limit 1/w at |v| = 0, w > 0;
     for a negative real quaternion (|v| = 0, w < 0) the axis is taken as x
-    (θ = π)."""
+    (θ = π).  Blocks of extreme magnitude are rescaled in place first by
+    2**-e (e None when not): ln|q|, |v| and the scale then refer to the
+    rescaled q, which is what the callers multiply."""
     work = _blocks.scratch()
-    vv = _sum_sq(q, 1, work.rows(1, q.shape[1:], q.dtype)[0])
+    n2 = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0])
+    e = _scale.guard(q, n2)
+    vv = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0], 1)
     w = q[0]
     d = (w - 1) * (w + 1)
     d += vv
@@ -446,19 +467,24 @@ def _log_parts(q):
     ln *= um1
     np.copyto(ln, d, where=u == 1)
     ln *= 0.5
+    small = n2 < 0.5   # |q|² - 1 = -1 + |q|² has lost |q|² to rounding: ln|q| = ln(|q|²) / 2
+    if small.any():
+        ln[small] = 0.5 * np.log(n2[small])
     vn = np.sqrt(vv, out=vv)
     theta = arctan2(vn, w)
     scale = theta / vn
     lim = vn == 0
     if lim.any():
         scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
-    return ln, theta, vn, scale
+    return ln, theta, vn, scale, e
 
 
 def _k_log(q, o):
-    ln, theta, vn, scale = _log_parts(q)
+    ln, theta, vn, scale, e = _log_parts(q)
     np.multiply(q[1:], scale, out=o[1:])
     np.copyto(o[0], ln)
+    if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
+        o[0] += e * np.log(o.dtype.type(2))
     neg_real = (vn == 0) & (q[0] < 0)
     if neg_real.any():
         np.copyto(o[1], np.pi, where=neg_real)
@@ -477,15 +503,17 @@ def log(q):
     """
     q = np.asarray(q)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
     return res
 
 
 def _k_power(q, t, o):
     t = t[0]
-    ln, theta, vn, scale = _log_parts(q)
+    ln, theta, vn, scale, e = _log_parts(q)
     mag = np.exp(t * ln)
+    if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
+        mag = mag * np.exp2(t * e)
     zero = (vn == 0) & (q[0] == 0)
     if zero.any():
         mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
@@ -552,26 +580,28 @@ def rotate(q, v, inverse=False):
         res = np.matmul(m.T if inverse else m, v.astype(dtype, copy=False), axes=[(-2, -1), (-1, -2), (-1, -2)])
         return res.reshape(batch + (3,))
     res = np.empty(batch + (3,), dtype)
-    with np.errstate(divide="ignore", invalid="ignore"):  # zero quaternions give nan
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         _blocks.blockwise(_rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
 
 
 def _matrix_one(q, dtype):
     """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero)."""
-    w, x, y, z = q.tolist() if q.ndim == 1 else q.reshape(4).tolist()
+    (w, x, y, z), _ = _scale.guard_one(q.tolist() if q.ndim == 1 else q.reshape(4).tolist())
     n2 = w * w + x * x + y * y + z * z
     s = 2.0 / n2 if n2 else float("nan")
-    return np.array([  # a flat list: half the cost of nested ones
+    m = np.array([  # a flat list (half the cost of nested ones), typed by the scalar type
         1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w),
         s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w),
         s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y),
-    ], dtype).reshape(3, 3)
+    ], np.dtype(dtype).type)
+    m.shape = (3, 3)  # in place: cheaper than reshape's new view
+    return m
 
 
 def _rotate_scalar(q, u, dtype, inverse=False):
     """`rotate` for one quaternion and one vector, with Python floats (no block run)."""
-    w, x, y, z = q.tolist()
+    (w, x, y, z), _ = _scale.guard_one(q.tolist())
     if inverse:
         w = -w  # conj(q) = (w, -vec): t -> -t, and vec × t keeps its sign
     ux, uy, uz = u.tolist()
@@ -583,9 +613,10 @@ def _rotate_scalar(q, u, dtype, inverse=False):
 
 
 def _rotate_block(q, u, o, wsign):
+    n2 = _scale.guarded_sqnorm(q)
     w, x, y, z = q[0] * wsign, q[1], q[2], q[3]
     ux, uy, uz = u
-    s = 2.0 / (w * w + x * x + y * y + z * z)
+    s = np.divide(2.0, n2, out=n2)
     tx = (y * uz - z * uy) * s
     ty = (z * ux - x * uz) * s
     tz = (x * uy - y * ux) * s

@@ -21,7 +21,7 @@ from . import _euler as E
 from . import _kernels as K
 from ._array import QuatArray
 from ._rotation_groups import group_quats
-from ._validate import batch_shape, float_array
+from ._validate import batch_shape, finite, float_array
 
 __all__ = ["Rotation"]
 
@@ -181,7 +181,8 @@ class Rotation:
         array([30.,  0.,  0.])
         """
         from scipy.spatial.transform import Rotation as ScipyRotation
-        return ScipyRotation.from_quat(self._q.astype(np.float64), scalar_first=True)
+        q = C.from_quat(self._q.astype(np.float64), scalar_first=True, name="rotations")   # nan: not "zero norm"
+        return ScipyRotation.from_quat(q, scalar_first=True)
 
     # --- quaternions ---------------------------------------------------------------------
     @classmethod
@@ -447,7 +448,7 @@ class Rotation:
         array([[1., 0., 0.],
                [0., 1., 0.]])
         """
-        v = float_array(vectors, "vectors")
+        v = finite(float_array(vectors, "vectors"), "vectors")
         if v.ndim == 0 or v.shape[-1] != 3:
             raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
         q = self._q
@@ -612,7 +613,8 @@ class Rotation:
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")
-        q64 = q.astype(np.float64, copy=False)
+        # nan, inf and zero rows refused; rows of any magnitude normalised
+        q64 = C.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name="rotations to average")
         if weights is None:
             wq = q64
         else:
@@ -663,15 +665,25 @@ class Rotation:
         ls = _coerce(left, "left").reshape(-1, 4) if left is not None else eye
         rs = _coerce(right, "right").reshape(-1, 4) if right is not None else eye
         pf = p.reshape(-1, 4)
-        # |w| of l p r = |(l p) · conj(r)|: the largest gives the smallest angle
-        lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
-        score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
-        best = score.reshape(score.shape[0], -1).argmax(axis=1)
-        li, ri = np.divmod(best, rs.shape[0])
-        if p.ndim == 1:   # one rotation: single products (Python floats)
-            reduced = K.multiply(ls[li[0]], K.multiply(p, rs[ri[0]]))
+        if left is None or right is None:
+            # one side: |w| of c p (or p c) is |c · conj(p)|, a matrix product; the largest
+            # gives the smallest angle
+            score = np.abs((pf * np.array([1, -1, -1, -1], p.dtype)) @ (rs if left is None else ls).T)
+            best = score.argmax(axis=1)
+            zero = np.zeros_like(best)
+            li, ri = (zero, best) if left is None else (best, zero)
         else:
-            reduced = K.multiply(ls[li], K.multiply(pf, rs[ri])).reshape(p.shape)
+            # |w| of l p r = |(l p) · conj(r)|
+            lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
+            score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
+            best = score.reshape(score.shape[0], -1).argmax(axis=1)
+            li, ri = np.divmod(best, rs.shape[0])
+        if p.ndim == 1:   # one rotation: single products (Python floats)
+            reduced = p if left is None else K.multiply(ls[li[0]], p)
+            reduced = reduced if right is None else K.multiply(reduced, rs[ri[0]])
+        else:
+            reduced = pf if left is None else K.multiply(ls[li], pf)
+            reduced = (reduced if right is None else K.multiply(reduced, rs[ri])).reshape(p.shape)
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
@@ -855,15 +867,19 @@ class Rotation:
 
 def _random(num=None, rng=None, *, shape=None, legacy=False):
     size = _batch_shape(num, shape)
-    if legacy:
-        if rng is None:
-            rng = np.random.mtrand._rand
-        elif isinstance(rng, (int, np.integer)):
-            rng = np.random.RandomState(rng)
-        elif not isinstance(rng, (np.random.RandomState, np.random.Generator)):
+    try:
+        if legacy:
+            if rng is None:
+                rng = np.random.mtrand._rand
+            elif isinstance(rng, (int, np.integer)):
+                rng = np.random.RandomState(rng)
+            elif not isinstance(rng, (np.random.RandomState, np.random.Generator)):
+                rng = np.random.default_rng(rng)
+        else:
             rng = np.random.default_rng(rng)
-    else:
-        rng = np.random.default_rng(rng)
+    except (TypeError, ValueError) as exc:   # NumPy's own message does not say which argument
+        raise type(exc)(f"expected rng to be a numpy.random.Generator, a RandomState, None or a "
+                        f"non-negative int seed, got {rng!r}") from None
     return Rotation(rng.normal(size=size + (4,)))
 
 

@@ -25,10 +25,18 @@ from . import _interp_kernels as IK
 from . import _kernels as Kn
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
-from ._validate import float_array
+from ._validate import finite, float_array
 
-__all__ = ["Timeline", "components_first", "qt_blocks", "frame_rows", "rotation_table",
+__all__ = ["EXTEND_LIMIT", "Timeline", "components_first", "qt_blocks", "frame_rows", "rotation_table",
            "gather", "evaluate", "angular_velocity"]
+
+
+#: How far ``extrapolate='extend'`` reaches: this many lengths of the first
+#: (last) segment before the first (after the last) key.  squad, Bézier and
+#: spline curves are polynomials in time; further out they overflow, and
+#: already here their angle keeps few correct digits (in float32, none).
+#: Extrapolated rotations are renormalised, so they stay unit.
+EXTEND_LIMIT = 1e4
 
 
 class Timeline:
@@ -54,8 +62,8 @@ class Timeline:
         outside = None
         if flat.size:
             lo, hi = float(flat.min()), float(flat.max())
-            if np.isnan(lo) or np.isnan(hi):
-                raise ValueError(f"expected {name} without nan, got nan")
+            if not (np.isfinite(lo) and np.isfinite(hi)):   # the API refuses nan and inf
+                finite(flat, name)
             t0, t1 = float(self.times[0]), float(self.times[-1])
             if self.extrapolate == "raise" and (lo < t0 or hi > t1):
                 bad = lo if lo < t0 else hi
@@ -64,8 +72,14 @@ class Timeline:
             if self.extrapolate == "clamp" and (lo < t0 or hi > t1):
                 outside = (flat < t0) | (flat > t1)
                 flat = np.clip(flat, t0, t1)
-            if self.extrapolate == "extend" and not (np.isfinite(lo) and np.isfinite(hi)):
-                raise ValueError(f"expected finite {name} to extrapolate (extrapolate='extend'), got {lo!r} .. {hi!r}")
+            if self.extrapolate == "extend":
+                first = t0 - EXTEND_LIMIT * (float(self.times[1]) - t0)
+                last = t1 + EXTEND_LIMIT * (t1 - float(self.times[-2]))
+                if not first <= lo <= hi <= last:
+                    bad = lo if not first <= lo else hi
+                    raise ValueError(
+                        f"expected {name} within {EXTEND_LIMIT:g} end-segment lengths of the keys, i.e. in "
+                        f"[{first!r}, {last!r}] (extrapolate='extend'), got {bad!r}")
         return t.shape, flat, outside
 
     def find_all(self, flat):

@@ -4,9 +4,13 @@ Messages name the argument, what was expected and what came, e.g.
 ``expected quat of shape (..., 4), got (5, 3)``.
 """
 
+import math
+
 import numpy as np
 
-__all__ = ["float_array", "real_array", "finite", "batch_shape", "in_memory", "batch_axis"]
+__all__ = ["float_array", "quat_array", "all_finite", "finite", "batch_shape", "in_memory", "batch_axis"]
+
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 
 
 def in_memory(x, name):
@@ -14,6 +18,7 @@ def in_memory(x, name):
 
     Detected by the type's module, so Dask is never imported here.
 
+    >>> from quatarray._validate import in_memory
     >>> in_memory([1.0], "t")
     [1.0]
     """
@@ -21,6 +26,7 @@ def in_memory(x, name):
         raise TypeError(f"expected {name} in memory (array_like), got a Dask {type(x).__name__}; "
                         f"use quatarray.dask for Dask arrays (same names, lazy results)")
     return x
+
 
 def float_array(x, name, last=None, dtype=None):
     """Return `x` as a float32 or float64 ndarray (never copied if already one).
@@ -31,6 +37,7 @@ def float_array(x, name, last=None, dtype=None):
 
     Examples
     --------
+    >>> from quatarray._validate import float_array
     >>> float_array([[1, 0, 0, 0]], "quat", last=4).dtype
     dtype('float64')
     >>> float_array([1, 2, 3], "quat", last=4)
@@ -65,33 +72,75 @@ def float_array(x, name, last=None, dtype=None):
     return a
 
 
-def real_array(x, name):
-    """Return `x` as a real ndarray (float32/float64 kept, ints and bools as float64).
+def quat_array(x, name):
+    """`float_array` of shape (..., 4): quaternions (any batch shape).
 
-    Used for interpolation parameters and exponents.
+    >>> from quatarray._validate import quat_array
+    >>> quat_array([1, 0, 0, 0], "q")
+    array([1., 0., 0., 0.])
 
-    >>> real_array(0.5, "t").dtype
-    dtype('float64')
+    A plain float32 / float64 ndarray of that shape is returned at once (what
+    `float_array` would return, without its checks: they cost more than the
+    maths of one rotation).  Finiteness and magnitude are the callers' kernels'
+    business (`_scale.guard`, `_scale.guard_one`).
     """
-    return float_array(x, name)
+    if type(x) is np.ndarray and x.dtype in _FLOATS and x.shape[-1:] == (4,):
+        return x
+    return float_array(x, name, last=4)
+
+
+def all_finite(a):
+    """True when every element of `a` is finite (no nan, no ±inf), cheaply.
+
+    One quaternion: a sum of Python floats; small arrays: `np.isfinite`;
+    large ones: one sum (a finite sum means finite elements; a sum that is
+    not finite is then checked element by element).
+
+    >>> import numpy as np
+    >>> from quatarray._validate import all_finite
+    >>> all_finite(np.array([1.0, 2.0])), all_finite(np.array([1.0, np.inf]))
+    (True, False)
+    """
+    if not isinstance(a, np.ndarray):
+        a = np.asarray(a)
+    size = a.size
+    if size <= 4:
+        return math.isfinite(sum(a.ravel().tolist())) or bool(np.isfinite(a).all())
+    if size <= 4096:
+        return bool(np.isfinite(a).all())
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = np.add.reduce(a, axis=None)
+    return bool(np.isfinite(total)) or bool(np.isfinite(a).all())
 
 
 def finite(a, name):
-    """Raise `ValueError` unless every element of `a` is finite.
+    """Raise `ValueError` unless every element of `a` is finite (the API's
+    policy for NaN and infinite input); returns `a`.
 
-    >>> finite(np.array([1.0, np.nan]), "times")
+    Cheap in the common case (`all_finite`); the first offending element
+    is looked for only when there is one.
+
+    >>> import numpy as np
+    >>> from quatarray._validate import finite
+    >>> finite(np.array([[1.0, 2.0], [np.nan, 0.0]]), "times")
     Traceback (most recent call last):
     ...
-    ValueError: expected finite values in times, got nan or inf
+    ValueError: expected finite values in times, got nan or inf at index (1, 0)
     """
-    if not np.isfinite(a).all():
-        raise ValueError(f"expected finite values in {name}, got nan or inf")
+    if all_finite(a):
+        return a
+    bad = ~np.isfinite(a)
+    if bad.any():
+        where = np.unravel_index(int(np.argmax(bad)), np.shape(a))
+        at = f" at index {tuple(int(i) for i in where)}" if where else ""
+        raise ValueError(f"expected finite values in {name}, got nan or inf{at}")
     return a
 
 
 def batch_shape(num, shape):
     """scipy's `num` / `shape` arguments as a batch shape: ``(num,)``, `shape`, or ``()``.
 
+    >>> from quatarray._validate import batch_shape
     >>> batch_shape(3, None), batch_shape(None, (2, 5)), batch_shape(None, None)
     ((3,), (2, 5), ())
     """
@@ -114,6 +163,7 @@ def batch_shape(num, shape):
 def batch_axis(axis, batch, name="q"):
     """`axis` as an index into the batch shape `batch` of `name` (negative counts from the end).
 
+    >>> from quatarray._validate import batch_axis
     >>> batch_axis(-1, (5, 3))
     1
     """

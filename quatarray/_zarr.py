@@ -76,11 +76,10 @@ def read_store(path):
 def _query_times(key_times, fps, times, rows):
     """Query times as a Dask array chunked by `rows`, and whether they may leave the key range."""
     import dask.array as da
-    from .io import read_times
+    from .io import fps_steps, read_times
     if fps is not None:
         t0, t1 = float(key_times[0]), float(key_times[-1])
-        span = (t1 - t0) * fps     # the same count and values as io.fps_times
-        n = int(np.floor(span + 1e-9 * max(1.0, span)))
+        n = fps_steps(t0, t1, fps)     # the same count and values as io.fps_times
         return da.minimum(t0 + da.arange(n + 1, chunks=rows, dtype=np.float64) / fps, t1), False
     if isinstance(times, (str, os.PathLike)) and is_zarr(times):
         import zarr

@@ -27,12 +27,12 @@ import numpy as np
 from ._text import FormatError, TextStyle, atomic_write, echo
 from .io import (example_path, fps_times, read_bvh, read_csv, read_npz, read_times, resample_keyframes,
                  resample_motion, write_bvh, write_csv, write_npz)
-from .interpolate import Track
+from .interpolate import EXTRAPOLATE, METHODS as _TRACK_METHODS, Track
 
 __all__ = ["main", "resample_file", "demo"]
 
-METHODS = ("slerp", "squad", "bezier", "linear")
-EXTRAPOLATE = ("raise", "clamp", "extend")
+#: The Track methods the command line offers, default first (every one but 'spline').
+METHODS = ("slerp",) + tuple(m for m in _TRACK_METHODS if m not in ("slerp", "spline"))
 
 
 @dataclasses.dataclass(frozen=True)

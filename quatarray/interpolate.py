@@ -31,7 +31,7 @@ from . import _interp_spline as ISp
 from . import _kernels as Kn
 from . import _track as TR
 from ._array import QuatArray
-from ._validate import batch_axis, finite, float_array
+from ._validate import batch_axis, finite, float_array, quat_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -42,18 +42,20 @@ __all__ = [
 METHODS = ("linear", "slerp", "squad", "bezier", "spline")
 EXTRAPOLATE = ("raise", "clamp", "extend")
 FRAMES = ("world", "body")
+EXTEND_LIMIT = TR.EXTEND_LIMIT
+
 
 
 # ---------------------------------------------------------------------------
 # argument handling
 # ---------------------------------------------------------------------------
 
-def _quat(x, name):
-    return float_array(x, name, last=4)
+def _finite_quat(x, name):
+    return finite(quat_array(x, name), name)
 
 
 def _param(t):
-    return float_array(t, "t")
+    return finite(float_array(t, "t"), "t")
 
 
 def _broadcast(names, shapes):
@@ -103,7 +105,7 @@ def lerp(q0, q1, t):
                [0.5, 0. , 0. , 0.5],
                [0. , 0. , 0. , 1. ]])
     """
-    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
     return QuatArray._wrap(IK.lerp(q0, q1, t))
 
@@ -141,7 +143,7 @@ def nlerp(q0, q1, t, *, shortest=True):
     >>> np.allclose(q, [np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
     True
     """
-    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
     return QuatArray._wrap(IK.nlerp(q0, q1, t, bool(shortest)))
 
@@ -189,7 +191,7 @@ def slerp(q0, q1, t, *, shortest=True):
     >>> slerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5)    # the same rotation: stays put
     QuatArray([1., 0., 0., 0.])
     """
-    q0, q1, t = _quat(q0, "q0"), _quat(q1, "q1"), _param(t)
+    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
     return QuatArray._wrap(IK.slerp(q0, q1, t, bool(shortest)))
 
@@ -220,7 +222,7 @@ def unflip(q, axis=0):
                [ 0. , -1. ,  0. ,  0. ],
                [-0.6, -0.8, -0. , -0. ]])
     """
-    q = _quat(q, "q")
+    q = _finite_quat(q, "q")
     return QuatArray._wrap(IK.unflip(q, batch_axis(axis, q.shape[:-1])))
 
 
@@ -252,7 +254,7 @@ def squad(q0, a, b, q1, t):
     >>> np.allclose(squad(q0, q0, q1, q1, 0.25), slerp(q0, q1, 0.25))
     True
     """
-    qs = [_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
+    qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
     return QuatArray._wrap(IK.squad(*qs, t))
@@ -285,7 +287,7 @@ def bezier(q0, a, b, q1, t):
     >>> np.allclose(bezier(q0, a, b, q1, 0.4), slerp(q0, q1, 0.4))
     True
     """
-    qs = [_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
+    qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
     return QuatArray._wrap(IK.bezier(*qs, t))
@@ -301,7 +303,11 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
         raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
                          f"(a sequence of at least 2 rotations), got {keys.shape}")
     finite(keys, name)
-    n = np.sqrt(IK.vdot(keys, keys))
+    # each key times a power of two near 1/its largest component: exact (the same
+    # directions and dot-product signs), and no overflow or underflow at any magnitude
+    _, e = np.frexp(np.abs(keys).max(axis=-1, keepdims=True))
+    keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
+    n = Kn.norm(keys)
     if not (n > 0).all():
         raise ValueError(f"expected non-zero {name}, got a zero quaternion")
     # unflipped before normalising: the signs follow the dot products of the keys as given
@@ -445,7 +451,9 @@ class Track:
     extrapolate : {'raise', 'clamp', 'extend'}, default 'raise'
         Queries outside [times[0], times[-1]]: ``'raise'`` a ValueError,
         ``'clamp'`` to the end keys (zero angular velocity there), or
-        ``'extend'`` the first / last segment's curve.
+        ``'extend'`` the first / last segment's curve, up to `EXTEND_LIMIT`
+        (10⁴) lengths of that segment beyond the key range (further out:
+        ValueError).
 
     Notes
     -----
@@ -584,6 +592,12 @@ class Track:
             method = self._method
             out = TR.evaluate(self._timeline, self._table, flat,
                               lambda G, u, O: TR.rotation_block(method, G, u, O), 4)
+        if self._timeline.extrapolate == "extend" and flat.size:
+            # far out, squad's and Bézier's rounding grows like eps u² off the unit sphere
+            far = (flat < self.times[0]) | (flat > self.times[-1])
+            if far.any():
+                rows = out.reshape(flat.size, -1, 4)
+                rows[far] = Kn.normalize(rows[far])
         return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
 
     def angular_velocity(self, t, *, frame="world"):

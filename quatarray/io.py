@@ -35,7 +35,7 @@ from .interpolate import Track
 __all__ = [
     "FormatError", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
     "Joint", "Motion", "read_bvh", "write_bvh", "resample_motion",
-    "read_times", "fps_times", "resample_keyframes", "example_path",
+    "read_times", "fps_times", "fps_steps", "resample_keyframes", "example_path",
 ]
 
 _TRACK_BLOCK = 1 << 18  # keys interpolated per block of tracks
@@ -348,15 +348,27 @@ def fps_times(t0, t1, fps, per_frame=1):
     >>> fps_times(1.0, 1.25, 10)
     array([1. , 1.1, 1.2])
     """
+    n = fps_steps(t0, t1, fps)
+    check_size(n + 1, per_frame, f"a rate of {fps:g} fps over {t1 - t0:g} s")
+    return np.minimum(t0 + np.arange(n + 1) / fps, t1)
+
+
+def fps_steps(t0, t1, fps):
+    """The last k of the grid ``t0 + k / fps`` that reaches `t1` within rounding (see `fps_times`).
+
+    Examples
+    --------
+    >>> from quatarray.io import fps_steps
+    >>> fps_steps(0.0, 0.3, 10), fps_steps(0.0, 999_999_999.0, 1)
+    (3, 999999999)
+    """
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"expected fps > 0, got {fps}")
     span = (t1 - t0) * fps
     # within rounding: a millionth of a frame, plus the rounding of long spans and of large
     # times (absolute clock times such as 1403636579.76 s carry 2.4e-7 s each)
     slack = 1e-6 + 1e-12 * span + 8 * np.finfo(np.float64).eps * max(abs(t0), abs(t1)) * fps
-    n = int(np.floor(span + slack))
-    check_size(n + 1, per_frame, f"a rate of {fps:g} fps over {t1 - t0:g} s")
-    return np.minimum(t0 + np.arange(n + 1) / fps, t1)
+    return int(np.floor(span + slack))
 
 
 # --------------------------------------------------------------------------- resampling

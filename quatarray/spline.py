@@ -8,13 +8,14 @@ as `Rotation`.  Beyond scipy, the keys may hold any batch of tracks
 import numpy as np
 
 from . import _interp_spline as S
+from . import _kernels, _scale
 from ._array import QuatArray
 from ._interp_lookup import SegmentIndex
 from ._rotation import Rotation
 from ._validate import float_array, in_memory
 
 __all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
-           "angular_acceleration_nonlinear_term"]
+           "angular_acceleration_nonlinear_term", "block_tridiagonal_banded"]
 
 
 def _rotvecs(x, name):
@@ -70,6 +71,51 @@ def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
     r = _rotvecs(rotvecs, "rotvecs")
     rd = _rotvecs(rotvecs_dot, "rotvecs_dot")
     return S.acceleration_term(*np.broadcast_arrays(r, rd))
+
+
+def block_tridiagonal_banded(A, B, d):
+    """The block-tridiagonal matrix of the spline's rate equations in LAPACK banded form.
+
+    Rows of 3x3 blocks ``[A_{k-1}, d_k I, B_k]`` (block row k of n + 1), stored
+    as `scipy.linalg.solve_banded` takes them with ``(l, u) = (5, 5)``: element
+    ``(i, j)`` at ``[5 + i - j, j]``.  quatarray solves the system by block
+    cyclic reduction instead; this gives the same matrix to other solvers
+    (scipy keeps it private, as ``_create_block_3_diagonal_matrix``).
+
+    Parameters
+    ----------
+    A, B : array_like, shape (n, 3, 3)
+        Sub- and super-diagonal blocks.
+    d : array_like, shape (n + 1,)
+        The diagonal blocks are ``d_k`` times the identity.
+
+    Returns
+    -------
+    ndarray, shape (11, 3 (n + 1))
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.linalg import solve_banded
+    >>> from quatarray.spline import block_tridiagonal_banded
+    >>> A, B, d = np.full((1, 3, 3), 0.5), np.eye(3)[None], np.array([4.0, 5.0])
+    >>> dense = np.block([[4 * np.eye(3), B[0]], [A[0], 5 * np.eye(3)]])
+    >>> x = solve_banded((5, 5), block_tridiagonal_banded(A, B, d), np.arange(6.0))
+    >>> np.allclose(dense @ x, np.arange(6.0))
+    True
+    """
+    A, B, d = (np.asarray(x, dtype=float) for x in (A, B, d))
+    n = len(d) - 1
+    if A.shape != (n, 3, 3) or B.shape != (n, 3, 3):
+        raise ValueError(f"expected A and B of shape ({n}, 3, 3) for d of shape ({n + 1},), "
+                         f"got {A.shape} and {B.shape}")
+    out = np.zeros((11, 3 * (n + 1)))
+    out[5] = np.repeat(d, 3)
+    a, b = np.ogrid[:3, :3]
+    col = 3 * np.arange(n)[:, None, None] + b      # block column k of A_k, (n, 1, 3)
+    out[8 + a - b, col] = A                          # A_k at block (k + 1, k)
+    out[2 + a - b, col + 3] = B                      # B_k at block (k, k + 1)
+    return out
 
 
 def _keys(rotations):
@@ -132,7 +178,12 @@ class RotationSpline:
             raise ValueError("Values in `times` must be in a strictly increasing order.")
         if keys.dtype not in (np.float32, np.float64):
             keys = keys.astype(np.float64)
-        keys = keys / np.linalg.norm(keys, axis=-1, keepdims=True)
+        with np.errstate(over="ignore", under="ignore"):
+            n = np.linalg.norm(keys, axis=-1, keepdims=True)
+            ordinary = _scale.fits(n * n)
+        if not ordinary:   # keys of extreme magnitude: a norm that neither over- nor underflows
+            n = _kernels.norm(keys)[..., None]
+        keys = keys / n
         self.times = times
         self.rotations = Rotation.from_quat(keys, scalar_first=True)
         self._keys = keys

@@ -31,6 +31,18 @@ def random_quats(rng, shape=(), dtype=np.float64, unit=True):
     return q.astype(dtype)
 
 
+def hamilton_reference(p, q):
+    """The per-component product formula (independent of the complex-pair kernel)."""
+    w1, x1, y1, z1 = np.moveaxis(p, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(q, -1, 0)
+    return np.stack([
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    ], axis=-1)
+
+
 def edge_quats(dtype=np.float64):
     """Edge cases: identity, basis elements, their negatives, a 180-degree
     rotation, tiny rotations and a random unit quaternion."""

@@ -2,16 +2,19 @@
 ufunc and function registries, copying, pickling and repr."""
 
 import copy
+import inspect
 import pickle
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from quatarray import QuatArray, _array, _kernels as K
 from quatarray.testing import assert_allclose, assert_array_equal
 
-from .conftest import random_quats, tol
-from .test_kernels import hamilton_reference
+from .conftest import hamilton_reference, random_quats, tol
 
 
 def qa(rng, shape=(), dtype=np.float64, unit=True):
@@ -267,9 +270,13 @@ def test_sqrt_squares_back(rng):
 @pytest.mark.parametrize("ufunc", [np.absolute, np.isnan, np.isfinite])
 def test_unary_ufuncs_per_quaternion(ufunc):
     q = QuatArray([[1, 0, 0, 0], [np.nan, 0, 0, 0], [0, np.inf, 0, 0]])
+    if ufunc is np.absolute:   # non-finite input is refused (the API's policy)
+        with pytest.raises(ValueError, match="expected finite quaternions"):
+            ufunc(q)
+        q = QuatArray([[1, 0, 0, 0], [0, 3, 0, 4], [0, 0, 0, 0]])
     res = ufunc(q)
     assert type(res) is np.ndarray and res.shape == (3,)
-    want = {np.absolute: np.linalg.norm(q.ndarray, axis=-1), np.isnan: [False, True, False],
+    want = {np.absolute: [1, 5, 0], np.isnan: [False, True, False],
             np.isfinite: [True, False, False]}[ufunc]
     assert_array_equal(res, want)
 
@@ -377,13 +384,66 @@ def test_comparison_functions(rng):
     assert np.array_equal(p, p.copy()) and not np.array_equal(p, q)
 
 
-def test_unregistered_function_returns_plain(rng):
+@pytest.mark.parametrize("func", [np.median, np.sin.__call__, np.cumsum, np.linalg.norm, np.trace, np.prod, np.std],
+                         ids=lambda f: getattr(f, "__name__", str(f)))
+def test_unregistered_function_raises_like_a_ufunc(rng, func):
+    """Functions without a quaternion meaning raise TypeError, as ufuncs do (np.sin),
+    instead of silently computing on the components."""
     q = qa(rng, (3,))
-    m = np.mean(q.ndarray, axis=0)
-    res = np.median(q, axis=0)
-    assert type(res) is np.ndarray
-    assert_allclose(res, np.median(q.ndarray, axis=0))
-    assert m.shape == res.shape
+    with pytest.raises(TypeError, match="has no quaternion meaning for QuatArray; use q.ndarray"):
+        func(q)
+    func(q.ndarray)   # the plain components are the way to componentwise maths
+
+
+def test_plain_functions_see_the_components(rng):
+    q = qa(rng, (3,))
+    assert np.shape(q) == (3, 4) and np.ndim(q) == 2 and np.size(q) == 12
+    assert np.shares_memory(q, q.ndarray) and np.result_type(q, np.float32) == np.float64
+    assert "QuatArray" not in np.array_repr(q)
+
+
+@pytest.mark.parametrize("axis", [None, 0, 1, (0, 1), -1])
+def test_sum_and_mean_are_over_batch_axes(rng, axis):
+    q = qa(rng, (3, 5), unit=False)
+    want = np.sum(q.ndarray, axis=(0, 1) if axis is None else (axis if axis != -1 else 1))
+    s = np.sum(q, axis=axis)
+    assert type(s) is QuatArray and s.shape == want.shape
+    assert_allclose(s, want, atol=1e-13)
+    n = {None: 15, 0: 3, 1: 5, (0, 1): 15, -1: 5}[axis]
+    assert_allclose(np.mean(q, axis=axis), want / n, atol=1e-13)
+    assert np.mean(q, axis=axis, keepdims=True).ndim == 3
+    with pytest.raises(TypeError, match="supports axis, out and keepdims only"):
+        np.sum(q, dtype=np.float32)
+
+
+HANDLERS = sorted(((f, h) for table in (_array.BATCH_FUNCTIONS, _array.COMPARISON_FUNCTIONS,
+                                        _array.LAYOUT_FUNCTIONS) for f, h in table.items()),
+                  key=lambda fh: fh[0].__name__)
+
+
+@pytest.mark.parametrize("func, handler", HANDLERS, ids=[f.__name__ for f, _ in HANDLERS])
+def test_handler_signatures_accept_what_numpy_accepts(func, handler):
+    """astropy's check: every argument NumPy's function takes binds to the same
+    parameter of the handler, both by position and (where NumPy allows it) by
+    keyword, since dispatch passes the caller's arguments on as given."""
+    ours, theirs = inspect.signature(handler), inspect.signature(func)
+    params = [p for p in theirs.parameters.values() if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)]
+    by_position = [p.name for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    keyword_only = {p.name: p.name for p in params if p.kind is p.KEYWORD_ONLY}
+    bound = ours.bind(*by_position, **keyword_only).arguments
+    for name in by_position + list(keyword_only):
+        assert name in bound.values() or any(name in v for v in bound.values() if isinstance(v, tuple))
+    positional_only = [p.name for p in params if p.kind is p.POSITIONAL_ONLY]
+    by_keyword = {p.name: p.name for p in params if p.kind is not p.POSITIONAL_ONLY}
+    bound = ours.bind(*positional_only, **by_keyword).arguments
+    for name in by_keyword:
+        assert bound.get(name) == name or name in bound.get("kwargs", {})
+
+
+def test_registries_are_disjoint():
+    tables = [set(t) for t in (_array.BATCH_FUNCTIONS, _array.COMPARISON_FUNCTIONS, _array.LAYOUT_FUNCTIONS,
+                               _array.PLAIN_FUNCTIONS)]
+    assert sum(len(t) for t in tables) == len(set().union(*tables))
 
 
 def test_plain_arrays_refused_by_batch_functions(rng):
@@ -475,3 +535,36 @@ def test_unusual_inputs_work_and_are_not_modified(rng, layout):
     assert_allclose(results[0], want, atol=1e-13)
     assert_array_equal(raw, before)
     assert all(r.shape[:-1] == raw.shape[:-1] for r in results)
+
+
+# --- _touches_last against a probe ---------------------------------------------------------
+
+def _probe_keeps_last(key, shape):
+    """Ground truth from a probe whose entries hold their component index and
+    whose batch axes never have length 4: the last axis stayed whole and last
+    iff the result ends in an axis of length 4 reading 0, 1, 2, 3."""
+    probe = np.broadcast_to(np.arange(4), shape)
+    res = probe[key]
+    return isinstance(res, np.ndarray) and res.ndim >= 1 and res.shape[-1] == 4 and bool(
+        (res == np.arange(4)).all())
+
+
+BATCH_DIM = st.sampled_from([1, 2, 3, 5])
+
+
+@st.composite
+def shapes_and_keys(draw):
+    batch = tuple(draw(st.lists(BATCH_DIM, min_size=0, max_size=3)))
+    shape = batch + (4,)
+    key = draw(hnp.basic_indices(shape, min_dims=0, allow_newaxis=True, allow_ellipsis=True))
+    if batch and draw(st.booleans()):   # an integer-array index on a batch axis
+        axis = draw(st.integers(0, len(batch) - 1))
+        idx = draw(hnp.arrays(np.intp, draw(st.integers(0, 3)), elements=st.integers(0, batch[axis] - 1)))
+        key = (slice(None),) * axis + (idx,)
+    return shape, key
+
+
+@given(shapes_and_keys())
+def test_touches_last_agrees_with_a_probe(case):
+    shape, key = case
+    assert _array._touches_last(key, shape) == (not _probe_keeps_last(key, shape)), (shape, key)

@@ -419,3 +419,19 @@ def test_zarr_cli_replaces_existing_store_and_shows_progress(store, monkeypatch,
     assert "100% Completed" in capsys.readouterr().err
     assert zarr.open_group(dst, mode="r")["times"].shape[0] == len(quatarray.io.fps_times(times[0], times[-1], 3))
     assert sorted(os.listdir(tmp)) == ["in.zarr", "out.zarr"]
+
+
+@pytest.mark.parametrize("t0, t1, fps", [(0.0, 999_999_999.0, 1.0), (0.0, 4.2, 30.0), (0.0, 127 / 30, 30.0),
+                                         (1403636579.76, 1403636599.76, 200.0)])
+def test_zarr_fps_grid_is_io_fps_times(t0, t1, fps):
+    """The Zarr path's lazy --fps grid has io.fps_times' count and values (no extra frame on
+    long spans: 0 .. 999999999 at 1 fps is 10⁹ frames, not 10⁹ + 1)."""
+    from quatarray import _zarr
+    from quatarray.io import fps_steps, fps_times
+
+    t, _ = _zarr._query_times(np.array([t0, t1]), fps, None, 1 << 20)
+    assert t.shape == (fps_steps(t0, t1, fps) + 1,)
+    if t.shape[0] < 10**6:
+        assert np.array_equal(t.compute(), fps_times(t0, t1, fps))
+    else:
+        assert t[-1].compute() == t1 and t[-2].compute() < t1

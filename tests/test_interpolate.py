@@ -885,7 +885,9 @@ def test_extrapolation_modes(rng):
         clamp = Track(times, keys, method=method, extrapolate="clamp")
         assert_allclose(clamp(out_t), k[[0, -1]], atol=tol(np.float64, 2))
         assert (clamp.angular_velocity(out_t) == 0).all()
-        assert_allclose(clamp([-np.inf, np.inf]), k[[0, -1]], atol=tol(np.float64, 2))
+        assert_allclose(clamp([-1e300, 1e300]), k[[0, -1]], atol=tol(np.float64, 2))
+        with pytest.raises(ValueError, match="expected finite values in t"):   # the API refuses inf
+            clamp([-np.inf, np.inf])
         ext = Track(times, keys, method=method, extrapolate="extend")
         w = ext.angular_velocity(out_t)
         assert np.isfinite(plain(ext(out_t))).all() and (np.abs(w) > 0).any()
@@ -978,9 +980,12 @@ BAD_QUERIES = [
     ("below range", "raise", [-0.1, 1.0],
      r"expected t within the range \[0.0, 2.5\], both inclusive \(extrapolate='raise'\), got -0.1"),
     ("above range", "raise", 2.6, r"expected t within the range \[0.0, 2.5\].*got 2.6"),
-    ("nan query", "clamp", [0.5, np.nan], "expected t without nan, got nan"),
-    ("nan query raise", "raise", np.nan, "expected t without nan"),
-    ("inf query extend", "extend", [np.inf], "expected finite t to extrapolate"),
+    ("nan query", "clamp", [0.5, np.nan], r"expected finite values in t, got nan or inf at index \(1,\)"),
+    ("inf query clamp", "clamp", [0.5, -np.inf], r"expected finite values in t, got nan or inf at index \(1,\)"),
+    ("nan query raise", "raise", np.nan, "expected finite values in t"),
+    ("inf query extend", "extend", [np.inf], r"expected finite values in t, got nan or inf"),
+    ("far query extend", "extend", [1e100], r"expected t within 10000 end-segment lengths of the keys, "
+     r"i\.e\. in \[-10000\.0, 15002\.5\] \(extrapolate='extend'\), got 1e\+100"),
 ]
 
 
@@ -1008,3 +1013,24 @@ def test_control_points_bad_input():
         bezier_control_points(GOOD_K, [0, 0, 1])
     with pytest.raises(ValueError, match="got 2 times and 3 keys"):
         squad_control_points(GOOD_K, [0, 1])
+
+
+@pytest.mark.parametrize("method", ["linear", "slerp", "squad", "bezier", "spline"])
+def test_extend_is_finite_and_unit_up_to_its_limit(method, dtype, rng):
+    """extrapolate='extend': every query up to EXTEND_LIMIT end-segment lengths out gives
+    unit rotations and finite angular velocities; further out a ValueError names t."""
+    from quatarray.interpolate import EXTEND_LIMIT
+    keys = random_quats(rng, (5, 3), dtype)
+    times = np.array([0.0, 1.0, 2.5, 3.0, 3.5])
+    track = Track(times, keys, method=method, extrapolate="extend")
+    reach = EXTEND_LIMIT * np.array([-1.0, -0.31, 0.73, 1.0])
+    t = np.where(reach < 0, reach * 1.0, 3.5 + reach * 0.5)
+    q = track(t).ndarray.astype(np.float64)
+    assert np.isfinite(q).all()
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1, atol=tol(dtype, 8))
+    assert np.isfinite(track.angular_velocity(t)).all()
+    for far in (-EXTEND_LIMIT * 1.001, 3.5 + 0.5 * EXTEND_LIMIT * 1.001, 1e154, -1e300):
+        with pytest.raises(ValueError, match="expected t within 10000 end-segment lengths"):
+            track(far)
+        with pytest.raises(ValueError, match="expected t within 10000 end-segment lengths"):
+            track.angular_velocity([0.5, far])

@@ -11,20 +11,8 @@ from hypothesis.extra.numpy import arrays
 
 from quatarray import _kernels as K
 
-from .conftest import random_quats, tol
+from .conftest import hamilton_reference, random_quats, tol
 from .test_convert import R, assert_same_rotation, sp, sp_quat, unit
-
-
-def hamilton_reference(p, q):
-    """The per-component product formula (independent of the complex-pair kernel)."""
-    w1, x1, y1, z1 = np.moveaxis(p, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(q, -1, 0)
-    return np.stack([
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    ], axis=-1)
 
 
 def cross_rotate_reference(q, v):

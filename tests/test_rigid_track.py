@@ -169,8 +169,8 @@ def test_batch_equals_per_body(rng):
     (lambda tf: RigidTrack([1, 0], tf), ValueError, "expected times in strictly increasing order"),
     (lambda tf: RigidTrack([0, 1], tf, extrapolate="wrap"), ValueError, "expected extrapolate in"),
     (lambda tf: RigidTrack([0, 1], tf)(1.5), ValueError, r"expected t within the range \[0.0, 1.0\]"),
-    (lambda tf: RigidTrack([0, 1], tf)(np.nan), ValueError, "expected t without nan"),
-    (lambda tf: RigidTrack([0, 1], tf, extrapolate="extend")(np.inf), ValueError, "expected finite t"),
+    (lambda tf: RigidTrack([0, 1], tf)(np.nan), ValueError, "expected finite values in t, got nan or inf"),
+    (lambda tf: RigidTrack([0, 1], tf, extrapolate="extend")(np.inf), ValueError, "expected finite values in t, got nan or inf"),
 ])
 def test_errors(rng, call, exc, match):
     tf = _transforms(*_keys(rng, 2, ()))

@@ -738,3 +738,16 @@ def test_from_euler_float32_batches_match_scipy(rng, seq):
     assert got.dtype == np.float32
     want = SR.from_euler(seq, angles.astype(np.float64)).as_quat(scalar_first=True)
     assert_same_rotation(got.as_quat(scalar_first=True), want, 1e-6)
+
+
+def test_tuple_index_of_an_nd_batch_indexes_its_axes_as_numpy_does():
+    """Extension (README, Migrating): r[i, j] on a (2, 3) batch is rotation (i, j), as in
+    NumPy; scipy 1.17 reads the tuple as an index array along the first axis."""
+    from scipy.spatial.transform import Rotation as ScipyRotation
+
+    r = Rotation.random(shape=(2, 3), rng=5)
+    s = ScipyRotation.from_quat(r.as_quat())
+    assert r[1, 2].single and r[1, 2].approx_equal(r[1][2])
+    assert np.allclose(r[1, 2].as_quat(), s[1].as_quat()[2], rtol=0, atol=1e-15)
+    assert r[:, 1].shape == (2,) and np.allclose(r[:, 1].as_quat(), s.as_quat()[:, 1], rtol=0, atol=1e-15)
+    assert s[1, 0].shape == (2, 3)   # scipy's reading, which we do not copy

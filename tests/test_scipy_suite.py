@@ -63,18 +63,14 @@ SUITES = {
              """from quatarray.spline import (
     angular_rate_to_rotvec_dot_matrix as _angular_rate_to_rotvec_dot_matrix,
     rotvec_dot_to_angular_rate_matrix as _rotvec_dot_to_angular_rate_matrix,
-    angular_acceleration_nonlinear_term as _angular_acceleration_nonlinear_term)
+    angular_acceleration_nonlinear_term as _angular_acceleration_nonlinear_term,
+    block_tridiagonal_banded as _create_block_3_diagonal_matrix)
 
 
 def _matrix_vector_product_of_stacks(A, b):
     return np.einsum("...ij,...j->...i", A, b)"""),
         ],
-        "deselect": {
-            # builds scipy's private LAPACK banded layout for its solve_banded call;
-            # quatarray solves the same block-tridiagonal system by cyclic reduction
-            # (tests/test_spline.py checks that solver against a dense solve)
-            "test_create_block_3_diagonal_matrix",
-        },
+        "deselect": set(),
     },
     "test_rigid_transform.py": {
         "swaps": [

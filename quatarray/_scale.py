@@ -1,0 +1,149 @@
+"""Quaternions of any magnitude: squared norms that stay in range, and the finiteness test.
+
+A quaternion ``r q`` is the rotation ``q`` for every r > 0, but its squared
+norm overflows for |r q| above about 1e154 (float64; 1e19 in float32) and
+loses its digits to underflow below about 1e-154 (1e-19).  Kernels that
+square components therefore check the squared norms they compute anyway,
+per block, with two reductions (`fits`); only a block that fails is
+rescaled (`rescale`): each quaternion is multiplied by a power of two that
+brings its largest component into [1/2, 1).  Multiplying by a power of two
+is exact, so a rescaled quaternion gives the same bits as an unscaled one of
+ordinary size, and the common path pays two reductions per block.
+
+The same check finds non-finite input for free: a NaN or an infinity makes
+the block's largest squared norm NaN or infinite, so `fits` fails and
+`guard` looks at the components exactly.
+
+Everything here works on components-first blocks ``(k, *s)`` (the block
+engine's scratch copies, which kernels may overwrite) or, for single
+quaternions, on lists of Python floats.
+"""
+
+import math
+
+import numpy as np
+
+from . import _blocks
+
+__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "guard_one",
+           "unscale"]
+
+NONFINITE = "expected finite quaternions, got nan or inf"
+
+_RANGE = {}
+for _d in (np.float32, np.float64):
+    _f = np.finfo(_d)
+    # squares of components down to |q| eps are still normal numbers above LOW;
+    # HIGH leaves room for the few products kernels form with a squared norm
+    _RANGE[np.dtype(_d)] = (float(_f.tiny) / float(_f.eps) ** 2, float(_f.eps) ** 2 / float(_f.tiny))
+
+LOW = {d: r[0] for d, r in _RANGE.items()}
+"""Smallest squared norm used as it is, per dtype (2**-918 in float64, 2**-80 in float32)."""
+
+HIGH = {d: r[1] for d, r in _RANGE.items()}
+"""Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
+
+_ONE = _RANGE[np.dtype(np.float64)]
+
+
+def fits(n2):
+    """True when every squared norm of a block is in [LOW, HIGH] (False for NaN or inf).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import fits
+    >>> [bool(fits(np.array(n2))) for n2 in ([1.0, 4.0], [1.0, 1e-320], [np.nan], [np.inf])]
+    [True, False, False, False]
+    """
+    if not n2.size:
+        return True
+    lo, hi = _RANGE[n2.dtype]
+    return n2.min() >= lo and n2.max() <= hi
+
+
+def sum_squares(q, out, start=0):
+    """``out = q[start]² + ... + q[-1]²`` for a components-first block (q is not modified).
+
+    Squares may overflow (that is what `guard` looks for): callers run under
+    ``np.errstate(over="ignore")``, once per call rather than once per block."""
+    np.multiply(q[start], q[start], out=out)
+    with _blocks.scratch().frame() as work:
+        t = work.rows(1, out.shape, out.dtype)[0]   # no temporary allocated per component
+        for k in range(start + 1, len(q)):
+            np.multiply(q[k], q[k], out=t)
+            out += t
+    return out
+
+
+def rescale(q):
+    """Multiply each quaternion of a components-first block by 2**-e, in place,
+    with e the exponent of its largest |component| (so that it lies in [1/2, 1)).
+
+    Zero and non-finite quaternions are left as they are (e = 0).  Returns e
+    (batch shape, int32).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import rescale
+    >>> q = np.array([[3e300], [4e300], [0.0], [0.0]])
+    >>> e = rescale(q); e, np.ldexp(q[:, 0], e) == [3e300, 4e300, 0, 0]
+    (array([999], dtype=int32), array([ True,  True,  True,  True]))
+    """
+    m = np.max(np.abs(q), axis=0)
+    _, e = np.frexp(m)
+    np.ldexp(q, -e, out=q)
+    return e
+
+
+def guard(q, n2, start=0):
+    """The squared norms `n2` of a block, made safe: if they do not all `fit`,
+    rescale `q` in place (`rescale`) and recompute them into `n2`.
+
+    Returns the exponents applied (None when nothing was rescaled: the
+    common path).  NaN or infinite components raise
+    `ValueError` (the API's policy for non-finite input), found at no cost
+    on the common path.  `start` = 1 when `n2` holds the squared norms of
+    the vector parts only (the whole quaternion is rescaled all the same).
+    """
+    if fits(n2):
+        return None
+    if not np.isfinite(q).all():
+        raise ValueError(NONFINITE)
+    e = rescale(q)
+    sum_squares(q, n2, start)
+    return e
+
+
+def guarded_sqnorm(q):
+    """Squared norms of a block's scratch copy `q` (in a row of the thread's
+    scratch), rescaling `q` in place where they would over- or underflow."""
+    n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    guard(q, n2)
+    return n2
+
+
+def guard_one(c):
+    """`guard` for one quaternion given as a list of four Python floats.
+
+    Returns ``(c, e)``: the components scaled by 2**-e and e (0 for the
+    ordinary case: `c` itself).
+
+    >>> from quatarray._scale import guard_one
+    >>> guard_one([3e-300, 4e-300, 0.0, 0.0])[1]
+    -994
+    """
+    w, x, y, z = c
+    if _ONE[0] <= w * w + x * x + y * y + z * z <= _ONE[1]:
+        return c, 0
+    if not (math.isfinite(w) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise ValueError(NONFINITE)
+    m = max(abs(w), abs(x), abs(y), abs(z))
+    if m == 0:
+        return c, 0
+    e = math.frexp(m)[1]
+    return [math.ldexp(x, -e) for x in c], e
+
+
+def unscale(x, e, power=1):
+    """``x * 2**(power * e)`` in place for a rescaled block (nothing when e is None)."""
+    if e is not None:
+        np.ldexp(x, power * e, out=x)
+    return x
