@@ -93,6 +93,7 @@ def _default():
 def get_num_threads():
     """Threads a quatarray call made now from this thread would use.
 
+    >>> from quatarray import get_num_threads
     >>> get_num_threads() >= 1
     True
     """
@@ -172,6 +173,7 @@ def split(shape, block=BLOCK):
     at most `block` elements is one block ``()``.  Trailing axes are kept
     whole while they fit in a block, so blocks are as contiguous as possible.
 
+    >>> from quatarray._blocks import split
     >>> split((5,), block=2)
     [(slice(0, 2, None),), (slice(2, 4, None),), (slice(4, 5, None),)]
     >>> len(split((3, 4), block=4))

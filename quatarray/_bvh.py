@@ -211,9 +211,10 @@ def read_frame_time(text):
     the frame time is 1/n; otherwise it is the number as printed.  Needing a
     single n keeps short prints such as ``0.3`` or ``0.04`` as written.
 
-    >>> read_frame_time("0.0333333") == 1 / 30, read_frame_time(".0083333") == 1 / 120
+    >>> from quatarray import _bvh
+    >>> _bvh.read_frame_time("0.0333333") == 1 / 30, _bvh.read_frame_time(".0083333") == 1 / 120
     (True, True)
-    >>> read_frame_time("0.3"), read_frame_time("0.03456789")
+    >>> _bvh.read_frame_time("0.3"), _bvh.read_frame_time("0.03456789")
     (0.3, 0.03456789)
     """
     value = float(text)
@@ -411,6 +412,7 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.io import example_path
     >>> from quatarray.io import read_bvh, resample_motion
     >>> clip = read_bvh(example_path("walk.bvh"))

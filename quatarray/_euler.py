@@ -35,6 +35,7 @@ def check_seq(seq, n=None):
     Lower case is extrinsic, upper case intrinsic; 1 to 3 axes (exactly `n` if
     given), no axis repeated consecutively.
 
+    >>> from quatarray._euler import check_seq
     >>> check_seq("ZXY")
     ([2, 0, 1], True)
     """
@@ -136,6 +137,8 @@ def from_euler(seq, angles, degrees=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._euler import from_euler
     >>> np.round(from_euler("z", 90, degrees=True), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     >>> np.round(from_euler("XY", [[90, 0], [0, 90]], degrees=True), 6)
@@ -263,6 +266,8 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._euler import from_euler, as_euler
     >>> q = from_euler("zyx", [90, 30, 10], degrees=True)
     >>> np.round(as_euler(q, "zyx", degrees=True), 9)
     array([90., 30., 10.])
@@ -294,6 +299,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
 def check_order(order):
     """True for extrinsic (``'e'``, ``'extrinsic'``), False for intrinsic (``'i'``, ``'intrinsic'``).
 
+    >>> from quatarray._euler import check_order
     >>> check_order("e")
     True
     """
@@ -354,6 +360,8 @@ def from_davenport(axes, order, angles, degrees=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._euler import from_davenport, from_euler
     >>> ez, ex = [0, 0, 1], [1, 0, 0]
     >>> q = from_davenport([ez, ex], "extrinsic", [90, 45], degrees=True)
     >>> np.allclose(q, from_euler("zx", [90, 45], degrees=True))
@@ -415,6 +423,8 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._euler import from_euler, as_davenport
     >>> ez, ex, ey = np.eye(3)[[2, 0, 1]]
     >>> q = from_euler("zxy", [90, 30, 10], degrees=True)
     >>> np.round(as_davenport(q, [ez, ex, ey], "e", degrees=True), 9)

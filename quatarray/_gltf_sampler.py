@@ -52,6 +52,7 @@ def evaluate_sampler(times, values, interpolation, t, rotation=False):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray._gltf_sampler import evaluate_sampler
     >>> evaluate_sampler(np.array([0.0, 1.0]), np.array([[0.0], [2.0]]), "LINEAR", np.array([-1.0, 0.25, 5.0]))
     array([[0. ],
@@ -105,6 +106,7 @@ def resample_sampler(times, values, interpolation, t, rotation=False, method=Non
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray._gltf_sampler import resample_sampler
     >>> keys = np.array([[0, 0, 0, 1.0], [0, 0, 1.0, 0]])        # identity, 180 deg about z
     >>> out, kind = resample_sampler(np.array([0.0, 1.0]), keys, "LINEAR", np.array([0.5]), rotation=True)

@@ -26,6 +26,8 @@ _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex
 def result_dtype(*arrays):
     """The float dtype of a result: float32 only if every quaternion input is float32.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import result_dtype
     >>> result_dtype(np.zeros(4, np.float32), np.zeros(4))
     dtype('float64')
     """
@@ -48,6 +50,8 @@ def cos_sin(angle):
     ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
     small cosine is accurate to about one ulp of t.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import cos_sin
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
     [0.707106781187, 0.707106781187]
     """
@@ -66,6 +70,8 @@ def cos_sin(angle):
 def half_angle(angle, scale):
     """(cos(a/2), sin(a/2)) of ``a = angle * 4 * scale`` (see `cos_sin`).
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import half_angle
     >>> [round(float(x), 12) for x in half_angle(np.array(np.pi / 2), 0.25)]
     [0.707106781187, 0.707106781187]
     """
@@ -81,6 +87,8 @@ def arctan2(y, x, out=None):
     fraction of its cost on CPUs without AVX-512 (benchmarks/README.md).
     Differs from `np.arctan2` only where both are infinite (NaN here).
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import arctan2
     >>> y, x = np.array([1.0, 0.0, -0.0, -2.0]), np.array([-0.0, -1.0, -1.0, 0.5])
     >>> np.allclose(arctan2(y, x), np.arctan2(y, x), rtol=4e-16, atol=0)
     True
@@ -116,6 +124,7 @@ def hamilton(a, b, c, d, o0=None, o1=None, t=None):
     passes; with outputs `o0`, `o1` and scratch `t` given (not overlapping
     the inputs) nothing is allocated.  Works on complex arrays and scalars.
 
+    >>> from quatarray._kernels import hamilton
     >>> hamilton(1j, 0, 0, 1)   # i j = k: (0 + 0i) + (0 + 1i) j
     (0j, 1j)
     """
@@ -168,6 +177,8 @@ def multiply(p, q, out=None):
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._kernels import multiply
     >>> i, j = np.array([0., 1, 0, 0]), np.array([0., 0, 1, 0])
     >>> multiply(i, j)
     array([0., 0., 0., 1.])
@@ -222,6 +233,7 @@ def multiply_rows(p, q):
 
     The rows broadcast against each other; returns the product's rows.
 
+    >>> from quatarray._kernels import multiply_rows
     >>> [float(c) for c in multiply_rows([0., 1, 0, 0], [0., 0, 1, 0])]
     [0.0, 0.0, 0.0, 1.0]
     """
@@ -248,6 +260,8 @@ def conjugate(q, out=None):
     A flat multiply by a tiled sign pattern, block by block: long inner loops
     instead of a length-3 one per quaternion.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import conjugate
     >>> conjugate(np.array([1., 2, 3, 4]))
     array([ 1., -2., -3., -4.])
     """
@@ -271,6 +285,8 @@ def conjugate(q, out=None):
 def sqnorm(q):
     """Squared norm w² + x² + y² + z², batch shape.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import sqnorm
     >>> sqnorm(np.array([1., 2, 2, 4]))
     np.float64(25.0)
     """
@@ -287,6 +303,8 @@ def _k_norm(q, o):
 def norm(q):
     """Norm |q|, batch shape; neither overflows nor underflows before the result does.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import norm
     >>> norm(np.array([[1., 2, 2, 4], [0, 0, 0, 0], [1e300, 0, 0, 0]]))
     array([5.e+000, 0.e+000, 1.e+300])
     """
@@ -304,6 +322,8 @@ def norm(q):
 def dot(p, q):
     """4-D inner product w_p w_q + x_p x_q + y_p y_q + z_p z_q, broadcasting.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import dot
     >>> dot(np.array([1., 2, 3, 4]), np.array([[1., 0, 0, 0], [0, 0, 0, 1]]))
     array([1., 4.])
     """
@@ -325,6 +345,8 @@ def _k_normalize(q, o):
 def normalize(q, out=None):
     """q / |q|.  Zero quaternions raise `ValueError` (they have no direction).
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import normalize
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
@@ -380,6 +402,8 @@ def inverse(q):
 
     A zero quaternion has no inverse: `ZeroDivisionError`.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import inverse
     >>> inverse(np.array([0., 2, 0, 0]))
     array([ 0. , -0.5, -0. , -0. ])
     """
@@ -405,6 +429,8 @@ def _k_exp(q, o):
 def exp(q):
     """Quaternion exponential e^w (cos|v|, sin|v| v/|v|).
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import exp
     >>> np.allclose(exp(np.array([0., np.pi / 2, 0, 0])), [0, 1, 0, 0])
     True
     """
@@ -470,6 +496,8 @@ def log(q):
     A negative real quaternion -r gives (ln r, π, 0, 0); the zero quaternion
     gives (-inf, 0, 0, 0).
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import log
     >>> np.allclose(log(np.array([0., 0, 1, 0])), [0, 0, np.pi / 2, 0])
     True
     """
@@ -510,6 +538,8 @@ def power(q, t):
 
     ``0 ** t`` is 0 for t > 0, 1 for t = 0 and inf for t < 0.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import power
     >>> k = np.array([0., 0, 0, 1])
     >>> np.allclose(power(k, 2), [-1, 0, 0, 0])
     True
@@ -533,6 +563,8 @@ def rotate(q, v, inverse=False):
     (the result is then F-ordered).  With `inverse`, rotate by conj(q).
     Zero quaternions give nan.
 
+    >>> import numpy as np
+    >>> from quatarray._kernels import rotate
     >>> q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])  # 90° about z
     >>> np.allclose(rotate(q, np.array([1., 0, 0])), [0, 1, 0])
     True

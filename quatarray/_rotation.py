@@ -89,6 +89,7 @@ class Rotation:
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray import Rotation
     >>> r = Rotation.from_euler("z", [[0], [90]], degrees=True)
     >>> r.shape, len(r), r[1].single
@@ -137,6 +138,7 @@ class Rotation:
         The quaternions are not normalised or checked; use
         ``Rotation(q.ndarray, scalar_first=True)`` for a normalised copy.
 
+        >>> import numpy as np
         >>> from quatarray import QuatArray, Rotation
         >>> q = QuatArray([[1, 0, 0, 0], [0, 0, 0, 1]])
         >>> r = Rotation.from_quatarray(q)
@@ -231,6 +233,7 @@ class Rotation:
         A matrix that is not orthogonal is replaced by the nearest rotation
         matrix, as in scipy; `assume_valid` skips that check.
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> r = Rotation.from_matrix([[0, -1, 0], [1, 0, 0], [0, 0, 1]])
         >>> np.round(r.as_rotvec(degrees=True), 9)
@@ -244,6 +247,7 @@ class Rotation:
     def as_matrix(self):
         """Rotation matrices, shape (..., 3, 3).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_euler("z", 90, degrees=True).as_matrix(), 12) + 0.0
         array([[ 0., -1.,  0.],
@@ -256,6 +260,7 @@ class Rotation:
     def from_rotvec(cls, rotvec, degrees=False):
         """Rotations from rotation vectors (axis × angle), shape (..., 3).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_quat(), 6)
         array([0.      , 0.      , 0.707107, 0.707107])
@@ -278,6 +283,7 @@ class Rotation:
     def from_mrp(cls, mrp):
         """Rotations from modified Rodrigues parameters ``axis · tan(angle / 4)``, shape (..., 3).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_mrp([0, 0, 1]).as_rotvec(), 12)
         array([0.        , 0.        , 3.14159265])
@@ -290,6 +296,7 @@ class Rotation:
     def as_mrp(self):
         """Modified Rodrigues parameters, shape (..., 3), norm ≤ 1.
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
@@ -308,6 +315,7 @@ class Rotation:
         angles : float or array_like, shape (..., len(seq))
         degrees : bool, default False
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("zyx", [[90, 0, 0], [0, 45, 0]], degrees=True)
         >>> np.round(r.as_rotvec(degrees=True), 9) + 0.0
@@ -327,6 +335,7 @@ class Rotation:
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles, shape (..., 3), in scipy's ranges, with its gimbal-lock warning.
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("ZXY", [30, 20, 10], degrees=True)
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
@@ -385,6 +394,7 @@ class Rotation:
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the middle one orthogonal to the others), shape (..., 3).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> ez, ex, ey = [0, 0, 1], [1, 0, 0], [0, 1, 0]
         >>> r = Rotation.from_davenport([ez, ex, ey], "e", [90, 30, 10], degrees=True)
@@ -431,6 +441,7 @@ class Rotation:
         One rotation and one vector give shape (3,); otherwise the result has
         the broadcast batch shape of rotations and vectors.
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("z", [[0], [90]], degrees=True)
         >>> np.round(r.apply([1, 0, 0]), 12) + 0.0
@@ -575,6 +586,7 @@ class Rotation:
         axis : None, int or tuple of ints, optional
             Batch axes to average over (default: all).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> r = Rotation.from_euler("z", [[0], [10], [20]], degrees=True)
         >>> np.round(r.mean().as_euler("zyx", degrees=True), 9) + 0.0
@@ -638,6 +650,7 @@ class Rotation:
             Also return the chosen indices into `left` and `right` (None for
             a side that was not given).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> g = Rotation.create_group("C4")
         >>> r = Rotation.from_euler("z", 100, degrees=True)
@@ -736,6 +749,7 @@ class Rotation:
         shape : int or tuple of ints, optional
             Batch shape (instead of `num`).
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> from scipy.spatial.transform import Rotation as ScipyRotation
         >>> ours, theirs = Rotation.random(3, rng=7), ScipyRotation.random(3, rng=7)
@@ -785,6 +799,7 @@ class Rotation:
         rssd : float
         sensitivity : ndarray, shape (3, 3), only with `return_sensitivity`
 
+        >>> import numpy as np
         >>> from quatarray import Rotation
         >>> r, rssd = Rotation.align_vectors([[0, 1, 0], [-1, 0, 0]], [[1, 0, 0], [0, 1, 0]])
         >>> np.round(r.as_rotvec(degrees=True), 9) + 0.0, round(float(rssd), 9)

@@ -71,6 +71,7 @@ def _dicyclic(n, axis):
 def group_quats(symbol, order=1, axis=2):
     """Unit quaternions (n, 4), scalar-first, of the group `symbol` in 'IOTCD'.
 
+    >>> from quatarray._rotation_groups import group_quats
     >>> group_quats("T").shape, group_quats("D", 3).shape
     ((12, 4), (6, 4))
     """

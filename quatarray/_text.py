@@ -36,6 +36,7 @@ class FormatError(ValueError):
     ``str(err)`` is one line, ``path:line: message`` (``path: message`` when
     no line applies); the parts are kept as `path`, `line` and `message`.
 
+    >>> from quatarray.io import FormatError
     >>> str(FormatError("bad header", "a.csv", 1))
     'a.csv:1: bad header'
     """
@@ -54,6 +55,7 @@ class FormatError(ValueError):
 def echo(value, limit=60):
     """`value` quoted for a message, cut to about `limit` characters.
 
+    >>> from quatarray._text import echo
     >>> echo("abc")
     "'abc'"
     >>> echo("x" * 1000)

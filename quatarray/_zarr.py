@@ -134,6 +134,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from quatarray._zarr import resample_zarr
     >>> import os, tempfile, zarr
     >>> tmp = tempfile.mkdtemp()
     >>> g = zarr.open_group(os.path.join(tmp, "in.zarr"), mode="w")

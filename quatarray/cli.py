@@ -152,6 +152,7 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
 
     Examples
     --------
+    >>> from quatarray.cli import resample_file
     >>> import os, tempfile
     >>> from quatarray.io import example_path
     >>> tmp = tempfile.TemporaryDirectory()
@@ -352,6 +353,7 @@ def _run_demo(args):
 def main(argv=None):
     """Run the ``quatarray`` command with `argv` (default ``sys.argv[1:]``); return the exit status.
 
+    >>> from quatarray.cli import main
     >>> main(["resample", "missing.csv", "-o", "out.csv", "--fps", "30"])
     2
     """

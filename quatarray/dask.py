@@ -146,6 +146,7 @@ def multiply(p, q):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> k = da.from_array(np.array([[0., 0, 0, 1]] * 4), chunks=(2, 4))
@@ -159,6 +160,7 @@ def multiply(p, q):
 def conjugate(q):
     """Conjugate ``(w, -x, -y, -z)``, blockwise.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.conjugate(da.from_array(np.array([[1., 2, 3, 4]]))).compute()
@@ -170,6 +172,7 @@ def conjugate(q):
 def inverse(q):
     """Inverse ``q* / |q|²``, blockwise.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.inverse(da.from_array(np.array([[2., 0, 0, 0]]))).compute() + 0.0
@@ -181,6 +184,7 @@ def inverse(q):
 def normalize(q):
     """``q / |q|``, blockwise.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.normalize(da.from_array(np.array([[0., 0, 3, 4]]))).compute()
@@ -203,6 +207,7 @@ def exp(q):
 def log(q):
     """Quaternion logarithm, blockwise.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.log(da.from_array(np.array([[1., 0, 0, 0]]))).compute()
@@ -214,6 +219,7 @@ def log(q):
 def power(q, t):
     """``exp(t log q)``; `t` a scalar or a (Dask) array broadcasting against the batch.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> k = da.from_array(np.array([[0., 0, 0, 1]]))
@@ -227,6 +233,7 @@ def power(q, t):
 def rotate(q, v, inverse=False):
     """Rotate vectors `v` (..., 3) by the rotations `q` (..., 4) (by their inverse with `inverse`).
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> z90 = da.from_array(np.array([[np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)]]))
@@ -243,6 +250,7 @@ def rotate(q, v, inverse=False):
 def from_matrix(matrix, assume_valid=False):
     """Quaternions of rotation matrices (..., 3, 3), as `Rotation.from_matrix`.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.from_matrix(da.from_array(np.eye(3)[None])).compute()
@@ -255,6 +263,7 @@ def from_matrix(matrix, assume_valid=False):
 def as_matrix(q):
     """Rotation matrices (..., 3, 3) of quaternions, as `Rotation.as_matrix`.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.as_matrix(da.from_array(np.array([[1., 0, 0, 0]]))).compute()[0]
@@ -268,6 +277,7 @@ def as_matrix(q):
 def from_rotvec(rotvec, degrees=False):
     """Quaternions of rotation vectors (..., 3), as `Rotation.from_rotvec`.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> np.round(qd.from_rotvec(da.from_array(np.array([[0, 0, np.pi]]))).compute(), 12) + 0.0
@@ -280,6 +290,7 @@ def from_rotvec(rotvec, degrees=False):
 def as_rotvec(q, degrees=False):
     """Rotation vectors (..., 3) of quaternions, as `Rotation.as_rotvec`.
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> np.round(qd.as_rotvec(da.from_array(np.array([[0., 0, 0, 1]]))).compute(), 12)
@@ -291,6 +302,7 @@ def as_rotvec(q, degrees=False):
 def from_euler(seq, angles, degrees=False):
     """Quaternions of Euler angles (..., len(seq)), as `Rotation.from_euler` (scipy's argument order).
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> np.round(qd.from_euler("z", da.from_array(np.array([[90.]])), degrees=True).compute(), 6)
@@ -313,6 +325,7 @@ def _from_euler_block(angles, seq, degrees):
 def as_euler(q, seq, degrees=False, suppress_warnings=False):
     """Euler angles (..., 3) of quaternions, as `Rotation.as_euler` (gimbal-lock warnings per chunk).
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> q = qd.from_euler("zyx", da.from_array(np.array([[90., 30, 10]])), degrees=True)
@@ -327,6 +340,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
 def from_quat(quat, scalar_first=False):
     """Unit scalar-first quaternions from ``(x, y, z, w)`` (or ``(w, x, y, z)`` with `scalar_first`).
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.from_quat(da.from_array(np.array([[0., 0, 3, 4]]))).compute()
@@ -344,6 +358,7 @@ def _as_quat_block(q, canonical, scalar_first):
 def as_quat(q, canonical=False, *, scalar_first=False):
     """The quaternions scalar-last (scipy's default) or scalar-first, optionally canonical (w >= 0).
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> qd.as_quat(da.from_array(np.array([[-1., 0, 0, 0]])), canonical=True).compute()
@@ -364,6 +379,7 @@ def _pairwise(kernel, names, quats, t, **params):
 def lerp(q0, q1, t):
     """``(1 - t) q0 + t q1``, blockwise (see `quatarray.interpolate.lerp`).
 
+    >>> import numpy as np
     >>> from quatarray import dask as qd
     >>> qd.lerp(np.array([1., 0, 0, 0]), np.array([0., 0, 0, 1]), 0.5).compute()
     array([0.5, 0. , 0. , 0.5])
@@ -374,6 +390,7 @@ def lerp(q0, q1, t):
 def nlerp(q0, q1, t, *, shortest=True):
     """Normalised linear interpolation, blockwise (see `quatarray.interpolate.nlerp`).
 
+    >>> import numpy as np
     >>> from quatarray import dask as qd
     >>> np.round(qd.nlerp(np.array([1., 0, 0, 0]), np.array([0., 0, 0, 1]), 0.5).compute(), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
@@ -384,6 +401,7 @@ def nlerp(q0, q1, t, *, shortest=True):
 def slerp(q0, q1, t, *, shortest=True):
     """Spherical linear interpolation, blockwise (see `quatarray.interpolate.slerp`).
 
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> t = da.linspace(0, 1, 5, chunks=2)
@@ -399,6 +417,7 @@ def slerp(q0, q1, t, *, shortest=True):
 def squad(q0, a, b, q1, t):
     """Shoemake's squad segment, blockwise (see `quatarray.interpolate.squad`).
 
+    >>> import numpy as np
     >>> from quatarray import dask as qd
     >>> q0, q1 = np.array([1., 0, 0, 0]), np.array([np.cos(0.3), np.sin(0.3), 0, 0])
     >>> np.allclose(qd.squad(q0, q0, q1, q1, 0.25).compute(), qd.slerp(q0, q1, 0.25).compute())
@@ -410,6 +429,7 @@ def squad(q0, a, b, q1, t):
 def bezier(q0, a, b, q1, t):
     """Spherical cubic Bézier segment, blockwise (see `quatarray.interpolate.bezier`).
 
+    >>> import numpy as np
     >>> from quatarray import dask as qd
     >>> q0 = np.array([1., 0, 0, 0])
     >>> qd.bezier(q0, q0, q0, q0, 0.3).compute()
@@ -483,6 +503,7 @@ def unflip(q, axis=0):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> q = da.from_array(np.array([[1., 0, 0, 0], [-1, 0, 0, 0], [-1, 0, 0, 0]]), chunks=(1, 4))
@@ -544,6 +565,7 @@ def mean(q, weights=None):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> q = qd.from_euler("z", da.from_array(np.array([[0.], [10], [20]]), chunks=(2, 1)), degrees=True)
@@ -613,6 +635,7 @@ def evaluate(interpolator, t):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> from quatarray.interpolate import Track
@@ -658,6 +681,7 @@ class Track:
 
     Examples
     --------
+    >>> import numpy as np
     >>> import dask.array as da
     >>> from quatarray import dask as qd
     >>> keys = da.from_array(np.tile([[[1., 0, 0, 0]], [[0, 0, 0, 1]]], (1, 6, 1)), chunks=(2, 4, 4))

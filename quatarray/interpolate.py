@@ -137,6 +137,7 @@ def nlerp(q0, q1, t, *, shortest=True):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.interpolate import nlerp
     >>> q = nlerp([1, 0, 0, 0], [0, 0, 0, 1], 0.5)
     >>> np.allclose(q, [np.sqrt(0.5), 0, 0, np.sqrt(0.5)])
@@ -181,6 +182,7 @@ def slerp(q0, q1, t, *, shortest=True):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.interpolate import slerp
     >>> z90 = [np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)]   # 90° about z
     >>> q = slerp([1, 0, 0, 0], z90, [0, 1 / 3, 1])
@@ -246,6 +248,7 @@ def squad(q0, a, b, q1, t):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.interpolate import squad, slerp
     >>> q0, q1 = [1, 0, 0, 0], [np.cos(0.3), np.sin(0.3), 0, 0]
     >>> np.allclose(squad(q0, q0, q1, q1, 0.25), slerp(q0, q1, 0.25))
@@ -277,6 +280,7 @@ def bezier(q0, a, b, q1, t):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.interpolate import bezier, slerp
     >>> q0, q1 = [1, 0, 0, 0], [np.cos(0.3), np.sin(0.3), 0, 0]
     >>> a, b = slerp(q0, q1, 1 / 3), slerp(q0, q1, 2 / 3)   # evenly on the arc
@@ -362,6 +366,7 @@ def squad_control_points(keys, times=None):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.interpolate import squad_control_points
     >>> keys = [[1, 0, 0, 0], [np.cos(0.2), np.sin(0.2), 0, 0], [np.cos(0.4), np.sin(0.4), 0, 0]]
     >>> s = squad_control_points(keys)      # constant rotation speed: s_i = q_i
@@ -407,6 +412,7 @@ def bezier_control_points(keys, times=None):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.interpolate import bezier_control_points, slerp
     >>> keys = [[1, 0, 0, 0], [np.cos(0.2), np.sin(0.2), 0, 0], [np.cos(0.4), np.sin(0.4), 0, 0]]
     >>> a, b = bezier_control_points(keys)
@@ -462,6 +468,7 @@ class Track:
     --------
     A track of two joints with three keys (K, joints, 4) = (3, 2, 4):
 
+    >>> import numpy as np
     >>> from quatarray import QuatArray
     >>> from quatarray.interpolate import Track
     >>> def rz(deg):   # rotation about z
@@ -615,6 +622,7 @@ class Track:
 
         Examples
         --------
+        >>> import numpy as np
         >>> from quatarray.interpolate import Track
         >>> keys = [[1, 0, 0, 0], [np.cos(0.5), 0, np.sin(0.5), 0]]   # 1 rad about y
         >>> Track([0, 2], keys).angular_velocity([0.5, 1.5])
@@ -671,6 +679,7 @@ class Slerp(Track):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray import Rotation, Slerp
     >>> keys = Rotation.from_euler("z", [[0], [90]], degrees=True)
     >>> s = Slerp([0, 2], keys)

@@ -177,6 +177,7 @@ def write_csv(path, keyframes, *, scalar_last=False):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import os, tempfile
     >>> from quatarray.io import Keyframes, read_csv, write_csv
     >>> tmp = tempfile.TemporaryDirectory()
@@ -227,6 +228,7 @@ def read_npz(path):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import io
     >>> from quatarray.io import read_npz
     >>> buf = io.BytesIO()
@@ -290,6 +292,7 @@ def write_npz(path, keyframes):
 
     Examples
     --------
+    >>> import numpy as np
     >>> import os, tempfile
     >>> from quatarray.io import Keyframes, read_npz, write_npz
     >>> tmp = tempfile.TemporaryDirectory()
@@ -380,6 +383,7 @@ def resample_keyframes(keyframes, t, *, method="slerp", extrapolate="raise"):
 
     Examples
     --------
+    >>> import numpy as np
     >>> from quatarray.io import Keyframes, resample_keyframes
     >>> kf = Keyframes(np.array([0.0, 1.0]), np.array([[1.0, 0, 0, 0], [0, 0, 0, 1]]))
     >>> resample_keyframes(kf, np.array([0.5])).keys.round(4)
@@ -401,6 +405,7 @@ def resample_keyframes(keyframes, t, *, method="slerp", extrapolate="raise"):
 def example_path(name):
     """Path of an example file shipped in ``quatarray/data`` (``arm.csv``, ``walk.bvh``).
 
+    >>> import os
     >>> from quatarray.io import example_path
     >>> os.path.basename(example_path("arm.csv"))
     'arm.csv'

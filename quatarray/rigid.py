@@ -46,6 +46,7 @@ def normalize_dual_quaternion(dual_quat, *, scalar_first=False):
 
     Examples
     --------
+    >>> from quatarray import normalize_dual_quaternion
     >>> normalize_dual_quaternion([0, 0, 0, 2, 0, 0, 0, 1])
     array([0., 0., 0., 1., 0., 0., 0., 0.])
     """
@@ -74,6 +75,7 @@ def sclerp(a, b, t, *, scalar_first=False):
 
     Examples
     --------
+    >>> from quatarray import sclerp
     >>> from scipy.spatial.transform import RigidTransform
     >>> a = RigidTransform.identity().as_dual_quat()
     >>> b = RigidTransform.from_translation([2.0, 0, 0]).as_dual_quat()
@@ -111,6 +113,7 @@ def dual_quaternion_blend(dual_quats, weights, *, axis=0, scalar_first=False):
 
     Examples
     --------
+    >>> from quatarray import dual_quaternion_blend
     >>> from scipy.spatial.transform import RigidTransform
     >>> dq = RigidTransform.from_translation([[0.0, 0, 0], [4, 0, 0]]).as_dual_quat()
     >>> RigidTransform.from_dual_quat(dual_quaternion_blend(dq, [0.75, 0.25])).translation

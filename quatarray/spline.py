@@ -30,6 +30,7 @@ def angular_rate_to_rotvec_dot_matrix(rotvecs):
 
     Examples
     --------
+    >>> from quatarray.spline import angular_rate_to_rotvec_dot_matrix
     >>> import numpy as np
     >>> r = np.array([0.0, 0, 1.0])
     >>> np.allclose(angular_rate_to_rotvec_dot_matrix(r) @ r, r)   # rate along r: dr/dt = w
@@ -43,6 +44,7 @@ def rotvec_dot_to_angular_rate_matrix(rotvecs):
 
     Examples
     --------
+    >>> from quatarray.spline import rotvec_dot_to_angular_rate_matrix, angular_rate_to_rotvec_dot_matrix
     >>> import numpy as np
     >>> r = np.array([0.3, -0.2, 0.9])
     >>> np.allclose(rotvec_dot_to_angular_rate_matrix(r) @ angular_rate_to_rotvec_dot_matrix(r), np.eye(3))
@@ -60,6 +62,7 @@ def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
 
     Examples
     --------
+    >>> from quatarray.spline import angular_acceleration_nonlinear_term
     >>> import numpy as np
     >>> r = np.array([0.1, 0.2, 0.3])
     >>> np.allclose(angular_acceleration_nonlinear_term(r, 2 * r), 0)

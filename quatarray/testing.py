@@ -17,6 +17,7 @@ def _plain(a):
 def assert_array_equal(actual, desired, err_msg=""):
     """`numpy.testing.assert_array_equal` on the components of quaternion arrays.
 
+    >>> from quatarray.testing import assert_array_equal
     >>> from quatarray import QuatArray
     >>> assert_array_equal(QuatArray([1, 0, 0, 0]), [1, 0, 0, 0])
     """
@@ -29,6 +30,7 @@ def assert_allclose(actual, desired, rtol=1e-7, atol=0.0, double_cover=False, er
     With ``double_cover=True``, each quaternion of `actual` may match either
     the corresponding quaternion of `desired` or its negative (the same rotation).
 
+    >>> from quatarray.testing import assert_allclose
     >>> from quatarray import QuatArray
     >>> assert_allclose(QuatArray([-1.0, 0, 0, 0]), [1, 0, 0, 0], double_cover=True)
     """
