@@ -11,7 +11,6 @@ import numpy as np
 
 from . import _dualquat as D
 from . import _track as TR
-from ._interp_kernels import unflip
 from ._validate import finite, float_array
 
 __all__ = ["sclerp", "dual_quaternion_blend", "normalize_dual_quaternion", "RigidTrack"]
@@ -177,7 +176,7 @@ class RigidTrack:
 
     def __init__(self, times, transforms, *, extrapolate="raise"):
         from ._rigid_transform import RigidTransform
-        from .interpolate import EXTRAPOLATE, _check_times, _choice
+        from .interpolate import EXTRAPOLATE, _choice, _prepared_keys
 
         if not isinstance(transforms, RigidTransform):
             raise TypeError(f"expected transforms to be a RigidTransform, got {type(transforms).__name__}")
@@ -185,10 +184,10 @@ class RigidTrack:
             got = "a single transform" if transforms.single else f"shape {transforms.shape}"
             raise ValueError(f"expected transforms of shape (K, ...) with K >= 2, got {got}")
         extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
-        times = _check_times(times, len(transforms), "times", "transforms").copy()
+        # the rotation keys as Track prepares its keys (scaled, unflipped, then normalised)
+        q, times = _prepared_keys(transforms.rotation.as_quat(scalar_first=True), times, "transforms")
+        times = times.copy()
         times.flags.writeable = False
-        q = np.asarray(transforms.rotation.as_quat(scalar_first=True))
-        q = unflip(q / np.linalg.norm(q, axis=-1, keepdims=True), 0)
         t = np.asarray(transforms.translation, q.dtype)
         self._cls = RigidTransform
         self._timeline = TR.Timeline(times, extrapolate)
