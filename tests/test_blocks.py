@@ -232,9 +232,11 @@ def _retained(call):
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_scratch_stays_bounded_whatever_the_batch_shape(rng, threads, parallel_always):
-    """Wide batches of tracks (the old pool kept scratch proportional to the number of
-    tracks: 8 rows of 20 blocks here) leave at most SCRATCH_LIMIT per thread behind."""
-    keys = random_quats(rng, (3, 20 * BLOCK), np.float64)
+    """Wide batches of tracks leave at most SCRATCH_LIMIT per thread behind (the old pool
+    kept scratch proportional to the number of tracks: 8 float64 rows per track, here
+    over more tracks than SCRATCH_LIMIT holds rows of)."""
+    wide = (_blocks.SCRATCH_LIMIT // (8 * 8 * BLOCK) + 2) * BLOCK
+    keys = random_quats(rng, (3, wide), np.float64)
     times = np.array([0.0, 1.0, 2.5])
     bound = threads * _blocks.SCRATCH_LIMIT
     with quatarray.num_threads(threads):
