@@ -495,19 +495,40 @@ def as_rotvec(q, degrees=False):
 
 def _k_from_rotvec(v, q, factor):
     x, y, z = v
-    theta = np.sqrt(x * x + y * y + z * z)
-    if factor != 1.0:
-        theta *= factor
-    np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
-    cos_half, sin_half = _half_angle(theta, 0.25)
-    np.copyto(q[0], cos_half)
-    # sin(θ/2) / θ, times the degree factor that converts v itself
-    scale = sin_half / theta
-    if factor != 1.0:
-        scale *= factor
-    np.multiply(x, scale, out=q[1])
-    np.multiply(y, scale, out=q[2])
-    np.multiply(z, scale, out=q[3])
+    with _blocks.scratch().frame() as work:
+        theta, t, u, d, c = work.rows(5, x.shape, q.dtype)
+        np.multiply(x, x, out=theta)
+        np.multiply(y, y, out=u)
+        theta += u
+        np.multiply(z, z, out=u)
+        theta += u
+        np.sqrt(theta, out=theta)
+        if factor != 1.0:
+            theta *= factor
+        np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
+        if q.dtype == np.float32:   # float32 sin and cos are SIMD loops (see `_kernels.cos_sin`)
+            np.multiply(theta, 0.5, out=t)
+            np.cos(t, out=q[0])
+            np.sin(t, out=d)
+        else:   # one tangent of the quarter angle, t: cos(θ/2) = (1 - t²) / (1 + t²), sin(θ/2) = 2t / (1 + t²)
+            np.multiply(theta, 0.25, out=t)
+            np.tan(t, out=t)
+            np.multiply(t, t, out=d)
+            d += 1.0
+            np.divide(2.0, d, out=d)         # 2 / (1 + t²)
+            np.subtract(1.0, t, out=u)
+            np.add(t, 1.0, out=c)            # (1 - t)(1 + t): accurate where t ≈ 1 (θ ≈ π)
+            c *= u
+            c *= d
+            np.multiply(c, 0.5, out=q[0])    # one strided pass into the output
+            d *= t                           # sin(θ/2)
+        # sin(θ/2) / θ, times the degree factor that converts v itself
+        d /= theta
+        if factor != 1.0:
+            d *= factor
+        np.multiply(x, d, out=q[1])
+        np.multiply(y, d, out=q[2])
+        np.multiply(z, d, out=q[3])
 
 
 def from_rotvec(rotvec, degrees=False):

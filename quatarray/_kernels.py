@@ -628,12 +628,25 @@ def _rotate_scalar(q, u, dtype, inverse=False):
 
 def _rotate_block(q, u, o, wsign):
     n2 = _scale.guarded_sqnorm(q)
-    w, x, y, z = q[0] * wsign, q[1], q[2], q[3]
+    w, x, y, z = q            # q is the block's scratch copy: w may be negated in place
+    if wsign < 0:
+        np.multiply(w, -1.0, out=w)
     ux, uy, uz = u
     s = np.divide(2.0, n2, out=n2)
-    tx = (y * uz - z * uy) * s
-    ty = (z * ux - x * uz) * s
-    tz = (x * uy - y * ux) * s
-    o[0] = ux + w * tx + (y * tz - z * ty)
-    o[1] = uy + w * ty + (z * tx - x * tz)
-    o[2] = uz + w * tz + (x * ty - y * tx)
+    with _blocks.scratch().frame() as work:
+        tx, ty, tz, m, r, v = work.rows(6, n2.shape, o.dtype)
+        # t = s vec × u
+        for t, (a, b, c, d) in ((tx, (y, uz, z, uy)), (ty, (z, ux, x, uz)), (tz, (x, uy, y, ux))):
+            np.multiply(a, b, out=t)
+            np.multiply(c, d, out=m)
+            t -= m
+            t *= s
+        # u' = u + w t + vec × t, each row written once into the (strided) output
+        for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
+                                                  (uz, tz, x, ty, y, tx))):
+            np.multiply(w, tk, out=r)
+            r += uk
+            np.multiply(a, b, out=v)
+            np.multiply(c, d, out=m)
+            v -= m
+            np.add(r, v, out=o[k])
