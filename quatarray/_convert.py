@@ -133,19 +133,24 @@ def _index(flat_index, batch):
 def _k_as_matrix(q, o):
     w, x, y, z = q
     s = np.divide(2.0, _scale.guarded_sqnorm(q))
-    xs, ys, zs = x * s, y * s, z * s
-    wx, wy, wz = w * xs, w * ys, w * zs
-    xx, xy, xz = x * xs, x * ys, x * zs
-    yy, yz, zz = y * ys, y * zs, z * zs
-    np.subtract(1.0, yy + zz, out=o[0])
-    np.subtract(xy, wz, out=o[1])
-    np.add(xz, wy, out=o[2])
-    np.add(xy, wz, out=o[3])
-    np.subtract(1.0, xx + zz, out=o[4])
-    np.subtract(yz, wx, out=o[5])
-    np.subtract(xz, wy, out=o[6])
-    np.add(yz, wx, out=o[7])
-    np.subtract(1.0, xx + yy, out=o[8])
+    with _blocks.scratch().frame() as work:
+        xs, ys, zs, xx, yy, zz, a, b = work.rows(8, s.shape, o.dtype)
+        np.multiply(x, s, out=xs)
+        np.multiply(y, s, out=ys)
+        np.multiply(z, s, out=zs)
+        np.multiply(x, xs, out=xx)
+        np.multiply(y, ys, out=yy)
+        np.multiply(z, zs, out=zz)
+        for k, (p, r) in ((0, (yy, zz)), (4, (xx, zz)), (8, (xx, yy))):
+            np.add(p, r, out=a)
+            np.subtract(1.0, a, out=o[k])
+        # off-diagonal pairs (i, j) = p -/+ r, each output row written once
+        for (i, j), (p1, p2, r1, r2) in (((1, 3), (x, ys, w, zs)), ((6, 2), (x, zs, w, ys)),
+                                         ((5, 7), (y, zs, w, xs))):
+            np.multiply(p1, p2, out=a)
+            np.multiply(r1, r2, out=b)
+            np.subtract(a, b, out=o[i])
+            np.add(a, b, out=o[j])
 
 
 def as_matrix(q):
