@@ -30,13 +30,14 @@ import math
 import numpy as np
 
 from . import _blocks, _scale
-from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2
+from ._kernels import ANGLE_FLOOR, arctan2, matrix_entries
 from ._kernels import half_angle as _half_angle
 from ._validate import finite, float_array, quat_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
     "as_mrp", "from_mrp", "canonical", "magnitude",
+    "as_matrix_one", "as_rotvec_one", "as_mrp_one", "magnitude_one", "canonical_one",
 ]
 
 _POLAR_MAXITER = 60
@@ -178,10 +179,29 @@ def as_matrix(q):
     """
     q = quat_array(q, "quat")
     if q.shape == (4,):  # one rotation: Python floats (no block run)
-        return _matrix_one(q, q.dtype)
+        return as_matrix_one(q)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)])
     return out
+
+
+def as_matrix_one(q):
+    """`as_matrix` of one quaternion, in Python floats (no block run, no checks).
+
+    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude: the
+    one-rotation path of `as_matrix`, for callers that hold such an array
+    already (`Rotation`).
+
+    >>> import numpy as np
+    >>> from quatarray._convert import as_matrix_one
+    >>> as_matrix_one(np.array([0.0, 1.0, 0.0, 0.0]))  # 180° about x
+    array([[ 1.,  0.,  0.],
+           [ 0., -1.,  0.],
+           [ 0.,  0., -1.]])
+    """
+    m = np.array(matrix_entries(q.tolist()), q.dtype)  # flat, then shaped in place: the cheapest
+    m.shape = (3, 3)
+    return m
 
 
 def _shepperd(mat, q):
@@ -486,16 +506,32 @@ def as_rotvec(q, degrees=False):
     array([ 0.,  0., 90.])
     """
     q = quat_array(q, "quat")
-    factor = 2.0 * (180.0 / np.pi if degrees else 1.0)
     if q.shape == (4,):  # one rotation: Python floats (a few µs instead of a block run)
-        (w, x, y, z), _ = _scale.guard_one(q.tolist())
-        nv = math.sqrt(x * x + y * y + z * z)
-        scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * factor
-        scale = -scale if _flip_one(w, x, y, z) else scale
-        return np.array([x * scale, y * scale, z * scale], q.dtype)
+        return as_rotvec_one(q, degrees)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=factor)
+    _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=_ROTVEC_FACTOR[degrees])
     return out
+
+
+_ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
+"""Rotation vector over half-angle times unit axis, radians and degrees."""
+
+
+def as_rotvec_one(q, degrees=False):
+    """`as_rotvec` of one quaternion, in Python floats (no block run, no checks).
+
+    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude.
+
+    >>> import numpy as np
+    >>> from quatarray._convert import as_rotvec_one
+    >>> as_rotvec_one(np.array([-1.0, 0.0, 0.0, -1.0]), degrees=True) + 0.0  # canonical: +90° about z
+    array([ 0.,  0., 90.])
+    """
+    (w, x, y, z), _ = _scale.guard_one(q.tolist())
+    nv = math.sqrt(x * x + y * y + z * z)
+    scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * _ROTVEC_FACTOR[degrees]
+    scale = -scale if _flip_one(w, x, y, z) else scale
+    return np.array([x * scale, y * scale, z * scale], q.dtype)
 
 
 def _k_from_rotvec(v, q, factor):
@@ -605,11 +641,24 @@ def magnitude(q):
     q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1], q.dtype)
     if q.shape == (4,):  # one rotation: Python floats
-        (w, x, y, z), _ = _scale.guard_one(q.tolist())
-        out[()] = 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
+        out[()] = magnitude_one(q.tolist())
         return out
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
     return out
+
+
+def magnitude_one(c):
+    """`magnitude` of one quaternion given as four Python floats, as a Python float (no checks).
+
+    `c` is ``q.tolist()`` of any magnitude; the angle is computed in float64
+    (`magnitude` rounds it to ``q.dtype``).
+
+    >>> from quatarray._convert import magnitude_one
+    >>> magnitude_one([0.0, 0.0, 3.0, 0.0])  # a half turn
+    3.141592653589793
+    """
+    (w, x, y, z), _ = _scale.guard_one(c)
+    return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
 
 
 def _k_as_mrp(q, o):
@@ -643,14 +692,27 @@ def as_mrp(q):
     """
     q = quat_array(q, "quat")
     if q.shape == (4,):  # one rotation: Python floats
-        (w, x, y, z), _ = _scale.guard_one(q.tolist())
-        d = math.sqrt(w * w + x * x + y * y + z * z) + abs(w)
-        k = 1.0 / d if d else math.inf   # zero quaternion: nan out, as the block path gives
-        k = -k if w < 0 else k
-        return np.array([x * k, y * k, z * k], q.dtype)
+        return as_mrp_one(q)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
+
+
+def as_mrp_one(q):
+    """`as_mrp` of one quaternion, in Python floats (no block run, no checks).
+
+    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude.
+
+    >>> import numpy as np
+    >>> from quatarray._convert import as_mrp_one
+    >>> as_mrp_one(np.array([-2.0, 0.0, 0.0, 2.0]))  # 90° about -z
+    array([-0.        , -0.        , -0.41421356])
+    """
+    (w, x, y, z), _ = _scale.guard_one(q.tolist())
+    d = math.sqrt(w * w + x * x + y * y + z * z) + abs(w)
+    k = 1.0 / d if d else math.inf   # zero quaternion: nan out, as the block path gives
+    k = -k if w < 0 else k
+    return np.array([x * k, y * k, z * k], q.dtype)
 
 
 def _k_from_mrp(p, q):
@@ -718,5 +780,16 @@ def canonical(q):
     q = quat_array(q, "quat")
     flip = _flip_mask(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     return np.where(flip[..., None], -q, q)
+
+
+def canonical_one(c):
+    """`canonical` of one quaternion given as a list of four Python floats, as such a list.
+
+    >>> from quatarray._convert import canonical_one
+    >>> canonical_one([0.0, 0.0, -1.0, 1.0])
+    [-0.0, -0.0, 1.0, -1.0]
+    """
+    w, x, y, z = c
+    return [-w, -x, -y, -z] if _flip_one(w, x, y, z) else c
 
 

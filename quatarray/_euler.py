@@ -20,7 +20,7 @@ from ._convert import _blockwise, _half_angle
 from ._kernels import arctan2, hamilton, multiply_rows
 from ._validate import finite, float_array, quat_array
 
-__all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
+__all__ = ["check_seq", "from_euler", "as_euler", "as_euler_one", "check_order", "from_davenport", "as_davenport"]
 
 _GIMBAL_EPS = 1e-7
 _GIMBAL_MESSAGE = ("Gimbal lock detected. Setting third angle to zero since it is not "
@@ -260,9 +260,20 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
     return _angles(a, b, c, d, o, extrinsic, symmetric, sign, np.pi / 2)
 
 
-def _warn_gimbal(gimbal, suppress_warnings):
+def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
     if gimbal and not suppress_warnings:
-        warnings.warn(_GIMBAL_MESSAGE, UserWarning, stacklevel=4)
+        warnings.warn(_GIMBAL_MESSAGE, UserWarning, stacklevel=stacklevel)
+
+
+@functools.lru_cache(maxsize=128)
+def _euler_plan(seq):
+    """The quaternion components an Euler sequence reads: (i, j, k, symmetric, sign, extrinsic)."""
+    axes, intrinsic = _check_str_seq(seq, 3)
+    i, j, k = axes[::-1] if intrinsic else axes
+    symmetric = i == k
+    if symmetric:
+        k = 3 - i - j
+    return i, j, k, symmetric, (i - j) * (j - k) * (k - i) // 2, not intrinsic
 
 
 def as_euler(q, seq, degrees=False, suppress_warnings=False):
@@ -297,26 +308,46 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     >>> np.round(as_euler(q, "zyx", degrees=True), 9)
     array([90., 30., 10.])
     """
-    axes, intrinsic = check_seq(seq, 3)
+    check_seq(seq, 3)
     q = quat_array(q, "quat")
-    i, j, k = axes[::-1] if intrinsic else axes
-    symmetric = i == k
-    if symmetric:
-        k = 3 - i - j
-    sign = (i - j) * (j - k) * (k - i) // 2
     if q.shape == (4,):  # one rotation: Python floats
-        c, _ = _scale.guard_one(q.tolist())
-        w, qi, qj, qk = c[0], c[i + 1], c[j + 1], c[k + 1] * sign
-        abcd = (w, qi, qj, qk) if symmetric else (w - qj, qi + qk, qj + w, qk - qi)
-        angles, gimbal = _angles_one(*abcd, not intrinsic, symmetric, sign, math.pi / 2)
-        _warn_gimbal(gimbal, suppress_warnings)
-        out = np.array(angles, q.dtype)
-        return np.rad2deg(out, out=out) if degrees else out
+        return as_euler_one(q, seq, degrees, suppress_warnings, stacklevel=5)
+    i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
-                        symmetric=symmetric, sign=sign, extrinsic=not intrinsic)
+                        symmetric=symmetric, sign=sign, extrinsic=extrinsic)
     _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
+
+
+_RAD2DEG = 180.0 / math.pi
+"""`np.rad2deg`'s factor: float64 products with it equal `np.rad2deg`'s bits."""
+
+
+def as_euler_one(q, seq, degrees=False, suppress_warnings=False, stacklevel=4):
+    """`as_euler` of one quaternion, in Python floats (no block run, no checks of `q`).
+
+    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude;
+    `seq` is checked as in `as_euler`.  The gimbal-lock warning is issued
+    `stacklevel` frames up from the warning call (4: the caller's caller,
+    i.e. the user of a method that calls this).
+
+    >>> import numpy as np
+    >>> from quatarray._euler import as_euler_one
+    >>> as_euler_one(np.array([0.0, 0.0, 0.0, 1.0]), "xyz", degrees=True)  # 180° about z
+    array([  0.,   0., 180.])
+    """
+    if not isinstance(seq, str):
+        check_seq(seq, 3)   # raises the TypeError
+    i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
+    c, _ = _scale.guard_one(q.tolist())
+    w, qi, qj, qk = c[0], c[i + 1], c[j + 1], c[k + 1] * sign
+    abcd = (w, qi, qj, qk) if symmetric else (w - qj, qi + qk, qj + w, qk - qi)
+    angles, gimbal = _angles_one(*abcd, extrinsic, symmetric, sign, math.pi / 2)
+    _warn_gimbal(gimbal, suppress_warnings, stacklevel)
+    if degrees:
+        angles = [a * _RAD2DEG for a in angles]
+    return np.array(angles, q.dtype)
 
 
 # --- Davenport angles ---------------------------------------------------------------------------

@@ -18,10 +18,13 @@ from ._validate import all_finite
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
     "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
-    "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
+    "normalize", "inverse", "dot", "exp", "log", "power", "rotate", "matrix_entries", "multiply_one",
 ]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
+
+_ONE_LOW, _ONE_HIGH = _scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)]
+"""Squared norms a single quaternion's Python floats use as they are (`_scale.guard_one`)."""
 
 
 def result_dtype(*arrays):
@@ -148,12 +151,22 @@ def _mul_views(P, Q, O):
     hamilton(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], t)
 
 
+def multiply_one(p, q):
+    """The product ``p q`` of two quaternions given as lists of four Python floats, as such a list.
+
+    >>> from quatarray._kernels import multiply_one
+    >>> multiply_one([0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0])  # i j = k
+    [0.0, 0.0, 0.0, 1.0]
+    """
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    r0, r1 = hamilton(complex(w1, x1), complex(y1, z1), complex(w2, x2), complex(y2, z2))
+    return [r0.real, r0.imag, r1.real, r1.imag]
+
+
 def _mul_scalar(p, q, dtype):
     """Product of two single quaternions (no blocks, no scratch)."""
-    w1, x1, y1, z1 = p.tolist()
-    w2, x2, y2, z2 = q.tolist()
-    r0, r1 = hamilton(complex(w1, x1), complex(y1, z1), complex(w2, x2), complex(y2, z2))
-    return np.array([r0.real, r0.imag, r1.real, r1.imag], dtype)
+    return np.array(multiply_one(p.tolist(), q.tolist()), dtype)
 
 
 def _out(out, shape, dtype, name="out"):
@@ -599,17 +612,37 @@ def rotate(q, v, inverse=False):
     return res
 
 
+def matrix_entries(c):
+    """The rotation matrix of one quaternion q/|q|, row by row, as nine Python floats.
+
+    `c` is the quaternion as four Python floats (``q.tolist()``), scalar-first
+    and of any magnitude (`_scale.guard_one`); zero gives nan.  The one-rotation
+    path of `_convert.as_matrix` and of rigid transforms' matrices.
+
+    >>> from quatarray._kernels import matrix_entries
+    >>> matrix_entries([0.0, 0.0, 0.0, 2.0])  # 180° about z
+    [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]
+    """
+    w, x, y, z = c
+    n2 = w * w + x * x + y * y + z * z
+    if not _ONE_LOW <= n2 <= _ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
+        (w, x, y, z), _ = _scale.guard_one(c)
+        n2 = w * w + x * x + y * y + z * z
+    s = 2.0 / n2 if n2 else math.nan
+    # the operations of `_convert`'s block kernel, in its order (the same bits in float64)
+    xs, ys, zs = x * s, y * s, z * s
+    xx, yy, zz = x * xs, y * ys, z * zs
+    xy, xz, yz, wx, wy, wz = x * ys, x * zs, y * zs, w * xs, w * ys, w * zs
+    return [1.0 - (yy + zz), xy - wz, xz + wy,
+            xy + wz, 1.0 - (xx + zz), yz - wx,
+            xz - wy, yz + wx, 1.0 - (xx + yy)]
+
+
 def _matrix_one(q, dtype):
     """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero)."""
-    (w, x, y, z), _ = _scale.guard_one(q.tolist() if q.ndim == 1 else q.reshape(4).tolist())
-    n2 = w * w + x * x + y * y + z * z
-    s = 2.0 / n2 if n2 else float("nan")
-    m = np.array([  # a flat list (half the cost of nested ones), typed by the scalar type
-        1 - s * (y * y + z * z), s * (x * y - z * w), s * (x * z + y * w),
-        s * (x * y + z * w), 1 - s * (x * x + z * z), s * (y * z - x * w),
-        s * (x * z - y * w), s * (y * z + x * w), 1 - s * (x * x + y * y),
-    ], np.dtype(dtype).type)
-    m.shape = (3, 3)  # in place: cheaper than reshape's new view
+    # a flat list (half the cost of nested ones), shaped in place (cheaper than reshape's new view)
+    m = np.array(matrix_entries(q.tolist() if q.ndim == 1 else q.reshape(4).tolist()), dtype)
+    m.shape = (3, 3)
     return m
 
 

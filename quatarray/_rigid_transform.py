@@ -253,6 +253,13 @@ class RigidTransform:
         if self._m is not None:
             return self._m.copy()
         q, t = self._q, self._t
+        if q.ndim == 1:  # one transform: Python floats, the rotation's entries from `_kernels`
+            r = Kn.matrix_entries(q.tolist())
+            tx, ty, tz = t.tolist()
+            m = np.array([r[0], r[1], r[2], tx, r[3], r[4], r[5], ty, r[6], r[7], r[8], tz,
+                          0.0, 0.0, 0.0, 1.0], q.dtype)
+            m.shape = (4, 4)
+            return m
         m = np.zeros(q.shape[:-1] + (4, 4), q.dtype)
         m[..., :3, :3] = C.as_matrix(q)
         m[..., :3, 3] = t

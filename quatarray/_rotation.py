@@ -39,11 +39,6 @@ def _scalar_last(q):
     return out
 
 
-def _first(a):
-    """A 0-d result as a NumPy scalar (scipy's type for one rotation)."""
-    return a[()] if a.ndim == 0 else a
-
-
 def _broadcast(p, q, message):
     try:
         return np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
@@ -220,7 +215,11 @@ class Rotation:
         >>> r.as_quat(), r.as_quat(canonical=True), r.as_quat(scalar_first=True)
         (array([ 0.,  0.,  0., -1.]), array([0., 0., 0., 1.]), array([-1.,  0.,  0.,  0.]))
         """
-        q = C.canonical(self._q) if canonical else self._q
+        q = self._q
+        if q.ndim == 1:  # one rotation: Python floats
+            w, x, y, z = C.canonical_one(q.tolist()) if canonical else q.tolist()
+            return np.array([w, x, y, z] if scalar_first else [x, y, z, w], q.dtype)
+        q = C.canonical(q) if canonical else q
         if scalar_first:
             return q if canonical else q.copy()
         return _scalar_last(q)
@@ -254,7 +253,8 @@ class Rotation:
                [ 1.,  0.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return C.as_matrix(self._q)
+        q = self._q
+        return C.as_matrix_one(q) if q.ndim == 1 else C.as_matrix(q)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -277,7 +277,8 @@ class Rotation:
         >>> Rotation.from_euler("x", 1e-9).as_rotvec()
         array([1.e-09, 0.e+00, 0.e+00])
         """
-        return C.as_rotvec(self._q, degrees=degrees)
+        q = self._q
+        return C.as_rotvec_one(q, degrees) if q.ndim == 1 else C.as_rotvec(q, degrees=degrees)
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -301,7 +302,8 @@ class Rotation:
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
         """
-        return C.as_mrp(self._q)
+        q = self._q
+        return C.as_mrp_one(q) if q.ndim == 1 else C.as_mrp(q)
 
     # --- Euler and Davenport angles -----------------------------------------------------
     @classmethod
@@ -342,7 +344,10 @@ class Rotation:
         array([30., 20., 10.])
         """
         _check_euler_seq(seq, 3)
-        return E.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        q = self._q
+        if q.ndim == 1:
+            return E.as_euler_one(q, seq, degrees, suppress_warnings)
+        return E.as_euler(q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -531,7 +536,8 @@ class Rotation:
         >>> Rotation.from_rotvec([[0, 0, 1], [0, 4, 0]]).magnitude()
         array([1.        , 2.28318531])
         """
-        return _first(C.magnitude(self._q))
+        q = self._q
+        return q.dtype.type(C.magnitude_one(q.tolist())) if q.ndim == 1 else C.magnitude(q)
 
     def approx_equal(self, other, atol=None, degrees=False):
         """Whether the angle between each pair of rotations is below `atol` (batch shapes broadcast).
@@ -572,6 +578,9 @@ class Rotation:
         if p.ndim > 1 or q.ndim > 1:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
+        elif isinstance(atol, (float, int)):  # two single rotations: Python floats
+            w, x, y, z = p.tolist()
+            return np.array([C.magnitude_one(K.multiply_one(q.tolist(), [w, -x, -y, -z])) < atol])
         res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
