@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from . import _blocks, _scale
-from ._kernels import ANGLE_FLOOR, arctan2, matrix_entries
+from ._kernels import ANGLE_FLOOR, arctan2, matrix_entries, multiply_one
 from ._kernels import half_angle as _half_angle
 from ._validate import finite, float_array, quat_array
 
@@ -38,6 +38,7 @@ __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
     "as_mrp", "from_mrp", "canonical", "magnitude",
     "as_matrix_one", "as_rotvec_one", "as_mrp_one", "magnitude_one", "canonical_one",
+    "angle_between_one",
 ]
 
 _POLAR_MAXITER = 60
@@ -659,6 +660,20 @@ def magnitude_one(c):
     """
     (w, x, y, z), _ = _scale.guard_one(c)
     return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
+
+
+def angle_between_one(p, q):
+    """The angle of ``q p*`` (the turn from p to q) for two quaternions given as Python floats.
+
+    Each of `p`, `q` (``.tolist()`` of a (4,) array) may have any magnitude:
+    both are brought into range before their product (`_scale.guard_one`).
+
+    >>> from quatarray._convert import angle_between_one
+    >>> round(angle_between_one([1.0, 0.0, 0.0, 0.0], [1e300, 0.0, 0.0, 1e300]), 12)  # 90°
+    1.570796326795
+    """
+    (w, x, y, z), _ = _scale.guard_one(p)
+    return magnitude_one(multiply_one(_scale.guard_one(q)[0], [w, -x, -y, -z]))
 
 
 def _k_as_mrp(q, o):

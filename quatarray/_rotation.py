@@ -579,8 +579,7 @@ class Rotation:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
         elif isinstance(atol, (float, int)):  # two single rotations: Python floats
-            w, x, y, z = p.tolist()
-            return np.array([C.magnitude_one(K.multiply_one(q.tolist(), [w, -x, -y, -z])) < atol])
+            return np.array([C.angle_between_one(p.tolist(), q.tolist()) < atol])
         res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 

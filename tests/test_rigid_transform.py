@@ -36,6 +36,31 @@ def test_matches_scipy(dtype):
     assert ours.as_matrix().dtype == dtype
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_single_transform_matrix_equals_the_batch_row(dtype):
+    """The Python-float matrix of one transform gives the block path's numbers (float64:
+    the same bits), the translation exactly, and the last row [0, 0, 0, 1]."""
+    from quatarray import Rotation
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(20, 4))
+    q[:5] = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, -1], [0, 1, 1, 0], [-1, 0, 0, 0]]   # identity, half turns
+    t = rng.normal(size=(20, 3)) * np.logspace(-30, 30, 20)[:, None]
+    many = RigidTransform.from_components(t.astype(dtype), Rotation.from_quat(q.astype(dtype), scalar_first=True))
+    whole = many.as_matrix()
+    for i, one in enumerate(many):
+        m = one.as_matrix()
+        assert m.shape == (4, 4) and m.dtype == dtype and one.single
+        if dtype == np.float64:
+            np.testing.assert_array_equal(m, whole[i])
+        else:   # the single path computes in float64, then rounds
+            np.testing.assert_allclose(m[:3, :3], whole[i, :3, :3], rtol=0, atol=4 * np.finfo(dtype).eps)
+        np.testing.assert_array_equal(m[:3, 3], t[i].astype(dtype))
+        np.testing.assert_array_equal(m[3], [0, 0, 0, 1])
+    m = one.as_matrix()
+    m[0, 0] = 7.0
+    assert one.as_matrix()[0, 0] != 7.0   # a new array each time
+
+
 def test_container_and_errors():
     ours, ref, _ = _pair(np.float64)
     assert len(ours) == len(ref) and ours.shape == (7,) and not ours.single

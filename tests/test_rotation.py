@@ -8,6 +8,9 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 from scipy import stats
 from scipy.spatial.transform import Rotation as SR
 
@@ -728,6 +731,90 @@ def test_single_rotation_operators_equal_batch_operators(rng):
         np.testing.assert_allclose((r[i] * s[i]).as_quat(), prod[i], rtol=0, atol=1e-15)
         np.testing.assert_allclose((r[i] ** 0.3).as_quat(), power[i], rtol=0, atol=1e-15)
         assert r[i].approx_equal(s[i], atol=1.0).tolist() == [close[i]]
+
+
+def _held(q):
+    """Rotations holding `q` exactly as given (not normalised: any magnitude), and the same as a batch of one."""
+    return Rotation.from_quatarray(q.view(QuatArray)), Rotation.from_quatarray(q[None].view(QuatArray))
+
+
+@given(components=arrays(np.float64, 4, elements=st.floats(-1, 1, allow_nan=False, allow_subnormal=False)),
+       exponent=st.integers(-1000, 1000), other=st.sampled_from(range(4)), f32=st.booleans())
+def test_single_rotation_methods_equal_the_batch_of_one(components, exponent, other, f32):
+    """Every Python-float path of one rotation gives the block path's numbers for the same
+    rotation in a batch of one, at any magnitude (the stored quaternion is not normalised)."""
+    dtype = np.float32 if f32 else np.float64
+    exponent = exponent % 201 - 100 if f32 else exponent
+    q = np.ldexp(components, exponent).astype(dtype)
+    assume(np.abs(components).max() > 1e-3 and np.isfinite(q).all() and np.abs(q).max() > 0)
+    one, batch = _held(q)
+    eps = np.finfo(dtype).eps
+    for name, atol in (("as_matrix", 4 * eps), ("as_mrp", 4 * eps)):
+        got, want = getattr(one, name)(), getattr(batch, name)()[0]
+        assert got.dtype == dtype
+        np.testing.assert_allclose(got, want, rtol=0, atol=atol, err_msg=name)
+    angle = one.magnitude()
+    assert type(angle) is dtype
+    np.testing.assert_allclose(angle, batch.magnitude()[0], rtol=0, atol=16 * eps)
+    for degrees, scale in ((False, 1.0), (True, 180 / np.pi)):
+        got, want = one.as_rotvec(degrees), batch.as_rotvec(degrees)[0]
+        assert got.dtype == dtype
+        if np.pi - angle < 1e-3 and np.dot(got, want) < 0:
+            # a half turn less than a few ulp: float32 blocks rescaled into range may lose
+            # a w below 2**-149 (then w = 0 and the sign is the canonical one's)
+            want = -want
+        np.testing.assert_allclose(got, want, rtol=0, atol=16 * eps * scale, err_msg=f"as_rotvec {degrees}")
+    for canonical in (False, True):
+        for scalar_first in (False, True):
+            got = one.as_quat(canonical, scalar_first=scalar_first)
+            assert got.dtype == dtype and not np.shares_memory(got, q)
+            np.testing.assert_array_equal(got, batch.as_quat(canonical, scalar_first=scalar_first)[0])
+    # approx_equal with a rotation `other` components away, its tolerance clear of the angle between them
+    p = np.roll(q, other)
+    unit = q.astype(np.float64) / np.abs(q).max()
+    unit /= np.linalg.norm(unit)
+    gap = 2 * np.arccos(min(1.0, abs(np.dot(unit, np.roll(unit, other)))))   # the angle between p and q
+    atol = 0.5
+    assume(abs(gap - atol) > 1e-3)
+    got = one.approx_equal(_held(p)[0], atol=atol)
+    assert got.shape == (1,) and got.dtype == bool
+    assert got[0] == (gap < atol)
+    if abs(exponent) < (60 if f32 else 500):   # the batch path's product of the two, unscaled, stays normal
+        assert batch.approx_equal(_held(p)[1], atol=atol)[0] == got[0]
+
+
+@pytest.mark.parametrize("seq", EULER_SEQS)
+def test_single_rotation_euler_angles_at_edges_equal_the_batch_of_one(dtype, seq):
+    """Identity, half turns, gimbal lock (exactly and nearly), degrees: the single-rotation
+    Euler path gives the block path's angles, dtype and gimbal-lock warning."""
+    sym = seq[0].lower() == seq[2].lower()
+    locks = (0.0, np.pi) if sym else (-np.pi / 2, np.pi / 2)
+    angles = [[0.3, mid + d, -1.1] for mid in locks for d in (0.0, 1e-9, -1e-9, 1e-6, -1e-6)]
+    angles += [[np.pi, 0.5, -np.pi], [2.0, 1.0, 3.0]]
+    q = np.concatenate([Rotation.from_euler(seq, angles).as_quat(scalar_first=True),
+                        np.eye(4), [[0.0, 1.0, 1.0, 0.0], [0.0, 0.0, -1.0, 1.0]]]).astype(dtype)
+    t = 8 * np.finfo(dtype).eps
+    for row in q:
+        one, batch = _held(row)
+        for degrees in (False, True):
+            with warnings.catch_warnings(record=True) as caught_one:
+                warnings.simplefilter("always")
+                got = one.as_euler(seq, degrees=degrees)
+            with warnings.catch_warnings(record=True) as caught_batch:
+                warnings.simplefilter("always")
+                want = batch.as_euler(seq, degrees=degrees)[0]
+            assert got.dtype == dtype
+            assert [str(w.message) for w in caught_one] == [str(w.message) for w in caught_batch]
+            scale = 180 / np.pi if degrees else 1.0
+            # modulo 2π: at a half turn float32 blocks may give π where float64 gives -π
+            assert angle_diff(got / scale, want / scale).max() <= 2 * t * np.pi, (row, degrees, got, want)
+            assert np.abs(got).max() <= np.pi * scale * (1 + t)
+
+
+def test_gimbal_warning_of_a_single_quatarray_points_at_the_caller():
+    with pytest.warns(UserWarning, match="Gimbal lock detected") as caught:
+        QuatArray([1.0, 0.0, 0.0, 0.0]).as_euler("zxz")
+    assert caught[0].filename == __file__
 
 
 @pytest.mark.parametrize("seq", ["x", "Z", "yx", "YX", "zy", "XZ", "xyz", "ZXZ"])
