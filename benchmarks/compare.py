@@ -259,7 +259,8 @@ SLOW_PEERS = {("from_matrix", lib) for lib in SLOW_FROM_MATRIX}
 
 #: Operations the compiled peers have, compared at default threads and on one thread.
 RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigid apply inverse": "time_apply_inverse",
-             "rigid inv": "time_inv", "rigid from_matrix": "time_from_matrix", "rigid as_matrix": "time_as_matrix"}
+             "rigid inv": "time_inv", "rigid from_matrix": "time_from_matrix", "rigid as_matrix": "time_as_matrix",
+             "rigid compose, then as_matrix": "time_compose_as_matrix"}
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")

@@ -128,8 +128,12 @@ class RigidTransforms:
         self.cls.from_matrix(self.m)
 
     def time_as_matrix(self, n, dtype, lib):
-        """a.as_matrix()."""
+        """a.as_matrix() (a single transform keeps its matrix: later calls copy, as scipy's do)."""
         self.a.as_matrix()
+
+    def time_compose_as_matrix(self, n, dtype, lib):
+        """(a * b).as_matrix(): the matrix of a new transform, converted on first use."""
+        (self.a * self.b).as_matrix()
 
 
 class RigidKeyframes:

@@ -32,6 +32,7 @@ import numpy as np
 from . import _blocks, _scale
 from ._kernels import ANGLE_FLOOR, arctan2, matrix_entries, multiply_one
 from ._kernels import half_angle as _half_angle
+from ._scale import ONE_HIGH, ONE_LOW
 from ._validate import finite, float_array, quat_array
 
 __all__ = [
@@ -723,8 +724,12 @@ def as_mrp_one(q):
     >>> as_mrp_one(np.array([-2.0, 0.0, 0.0, 2.0]))  # 90° about -z
     array([-0.        , -0.        , -0.41421356])
     """
-    (w, x, y, z), _ = _scale.guard_one(q.tolist())
-    d = math.sqrt(w * w + x * x + y * y + z * z) + abs(w)
+    w, x, y, z = c = q.tolist()
+    n2 = w * w + x * x + y * y + z * z
+    if not ONE_LOW <= n2 <= ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
+        (w, x, y, z), _ = _scale.guard_one(c)
+        n2 = w * w + x * x + y * y + z * z
+    d = math.sqrt(n2) + abs(w)
     k = 1.0 / d if d else math.inf   # zero quaternion: nan out, as the block path gives
     k = -k if w < 0 else k
     return np.array([x * k, y * k, z * k], q.dtype)

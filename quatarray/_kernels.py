@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._blocks import soa
+from ._scale import ONE_HIGH, ONE_LOW
 from ._validate import all_finite
 
 __all__ = [
@@ -23,8 +24,6 @@ __all__ = [
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 
-_ONE_LOW, _ONE_HIGH = _scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)]
-"""Squared norms a single quaternion's Python floats use as they are (`_scale.guard_one`)."""
 
 
 def result_dtype(*arrays):
@@ -625,7 +624,7 @@ def matrix_entries(c):
     """
     w, x, y, z = c
     n2 = w * w + x * x + y * y + z * z
-    if not _ONE_LOW <= n2 <= _ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
+    if not ONE_LOW <= n2 <= ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
         (w, x, y, z), _ = _scale.guard_one(c)
         n2 = w * w + x * x + y * y + z * z
     s = 2.0 / n2 if n2 else math.nan

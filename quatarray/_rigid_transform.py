@@ -5,8 +5,9 @@ not as a unit dual quaternion: `apply` then costs one quaternion rotation
 and one addition, `rotation`/`translation` are free, and matrices convert
 without the dual part's products.  Dual quaternions are produced on demand
 by the raw `_dualquat` conversions, which are exact inverses of each other.
-The price: `as_matrix` converts (a few microseconds for one transform),
-where scipy, which stores matrices, copies.
+The price: `as_matrix` converts, where scipy, which stores matrices,
+copies; a single transform keeps the matrix of its first `as_matrix` and
+copies it on later calls.
 
 The one exception is scipy's ``RigidTransform(matrix, normalize=False)``:
 scipy then keeps the matrix exactly as given (with ``copy=False`` sharing
@@ -119,9 +120,10 @@ class RigidTransform:
            [0., 0., 0., 1.]])
     """
 
-    __slots__ = ("_q", "_t", "_m", "_single", "__weakref__")
+    __slots__ = ("_q", "_t", "_m", "_single", "_matrix_of_one", "__weakref__")
 
     def __init__(self, matrix, normalize=True, copy=True):
+        self._matrix_of_one = None
         m = _promote(matrix)
         if m.ndim < 2 or m.shape[-2:] != (4, 4):
             raise ValueError(f"Expected `matrix` to have shape (..., 4, 4), got {m.shape}.")
@@ -143,6 +145,7 @@ class RigidTransform:
         tf._t = translation
         tf._m = None
         tf._single = single
+        tf._matrix_of_one = None
         return tf
 
     @classmethod
@@ -253,13 +256,19 @@ class RigidTransform:
         if self._m is not None:
             return self._m.copy()
         q, t = self._q, self._t
-        if q.ndim == 1:  # one transform: Python floats, the rotation's entries from `_kernels`
-            r = Kn.matrix_entries(q.tolist())
-            tx, ty, tz = t.tolist()
-            m = np.array([r[0], r[1], r[2], tx, r[3], r[4], r[5], ty, r[6], r[7], r[8], tz,
-                          0.0, 0.0, 0.0, 1.0], q.dtype)
-            m.shape = (4, 4)
-            return m
+        if q.ndim == 1:
+            # one transform: Python floats (the rotation's entries from `_kernels`), kept, as
+            # scipy keeps its matrix (a single transform cannot change: no item assignment,
+            # and `rotation` and `translation` are copies), so that later calls copy it
+            m = self._matrix_of_one
+            if m is None:
+                r = Kn.matrix_entries(q.tolist())
+                tx, ty, tz = t.tolist()
+                m = np.array([r[0], r[1], r[2], tx, r[3], r[4], r[5], ty, r[6], r[7], r[8], tz,
+                              0.0, 0.0, 0.0, 1.0], q.dtype)
+                m.shape = (4, 4)
+                self._matrix_of_one = m
+            return m.copy()
         m = np.zeros(q.shape[:-1] + (4, 4), q.dtype)
         m[..., :3, :3] = C.as_matrix(q)
         m[..., :3, 3] = t

@@ -26,7 +26,7 @@ import numpy as np
 from . import _blocks
 
 __all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "guard_one",
-           "unscale"]
+           "ONE_LOW", "ONE_HIGH", "unscale"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 
@@ -44,6 +44,10 @@ HIGH = {d: r[1] for d, r in _RANGE.items()}
 """Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
 
 _ONE = _RANGE[np.dtype(np.float64)]
+
+ONE_LOW, ONE_HIGH = _ONE
+"""`guard_one`'s test as two floats: single-quaternion paths that need the squared norm
+anyway compare it with these and call `guard_one` only when it is out of range."""
 
 
 def fits(n2):

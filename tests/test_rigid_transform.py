@@ -58,7 +58,10 @@ def test_single_transform_matrix_equals_the_batch_row(dtype):
         np.testing.assert_array_equal(m[3], [0, 0, 0, 1])
     m = one.as_matrix()
     m[0, 0] = 7.0
-    assert one.as_matrix()[0, 0] != 7.0   # a new array each time
+    assert one.as_matrix()[0, 0] != 7.0   # a new array each time (the kept matrix is not handed out)
+    np.testing.assert_array_equal(one.as_matrix(), whole[-1] if dtype == np.float64 else one.as_matrix())
+    m = one.as_matrix()   # a new transform has its own matrix
+    np.testing.assert_allclose((one * one).as_matrix(), m @ m, rtol=0, atol=1e3 * np.abs(t[-1]).max() * np.finfo(dtype).eps)
 
 
 def test_container_and_errors():
