@@ -39,7 +39,7 @@ __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
     "as_mrp", "from_mrp", "canonical", "magnitude",
     "as_matrix_one", "as_rotvec_one", "as_mrp_one", "magnitude_one", "canonical_one",
-    "angle_between_one",
+    "angle_between_one", "rotvec_floats", "from_rotvec_floats",
 ]
 
 _POLAR_MAXITER = 60
@@ -529,11 +529,21 @@ def as_rotvec_one(q, degrees=False):
     >>> as_rotvec_one(np.array([-1.0, 0.0, 0.0, -1.0]), degrees=True) + 0.0  # canonical: +90° about z
     array([ 0.,  0., 90.])
     """
-    (w, x, y, z), _ = _scale.guard_one(q.tolist())
+    return np.array(rotvec_floats(q.tolist(), degrees), q.dtype)
+
+
+def rotvec_floats(c, degrees=False):
+    """The rotation vector of one quaternion given as four Python floats, as three.
+
+    >>> from quatarray._convert import rotvec_floats
+    >>> rotvec_floats([0.0, 0.0, 0.0, 5.0], degrees=True)
+    [0.0, 0.0, 180.0]
+    """
+    (w, x, y, z), _ = _scale.guard_one(c)
     nv = math.sqrt(x * x + y * y + z * z)
     scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * _ROTVEC_FACTOR[degrees]
     scale = -scale if _flip_one(w, x, y, z) else scale
-    return np.array([x * scale, y * scale, z * scale], q.dtype)
+    return [x * scale, y * scale, z * scale]
 
 
 def _k_from_rotvec(v, q, factor):
@@ -606,15 +616,28 @@ def from_rotvec(rotvec, degrees=False):
     v = finite(_vec3(rotvec, "rotvec"), "rotvec")
     factor = np.pi / 180.0 if degrees else 1.0
     if v.shape == (3,):  # one rotation: Python floats, the same half-angle tangent
-        x, y, z = v.tolist()
-        theta = max(math.sqrt(x * x + y * y + z * z) * factor, float(ANGLE_FLOOR[v.dtype]))
-        t = math.tan(theta * 0.25)
-        d = 1.0 / (1.0 + t * t)
-        scale = 2.0 * t * d / theta * factor
-        return np.array([(1.0 - t) * (1.0 + t) * d, x * scale, y * scale, z * scale], v.dtype)
+        return from_rotvec_floats(v.tolist(), v.dtype, factor)
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
     return out
+
+
+def from_rotvec_floats(v, dtype, factor=1.0):
+    """`from_rotvec` of one finite rotation vector given as three Python floats (no checks).
+
+    `factor` converts the vector's units to radians; the result has `dtype`.
+
+    >>> import numpy as np
+    >>> from quatarray._convert import from_rotvec_floats
+    >>> from_rotvec_floats([0.0, 0.0, 180.0], np.dtype(np.float64), np.pi / 180) + 0.0
+    array([0., 0., 0., 1.])
+    """
+    x, y, z = v
+    theta = max(math.sqrt(x * x + y * y + z * z) * factor, float(ANGLE_FLOOR[dtype]))
+    t = math.tan(theta * 0.25)
+    d = 1.0 / (1.0 + t * t)
+    scale = 2.0 * t * d / theta * factor
+    return np.array([(1.0 - t) * (1.0 + t) * d, x * scale, y * scale, z * scale], dtype)
 
 
 def _k_magnitude(q, o):

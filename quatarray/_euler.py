@@ -377,14 +377,16 @@ def _unit_axes(axes, n=None):
         raise ValueError(f"expected {n} axes, got {a.shape[0]}")
     if not 1 <= a.shape[0] <= 3:
         raise ValueError(f"expected 1 to 3 axes, got {a.shape[0]}")
-    norms = np.linalg.norm(a, axis=1, keepdims=True)
-    if not (np.isfinite(a).all() and (norms > 0).all()):
+    # at most 3 rows: Python floats (numpy calls would cost more than a single rotation's maths)
+    rows = a.tolist()
+    norms = [math.sqrt(x * x + y * y + z * z) for x, y, z in rows]
+    if not (all(map(math.isfinite, a.flat)) and all(n > 0 for n in norms)):
         raise ValueError("expected finite, non-zero axes")
-    a = a / norms
-    dots = np.abs(np.sum(a[1:] * a[:-1], axis=1))
-    if (dots >= 1e-7).any():
-        raise ValueError(f"Consecutive axes must be orthogonal: got |cos| = {dots.max():.3g} between them")
-    return a
+    unit = [[x / n, y / n, z / n] for (x, y, z), n in zip(rows, norms)]
+    dots = [abs(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) for u, v in zip(unit[1:], unit)]
+    if any(d >= 1e-7 for d in dots):
+        raise ValueError(f"Consecutive axes must be orthogonal: got |cos| = {max(dots):.3g} between them")
+    return np.array(unit)
 
 
 def _k_from_davenport(angles, q, axes, extrinsic, scale):

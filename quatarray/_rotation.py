@@ -12,6 +12,7 @@ the batch shape (one per rotation).
 """
 
 import functools
+import math
 import warnings
 
 import numpy as np
@@ -518,6 +519,10 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
+        if q.ndim == 1 and type(n) in (int, float):  # one rotation, a Python number: Python floats
+            v = [n * c for c in C.rotvec_floats(q.tolist())]
+            if all(map(math.isfinite, v)):   # else from_rotvec's error
+                return type(self)._wrap(C.from_rotvec_floats(v, q.dtype))
         return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * n))
 
     def inv(self):

@@ -731,6 +731,11 @@ def test_single_rotation_operators_equal_batch_operators(rng):
         np.testing.assert_allclose((r[i] * s[i]).as_quat(), prod[i], rtol=0, atol=1e-15)
         np.testing.assert_allclose((r[i] ** 0.3).as_quat(), power[i], rtol=0, atol=1e-15)
         assert r[i].approx_equal(s[i], atol=1.0).tolist() == [close[i]]
+    for exponent in (1e308, -1e308):   # a rotation vector out of range: the batch path's error
+        for rotation in (r[0], r[:1]):
+            with warnings.catch_warnings(), pytest.raises(ValueError, match="rotvec"):
+                warnings.simplefilter("ignore", RuntimeWarning)   # the overflow that makes it
+                rotation ** exponent
 
 
 def _held(q):
@@ -769,6 +774,10 @@ def test_single_rotation_methods_equal_the_batch_of_one(components, exponent, ot
             got = one.as_quat(canonical, scalar_first=scalar_first)
             assert got.dtype == dtype and not np.shares_memory(got, q)
             np.testing.assert_array_equal(got, batch.as_quat(canonical, scalar_first=scalar_first)[0])
+    for n in (0.3, -2, 7.5):
+        got = (one ** n).as_quat(scalar_first=True)
+        assert got.dtype == dtype
+        assert_same_rotation(got, (batch ** n).as_quat(scalar_first=True)[0], 64 * eps)
     # approx_equal with a rotation `other` components away, its tolerance clear of the angle between them
     p = np.roll(q, other)
     unit = q.astype(np.float64) / np.abs(q).max()
