@@ -31,6 +31,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2
+from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._validate import finite, float_array, quat_array
 
@@ -501,7 +502,7 @@ def as_rotvec(q, degrees=False):
 def _k_from_rotvec(v, q, factor):
     x, y, z = v
     with _blocks.scratch().frame() as work:
-        theta, t, u, d, c = work.rows(5, x.shape, q.dtype)
+        theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
         np.multiply(x, x, out=theta)
         np.multiply(y, y, out=u)
         theta += u
@@ -511,22 +512,9 @@ def _k_from_rotvec(v, q, factor):
         if factor != 1.0:
             theta *= factor
         np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
-        if q.dtype == np.float32:   # float32 sin and cos are SIMD loops (see `_kernels.cos_sin`)
-            np.multiply(theta, 0.5, out=t)
-            np.cos(t, out=q[0])
-            np.sin(t, out=d)
-        else:   # one tangent of the quarter angle, t: cos(θ/2) = (1 - t²) / (1 + t²), sin(θ/2) = 2t / (1 + t²)
-            np.multiply(theta, 0.25, out=t)
-            np.tan(t, out=t)
-            np.multiply(t, t, out=d)
-            d += 1.0
-            np.divide(2.0, d, out=d)         # 2 / (1 + t²)
-            np.subtract(1.0, t, out=u)
-            np.add(t, 1.0, out=c)            # (1 - t)(1 + t): accurate where t ≈ 1 (θ ≈ π)
-            c *= u
-            c *= d
-            np.multiply(c, 0.5, out=q[0])    # one strided pass into the output
-            d *= t                           # sin(θ/2)
+        np.multiply(theta, 0.5, out=t)
+        _cos_sin(t, c, d, (u, v))            # cos(θ/2), sin(θ/2)
+        np.copyto(q[0], c)
         # sin(θ/2) / θ, times the degree factor that converts v itself
         d /= theta
         if factor != 1.0:

@@ -40,7 +40,7 @@ def result_dtype(*arrays):
 ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
 
 
-def cos_sin(angle):
+def cos_sin(angle, c=None, s=None, rows=None):
     """(cos a, sin a) of an array of angles, by the cheaper exact route for its dtype.
 
     float32: `np.cos` and `np.sin`, SIMD loops on every x86 NumPy build.
@@ -51,6 +51,9 @@ def cos_sin(angle):
     ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
     small cosine is accurate to about one ulp of t.
 
+    Kernels pass output rows `c` and `s` and two scratch rows `rows` of the
+    angle's shape (none may overlap `angle`): then nothing is allocated.
+
     >>> import numpy as np
     >>> from quatarray._kernels import cos_sin
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
@@ -58,14 +61,22 @@ def cos_sin(angle):
     """
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
-        return np.cos(angle), np.sin(angle)
-    t = np.tan(angle * 0.5)
-    d = 1.0 / (1.0 + t * t)
-    c = (1.0 - t) * (1.0 + t)
-    c *= d
-    d *= 2.0
-    d *= t
-    return c, d
+        return np.cos(angle, out=c), np.sin(angle, out=s)
+    if c is None:
+        c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
+        rows = (np.empty_like(c), np.empty_like(c))
+    u, v = rows
+    np.multiply(angle, 0.5, out=s)
+    t = np.tan(s, out=s)
+    np.multiply(t, t, out=c)
+    c += 1.0
+    d = np.divide(2.0, c, out=c)            # 2 / (1 + t²)
+    np.subtract(1.0, t, out=u)
+    np.add(t, 1.0, out=v)
+    u *= v
+    u *= d
+    s *= d                                  # sin a = t · 2 / (1 + t²)
+    return np.multiply(u, 0.5, out=c), s    # cos a (halving is exact)
 
 
 def half_angle(angle, scale):
@@ -428,16 +439,19 @@ def inverse(q):
 
 
 def _k_exp(q, o):
-    vn = _scale.sum_squares(q, o[0], 1)
-    np.sqrt(vn, out=vn)
-    ew = np.exp(q[0])
-    # cos|v| and sin|v| / |v| (limit 1 at |v| = 0) from one tangent
-    np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
-    c, s = half_angle(vn, 0.5)
-    s /= vn
-    s *= ew
-    np.multiply(q[1:], s, out=o[1:])
-    np.multiply(c, ew, out=o[0])
+    with _blocks.scratch().frame() as work:
+        vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
+        _scale.sum_squares(q, vn, 1)
+        np.sqrt(vn, out=vn)
+        np.exp(q[0], out=ew)
+        # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
+        np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
+        cos_sin(vn, c, s, (u, v))
+        s /= vn
+        s *= ew
+        for k in (1, 2, 3):
+            np.multiply(q[k], s, out=o[k])
+        np.multiply(c, ew, out=o[0])
 
 
 def exp(q):
