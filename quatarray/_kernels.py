@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._blocks import soa
+from ._validate import all_finite
 
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
@@ -166,7 +167,7 @@ def _out(out, shape, dtype, name="out"):
     return out
 
 
-def multiply(p, q, out=None):
+def multiply(p, q, out=None, check=False):
     """Hamilton product ``p q`` of quaternion arrays, broadcasting batch shapes.
 
     Parameters
@@ -174,6 +175,10 @@ def multiply(p, q, out=None):
     p, q : ndarray, shape (..., 4)
         Scalar-first quaternions (float32 or float64).
     out : ndarray, shape (broadcast batch, 4), optional
+    check : bool, default False
+        Also return whether every element of the product is finite, judged
+        block by block while the block is in cache (no second pass over the
+        result).
 
     Examples
     --------
@@ -187,10 +192,10 @@ def multiply(p, q, out=None):
             and p.flags.c_contiguous and q.flags.c_contiguous):
         # fast path for the common case: same shape, same float dtype, C order
         if p.shape == (4,):
-            return _mul_scalar(p, q, p.dtype)
+            return _checked(_mul_scalar(p, q, p.dtype), check)
         res = np.empty(p.shape, p.dtype)
-        _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
-        return res
+        ok = _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
+        return (res, ok) if check else res
     dtype = result_dtype(p, q)
     batch = np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
     shape = batch + (4,)
@@ -214,18 +219,25 @@ def multiply(p, q, out=None):
         target[...] = _mul_scalar(p.reshape(4), q.reshape(4), dtype)
     if target is not res:
         res[...] = target
-    return res
+    return _checked(res, check)
+
+
+def _checked(res, check):
+    """`res`, or ``(res, all finite)`` with `check` (for results made in one piece)."""
+    return (res, all_finite(res)) if check else res
 
 
 def _mul_flat(p, q, o):
-    """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once)."""
+    """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once).
+    Returns whether every element of the product is finite."""
     ct = _COMPLEX[o.dtype]
     P, Q, O = p.view(ct), q.view(ct), o.view(ct)
 
     def block(idx):
         _mul_views(P[idx], Q[idx], O[idx])
+        return all_finite(o[idx])   # the block is still in cache
 
-    _blocks.run(block, _blocks.split((len(o),)), len(o))
+    return all(_blocks.run(block, _blocks.split((len(o),)), len(o)))
 
 
 def multiply_rows(p, q):
@@ -254,11 +266,12 @@ def _conj_signs(dtype):
     return _SIGNS[dtype]
 
 
-def conjugate(q, out=None):
+def conjugate(q, out=None, check=False):
     """Quaternion conjugate (w, -x, -y, -z).
 
     A flat multiply by a tiled sign pattern, block by block: long inner loops
-    instead of a length-3 one per quaternion.
+    instead of a length-3 one per quaternion.  With `check`, also returns
+    whether every element is finite, judged per block while it is in cache.
 
     >>> import numpy as np
     >>> from quatarray._kernels import conjugate
@@ -269,7 +282,7 @@ def conjugate(q, out=None):
     res = _out(out, q.shape, dtype)
     if q.ndim == 1 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
         np.multiply(q, _conj_signs(dtype)[:4], out=res)
-        return res
+        return _checked(res, check)
     src, dst = q.reshape(-1), res.reshape(-1)
     signs = _conj_signs(dtype)
 
@@ -277,9 +290,10 @@ def conjugate(q, out=None):
         sl = idx[0] if idx else slice(None)
         o = dst[sl]
         np.multiply(src[sl], signs[:o.size], out=o)
+        return not check or all_finite(o)
 
-    _blocks.run(block, _blocks.split((src.size,), signs.size), src.size // 4)
-    return res
+    ok = all(_blocks.run(block, _blocks.split((src.size,), signs.size), src.size // 4))
+    return (res, ok) if check else res
 
 
 def sqnorm(q):
