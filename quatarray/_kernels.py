@@ -481,17 +481,19 @@ def _log_parts(q):
     (θ = π).  Blocks of extreme magnitude are rescaled in place first by
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
     rescaled q, which is what the callers multiply."""
-    work = _blocks.scratch()
-    n2 = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0])
+    n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
+    _scale.sum_squares(q, n2)
     e = _scale.guard(q, n2)
-    vv = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0], 1)
+    _scale.sum_squares(q, vv, 1)
     w = q[0]
-    d = (w - 1) * (w + 1)
-    d += vv
-    u = d + 1
-    ln = np.log(u)
-    um1 = u - 1
-    um1 = np.divide(d, um1, out=um1)      # nan or inf where u = 1: fixed below
+    np.subtract(w, 1, out=d)
+    np.add(w, 1, out=u)
+    d *= u
+    d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
+    np.add(d, 1, out=u)
+    np.log(u, out=ln)
+    um1 = np.subtract(u, 1, out=theta)    # (theta's row as scratch)
+    np.divide(d, um1, out=um1)            # nan or inf where u = 1: fixed below
     ln *= um1
     np.copyto(ln, d, where=u == 1)
     ln *= 0.5
@@ -499,8 +501,8 @@ def _log_parts(q):
     if small.any():
         ln[small] = 0.5 * np.log(n2[small])
     vn = np.sqrt(vv, out=vv)
-    theta = arctan2(vn, w)
-    scale = theta / vn
+    arctan2(vn, w, out=theta)
+    np.divide(theta, vn, out=scale)
     lim = vn == 0
     if lim.any():
         scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
@@ -539,26 +541,34 @@ def log(q):
 def _k_power(q, t, o):
     t = t[0]
     ln, theta, vn, scale, e = _log_parts(q)
-    mag = np.exp(t * ln)
+    mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
+    np.multiply(t, ln, out=mag)
+    np.exp(mag, out=mag)
     if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
-        mag = mag * np.exp2(t * e)
-    zero = (vn == 0) & (q[0] == 0)
+        mag *= np.exp2(t * e)
+    real = vn == 0
+    zero = real & (q[0] == 0)
     if zero.any():
-        mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
-    ang = t * theta
-    # sin and cos, not `half_angle`: cos(tθ) keeps its relative accuracy near tθ = π/2
+        np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
+    np.multiply(t, theta, out=ang)
+    # sin and cos, not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2
     # (principal roots of negative reals)
-    cos_a, sin_a = np.cos(ang), np.sin(ang)
+    np.cos(ang, out=c)
+    np.sin(ang, out=sn)
+    np.multiply(mag, c, out=o[0])
     # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
-    s = np.where(vn > 0, sin_a / np.where(vn > 0, vn, 1), t * scale)
-    factor = mag * s
+    if real.any():
+        np.copyto(ang, np.where(real, t * scale, sn / np.where(real, 1, vn)))
+    else:
+        np.divide(sn, vn, out=ang)
+    ang *= mag
     if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
-        factor = np.where(zero, 0.0, factor)
-    np.multiply(mag, cos_a, out=o[0])
-    np.multiply(q[1:], factor, out=o[1:])
-    neg_real = (vn == 0) & (q[0] < 0)
+        ang[zero] = 0.0
+    for k in (1, 2, 3):
+        np.multiply(q[k], ang, out=o[k])
+    neg_real = real & (q[0] < 0)
     if neg_real.any():
-        np.copyto(o[1], mag * sin_a, where=neg_real)
+        np.copyto(o[1], mag * sn, where=neg_real)
 
 
 def power(q, t):
