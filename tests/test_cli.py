@@ -344,19 +344,52 @@ def test_sigterm_during_write_removes_the_temporary(tmp_path):
             "    time.sleep(60)\n"
             "qio.write_rows = slow\n"
             "sys.exit(cli.main(sys.argv[1:]))\n")
+    _terminate_while_writing(code, [example_path("arm.csv"), "-o", tmp_path / "out.csv", "--fps", "30"], tmp_path)
+    assert os.listdir(tmp_path) == []
+
+
+def _terminate_while_writing(code, args, folder):
+    """Run `code` (it prints 'writing' once its output is under way) on `args`; SIGTERM it then."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
-    out = tmp_path / "out.csv"
-    proc = subprocess.Popen([sys.executable, "-c", code, "resample", example_path("arm.csv"), "-o", str(out),
-                             "--fps", "30"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen([sys.executable, "-c", code, "resample", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert proc.stdout.readline() == "writing\n"
-        assert [n for n in os.listdir(tmp_path) if n.endswith(".part")]
+        assert [n for n in os.listdir(folder) if n.endswith(".part")]
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 128 + signal.SIGTERM
     finally:
         proc.kill()
         proc.communicate()
-    assert os.listdir(tmp_path) == []
+
+
+def test_sigterm_during_a_zarr_write_removes_the_temporary_store(tmp_path):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
+    group = zarr.open_group(str(tmp_path / "in.zarr"), mode="w")
+    group["times"] = np.arange(50.0)
+    group["keys"] = np.tile([1.0, 0.0, 0.0, 0.0], (50, 1))
+    # many small chunks, each written slowly after the first: SIGTERM comes while Dask's threads write
+    # (and with writes still under way, a temporary store removed before they end would come back)
+    code = ("import sys, time\n"
+            "import zarr\n"
+            "from quatarray import cli, _zarr\n"
+            "_zarr.CHUNK_QUATS = 64\n"
+            "real, said = zarr.Array.__setitem__, []\n"
+            "def slow(self, key, value):\n"
+            "    if said:\n"
+            "        time.sleep(0.2)\n"
+            "    real(self, key, value)\n"
+            "    if not said:\n"
+            "        said.append(1)\n"
+            "        print('writing', flush=True)\n"
+            "zarr.Array.__setitem__ = slow\n"
+            "try:\n"
+            "    sys.exit(cli.main(sys.argv[1:]))\n"
+            "finally:\n"
+            "    time.sleep(0.5)   # a caller that lives on: chunks still being written would land now\n")
+    _terminate_while_writing(code, [tmp_path / "in.zarr", "-o", tmp_path / "out.zarr", "--fps", "100"], tmp_path)
+    assert os.listdir(tmp_path) == ["in.zarr"]
 
 
 def test_output_directory_is_named(tmp_path):
