@@ -274,7 +274,10 @@ class QuatArray(np.ndarray):
         QuatArray([ 1., -2., -3., -4.])
         """
         q = _raw(self)
-        return self._wrap(_finite_result(K.conjugate(q), ("the quaternions", q)))
+        res, ok = K.conjugate(q, check=True)
+        if not ok:
+            finite(q, "the quaternions")
+        return self._wrap(res)
 
     conjugate = conj
 
@@ -366,7 +369,7 @@ class QuatArray(np.ndarray):
                 raise ValueError(f"expected v of a batch shape that broadcasts with the quaternions' "
                                  f"{q.shape[:-1]}, got v of batch shape {v.shape[:-1]}") from None
         res = K.rotate(q, v)
-        if not np.isfinite(res).all() and np.isfinite(q).all() and np.isfinite(v).all():
+        if not all_finite(res) and all_finite(q):
             raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
         return res
 
@@ -652,8 +655,12 @@ def _binary(ufunc, a, b, out=None):
             B = _lift(B, A)
         res = np.all(A == B, axis=-1)
         return _finish_plain(res if ufunc is np.equal else ~res, out)
-    res = _compute(ufunc, A, qa, B, qb, a, b)
-    if not all_finite(res):
+    if ufunc is np.multiply and qa and qb:   # the product's blocks are judged while in cache
+        res, ok = K.multiply(A, B, check=True)
+    else:
+        res = _compute(ufunc, A, qa, B, qb, a, b)
+        ok = all_finite(res)
+    if not ok:
         symbol = _SYMBOLS[ufunc]
         finite(A, f"the left operand of {symbol}")
         finite(B, f"the right operand of {symbol}")

@@ -31,6 +31,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2
+from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._validate import finite, float_array, quat_array
 
@@ -133,19 +134,24 @@ def _index(flat_index, batch):
 def _k_as_matrix(q, o):
     w, x, y, z = q
     s = np.divide(2.0, _scale.guarded_sqnorm(q))
-    xs, ys, zs = x * s, y * s, z * s
-    wx, wy, wz = w * xs, w * ys, w * zs
-    xx, xy, xz = x * xs, x * ys, x * zs
-    yy, yz, zz = y * ys, y * zs, z * zs
-    np.subtract(1.0, yy + zz, out=o[0])
-    np.subtract(xy, wz, out=o[1])
-    np.add(xz, wy, out=o[2])
-    np.add(xy, wz, out=o[3])
-    np.subtract(1.0, xx + zz, out=o[4])
-    np.subtract(yz, wx, out=o[5])
-    np.subtract(xz, wy, out=o[6])
-    np.add(yz, wx, out=o[7])
-    np.subtract(1.0, xx + yy, out=o[8])
+    with _blocks.scratch().frame() as work:
+        xs, ys, zs, xx, yy, zz, a, b = work.rows(8, s.shape, o.dtype)
+        np.multiply(x, s, out=xs)
+        np.multiply(y, s, out=ys)
+        np.multiply(z, s, out=zs)
+        np.multiply(x, xs, out=xx)
+        np.multiply(y, ys, out=yy)
+        np.multiply(z, zs, out=zz)
+        for k, (p, r) in ((0, (yy, zz)), (4, (xx, zz)), (8, (xx, yy))):
+            np.add(p, r, out=a)
+            np.subtract(1.0, a, out=o[k])
+        # off-diagonal pairs (i, j) = p -/+ r, each output row written once
+        for (i, j), (p1, p2, r1, r2) in (((1, 3), (x, ys, w, zs)), ((6, 2), (x, zs, w, ys)),
+                                         ((5, 7), (y, zs, w, xs))):
+            np.multiply(p1, p2, out=a)
+            np.multiply(r1, r2, out=b)
+            np.subtract(a, b, out=o[i])
+            np.add(a, b, out=o[j])
 
 
 def as_matrix(q):
@@ -495,19 +501,27 @@ def as_rotvec(q, degrees=False):
 
 def _k_from_rotvec(v, q, factor):
     x, y, z = v
-    theta = np.sqrt(x * x + y * y + z * z)
-    if factor != 1.0:
-        theta *= factor
-    np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
-    cos_half, sin_half = _half_angle(theta, 0.25)
-    np.copyto(q[0], cos_half)
-    # sin(θ/2) / θ, times the degree factor that converts v itself
-    scale = sin_half / theta
-    if factor != 1.0:
-        scale *= factor
-    np.multiply(x, scale, out=q[1])
-    np.multiply(y, scale, out=q[2])
-    np.multiply(z, scale, out=q[3])
+    with _blocks.scratch().frame() as work:
+        theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
+        np.multiply(x, x, out=theta)
+        np.multiply(y, y, out=u)
+        theta += u
+        np.multiply(z, z, out=u)
+        theta += u
+        np.sqrt(theta, out=theta)
+        if factor != 1.0:
+            theta *= factor
+        np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
+        np.multiply(theta, 0.5, out=t)
+        _cos_sin(t, c, d, (u, v))            # cos(θ/2), sin(θ/2)
+        np.copyto(q[0], c)
+        # sin(θ/2) / θ, times the degree factor that converts v itself
+        d /= theta
+        if factor != 1.0:
+            d *= factor
+        np.multiply(x, d, out=q[1])
+        np.multiply(y, d, out=q[2])
+        np.multiply(z, d, out=q[3])
 
 
 def from_rotvec(rotvec, degrees=False):

@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 
-from . import _scale
+from . import _blocks, _scale
 from ._convert import _blockwise, _half_angle
 from ._kernels import arctan2, hamilton, multiply_rows
 from ._validate import finite, float_array, quat_array
@@ -171,32 +171,57 @@ def from_euler(seq, angles, degrees=False):
 def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
     """Bernardes & Viollet's step 2-3 on rows a, b, c, d: writes o (3, m).
 
-    Returns True if any element is in gimbal lock (middle angle within
-    1e-7 of 0 or π); its third angle is then set to 0, as in scipy.
+    The first and third angles are half_sum ∓ half_diff with half_sum =
+    arg(a + ib) and half_diff = arg(c + id); each is read as one argument,
+    of (a + ib)(c ∓ id), which lands in [-π, π] without the wrap scipy
+    applies to the sum: two arctangents for the outer angles, as before, but
+    no wrap and no strided passes over `o` but the last.  Returns True if
+    any element is in gimbal lock (middle angle within 1e-7 of 0 or π); its
+    third angle is then set to 0, as in scipy.
     """
     first, third = (0, 2) if extrinsic else (2, 0)
-    half_sum = arctan2(b, a)
-    half_diff = arctan2(d, c)
-    middle = o[1]
-    arctan2(np.sqrt(c * c + d * d), np.sqrt(a * a + b * b), out=middle)
-    middle *= 2.0
-    np.subtract(half_sum, half_diff, out=o[first])
-    np.add(half_sum, half_diff, out=o[third])
-    case1 = middle <= _GIMBAL_EPS
-    case2 = np.abs(middle - np.pi) <= _GIMBAL_EPS
-    locked = case1 | case2
-    gimbal = bool(locked.any())
-    if gimbal:
-        np.copyto(o[2], 0, where=locked)
-        lock_angle = np.where(case1, 2 * half_sum, (-2 if extrinsic else 2) * half_diff)
-        np.copyto(o[0], lock_angle, where=locked)
-    if not symmetric:
-        if sign < 0:
-            _negate(o[third])
-        middle -= lamb
-    for row in (o[0], o[2]):  # into [-π, π] (the middle angle is in range by construction)
-        # np.where, not ufuncs with where=: masked loops cost several times more
-        np.copyto(row, np.where(row < -np.pi, row + 2 * np.pi, np.where(row > np.pi, row - 2 * np.pi, row)))
+    with _blocks.scratch().frame() as work:
+        mid, r, u, v, f, g = work.rows(6, a.shape, o.dtype)
+        np.multiply(c, c, out=r)
+        np.multiply(d, d, out=u)
+        r += u
+        np.sqrt(r, out=r)                    # |(c, d)|
+        np.multiply(a, a, out=u)
+        np.multiply(b, b, out=v)
+        u += v
+        np.sqrt(u, out=u)                    # |(a, b)|
+        arctan2(r, u, out=mid)
+        mid *= 2.0                           # the middle angle, in [0, π]
+        np.multiply(a, c, out=f)
+        np.multiply(b, d, out=g)
+        np.add(f, g, out=u)                  # Re (a + ib)(c - id)
+        f -= g                               # Re (a + ib)(c + id)
+        np.multiply(b, c, out=g)
+        np.multiply(a, d, out=v)
+        np.subtract(g, v, out=r)             # Im (a + ib)(c - id)
+        g += v                               # Im (a + ib)(c + id)
+        rows = {first: arctan2(r, u, out=v)}          # (out may not alias an argument)
+        rows[third] = arctan2(g, f, out=r)
+        gimbal = bool(mid.min() <= _GIMBAL_EPS or mid.max() >= np.pi - _GIMBAL_EPS)
+        if gimbal:
+            case1 = mid <= _GIMBAL_EPS
+            locked = case1 | (np.abs(mid - np.pi) <= _GIMBAL_EPS)
+            at = np.nonzero(locked)
+            lock_angle = np.where(case1[at], 2 * np.arctan2(b[at], a[at]),
+                                  (-2 if extrinsic else 2) * np.arctan2(d[at], c[at]))
+            lock_angle = np.where(lock_angle < -np.pi, lock_angle + 2 * np.pi,
+                                  np.where(lock_angle > np.pi, lock_angle - 2 * np.pi, lock_angle))
+            rows[2][at] = 0
+            rows[0][at] = lock_angle
+        if symmetric:
+            np.copyto(o[1], mid)
+        else:
+            np.subtract(mid, lamb, out=o[1])
+        np.copyto(o[first], rows[first])
+        if not symmetric and sign < 0:
+            np.multiply(rows[third], -1, out=o[third])
+        else:
+            np.copyto(o[third], rows[third])
     return gimbal
 
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._blocks import soa
+from ._validate import all_finite
 
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
@@ -39,7 +40,7 @@ def result_dtype(*arrays):
 ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
 
 
-def cos_sin(angle):
+def cos_sin(angle, c=None, s=None, rows=None):
     """(cos a, sin a) of an array of angles, by the cheaper exact route for its dtype.
 
     float32: `np.cos` and `np.sin`, SIMD loops on every x86 NumPy build.
@@ -50,6 +51,9 @@ def cos_sin(angle):
     ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
     small cosine is accurate to about one ulp of t.
 
+    Kernels pass output rows `c` and `s` and two scratch rows `rows` of the
+    angle's shape (none may overlap `angle`): then nothing is allocated.
+
     >>> import numpy as np
     >>> from quatarray._kernels import cos_sin
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
@@ -57,14 +61,22 @@ def cos_sin(angle):
     """
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
-        return np.cos(angle), np.sin(angle)
-    t = np.tan(angle * 0.5)
-    d = 1.0 / (1.0 + t * t)
-    c = (1.0 - t) * (1.0 + t)
-    c *= d
-    d *= 2.0
-    d *= t
-    return c, d
+        return np.cos(angle, out=c), np.sin(angle, out=s)
+    if c is None:
+        c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
+        rows = (np.empty_like(c), np.empty_like(c))
+    u, v = rows
+    np.multiply(angle, 0.5, out=s)
+    t = np.tan(s, out=s)
+    np.multiply(t, t, out=c)
+    c += 1.0
+    d = np.divide(2.0, c, out=c)            # 2 / (1 + t²)
+    np.subtract(1.0, t, out=u)
+    np.add(t, 1.0, out=v)
+    u *= v
+    u *= d
+    s *= d                                  # sin a = t · 2 / (1 + t²)
+    return np.multiply(u, 0.5, out=c), s    # cos a (halving is exact)
 
 
 def half_angle(angle, scale):
@@ -166,7 +178,7 @@ def _out(out, shape, dtype, name="out"):
     return out
 
 
-def multiply(p, q, out=None):
+def multiply(p, q, out=None, check=False):
     """Hamilton product ``p q`` of quaternion arrays, broadcasting batch shapes.
 
     Parameters
@@ -174,6 +186,10 @@ def multiply(p, q, out=None):
     p, q : ndarray, shape (..., 4)
         Scalar-first quaternions (float32 or float64).
     out : ndarray, shape (broadcast batch, 4), optional
+    check : bool, default False
+        Also return whether every element of the product is finite, judged
+        block by block while the block is in cache (no second pass over the
+        result).
 
     Examples
     --------
@@ -187,10 +203,10 @@ def multiply(p, q, out=None):
             and p.flags.c_contiguous and q.flags.c_contiguous):
         # fast path for the common case: same shape, same float dtype, C order
         if p.shape == (4,):
-            return _mul_scalar(p, q, p.dtype)
+            return _checked(_mul_scalar(p, q, p.dtype), check)
         res = np.empty(p.shape, p.dtype)
-        _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
-        return res
+        ok = _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
+        return (res, ok) if check else res
     dtype = result_dtype(p, q)
     batch = np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
     shape = batch + (4,)
@@ -214,18 +230,25 @@ def multiply(p, q, out=None):
         target[...] = _mul_scalar(p.reshape(4), q.reshape(4), dtype)
     if target is not res:
         res[...] = target
-    return res
+    return _checked(res, check)
+
+
+def _checked(res, check):
+    """`res`, or ``(res, all finite)`` with `check` (for results made in one piece)."""
+    return (res, all_finite(res)) if check else res
 
 
 def _mul_flat(p, q, o):
-    """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once)."""
+    """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once).
+    Returns whether every element of the product is finite."""
     ct = _COMPLEX[o.dtype]
     P, Q, O = p.view(ct), q.view(ct), o.view(ct)
 
     def block(idx):
         _mul_views(P[idx], Q[idx], O[idx])
+        return all_finite(o[idx])   # the block is still in cache
 
-    _blocks.run(block, _blocks.split((len(o),)), len(o))
+    return all(_blocks.run(block, _blocks.split((len(o),)), len(o)))
 
 
 def multiply_rows(p, q):
@@ -254,11 +277,12 @@ def _conj_signs(dtype):
     return _SIGNS[dtype]
 
 
-def conjugate(q, out=None):
+def conjugate(q, out=None, check=False):
     """Quaternion conjugate (w, -x, -y, -z).
 
     A flat multiply by a tiled sign pattern, block by block: long inner loops
-    instead of a length-3 one per quaternion.
+    instead of a length-3 one per quaternion.  With `check`, also returns
+    whether every element is finite, judged per block while it is in cache.
 
     >>> import numpy as np
     >>> from quatarray._kernels import conjugate
@@ -269,7 +293,7 @@ def conjugate(q, out=None):
     res = _out(out, q.shape, dtype)
     if q.ndim == 1 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
         np.multiply(q, _conj_signs(dtype)[:4], out=res)
-        return res
+        return _checked(res, check)
     src, dst = q.reshape(-1), res.reshape(-1)
     signs = _conj_signs(dtype)
 
@@ -277,9 +301,10 @@ def conjugate(q, out=None):
         sl = idx[0] if idx else slice(None)
         o = dst[sl]
         np.multiply(src[sl], signs[:o.size], out=o)
+        return not check or all_finite(o)
 
-    _blocks.run(block, _blocks.split((src.size,), signs.size), src.size // 4)
-    return res
+    ok = all(_blocks.run(block, _blocks.split((src.size,), signs.size), src.size // 4))
+    return (res, ok) if check else res
 
 
 def sqnorm(q):
@@ -414,16 +439,19 @@ def inverse(q):
 
 
 def _k_exp(q, o):
-    vn = _scale.sum_squares(q, o[0], 1)
-    np.sqrt(vn, out=vn)
-    ew = np.exp(q[0])
-    # cos|v| and sin|v| / |v| (limit 1 at |v| = 0) from one tangent
-    np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
-    c, s = half_angle(vn, 0.5)
-    s /= vn
-    s *= ew
-    np.multiply(q[1:], s, out=o[1:])
-    np.multiply(c, ew, out=o[0])
+    with _blocks.scratch().frame() as work:
+        vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
+        _scale.sum_squares(q, vn, 1)
+        np.sqrt(vn, out=vn)
+        np.exp(q[0], out=ew)
+        # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
+        np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
+        cos_sin(vn, c, s, (u, v))
+        s /= vn
+        s *= ew
+        for k in (1, 2, 3):
+            np.multiply(q[k], s, out=o[k])
+        np.multiply(c, ew, out=o[0])
 
 
 def exp(q):
@@ -453,17 +481,19 @@ def _log_parts(q):
     (θ = π).  Blocks of extreme magnitude are rescaled in place first by
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
     rescaled q, which is what the callers multiply."""
-    work = _blocks.scratch()
-    n2 = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0])
+    n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
+    _scale.sum_squares(q, n2)
     e = _scale.guard(q, n2)
-    vv = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0], 1)
+    _scale.sum_squares(q, vv, 1)
     w = q[0]
-    d = (w - 1) * (w + 1)
-    d += vv
-    u = d + 1
-    ln = np.log(u)
-    um1 = u - 1
-    um1 = np.divide(d, um1, out=um1)      # nan or inf where u = 1: fixed below
+    np.subtract(w, 1, out=d)
+    np.add(w, 1, out=u)
+    d *= u
+    d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
+    np.add(d, 1, out=u)
+    np.log(u, out=ln)
+    um1 = np.subtract(u, 1, out=theta)    # (theta's row as scratch)
+    np.divide(d, um1, out=um1)            # nan or inf where u = 1: fixed below
     ln *= um1
     np.copyto(ln, d, where=u == 1)
     ln *= 0.5
@@ -471,8 +501,8 @@ def _log_parts(q):
     if small.any():
         ln[small] = 0.5 * np.log(n2[small])
     vn = np.sqrt(vv, out=vv)
-    theta = arctan2(vn, w)
-    scale = theta / vn
+    arctan2(vn, w, out=theta)
+    np.divide(theta, vn, out=scale)
     lim = vn == 0
     if lim.any():
         scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
@@ -511,26 +541,34 @@ def log(q):
 def _k_power(q, t, o):
     t = t[0]
     ln, theta, vn, scale, e = _log_parts(q)
-    mag = np.exp(t * ln)
+    mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
+    np.multiply(t, ln, out=mag)
+    np.exp(mag, out=mag)
     if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
-        mag = mag * np.exp2(t * e)
-    zero = (vn == 0) & (q[0] == 0)
+        mag *= np.exp2(t * e)
+    real = vn == 0
+    zero = real & (q[0] == 0)
     if zero.any():
-        mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
-    ang = t * theta
-    # sin and cos, not `half_angle`: cos(tθ) keeps its relative accuracy near tθ = π/2
+        np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
+    np.multiply(t, theta, out=ang)
+    # sin and cos, not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2
     # (principal roots of negative reals)
-    cos_a, sin_a = np.cos(ang), np.sin(ang)
+    np.cos(ang, out=c)
+    np.sin(ang, out=sn)
+    np.multiply(mag, c, out=o[0])
     # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
-    s = np.where(vn > 0, sin_a / np.where(vn > 0, vn, 1), t * scale)
-    factor = mag * s
+    if real.any():
+        np.copyto(ang, np.where(real, t * scale, sn / np.where(real, 1, vn)))
+    else:
+        np.divide(sn, vn, out=ang)
+    ang *= mag
     if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
-        factor = np.where(zero, 0.0, factor)
-    np.multiply(mag, cos_a, out=o[0])
-    np.multiply(q[1:], factor, out=o[1:])
-    neg_real = (vn == 0) & (q[0] < 0)
+        ang[zero] = 0.0
+    for k in (1, 2, 3):
+        np.multiply(q[k], ang, out=o[k])
+    neg_real = real & (q[0] < 0)
     if neg_real.any():
-        np.copyto(o[1], mag * sin_a, where=neg_real)
+        np.copyto(o[1], mag * sn, where=neg_real)
 
 
 def power(q, t):
@@ -614,12 +652,25 @@ def _rotate_scalar(q, u, dtype, inverse=False):
 
 def _rotate_block(q, u, o, wsign):
     n2 = _scale.guarded_sqnorm(q)
-    w, x, y, z = q[0] * wsign, q[1], q[2], q[3]
+    w, x, y, z = q            # q is the block's scratch copy: w may be negated in place
+    if wsign < 0:
+        np.multiply(w, -1.0, out=w)
     ux, uy, uz = u
     s = np.divide(2.0, n2, out=n2)
-    tx = (y * uz - z * uy) * s
-    ty = (z * ux - x * uz) * s
-    tz = (x * uy - y * ux) * s
-    o[0] = ux + w * tx + (y * tz - z * ty)
-    o[1] = uy + w * ty + (z * tx - x * tz)
-    o[2] = uz + w * tz + (x * ty - y * tx)
+    with _blocks.scratch().frame() as work:
+        tx, ty, tz, m, r, v = work.rows(6, n2.shape, o.dtype)
+        # t = s vec × u
+        for t, (a, b, c, d) in ((tx, (y, uz, z, uy)), (ty, (z, ux, x, uz)), (tz, (x, uy, y, ux))):
+            np.multiply(a, b, out=t)
+            np.multiply(c, d, out=m)
+            t -= m
+            t *= s
+        # u' = u + w t + vec × t, each row written once into the (strided) output
+        for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
+                                                  (uz, tz, x, ty, y, tx))):
+            np.multiply(w, tk, out=r)
+            r += uk
+            np.multiply(a, b, out=v)
+            np.multiply(c, d, out=m)
+            v -= m
+            np.add(r, v, out=o[k])

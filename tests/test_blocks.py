@@ -232,9 +232,11 @@ def _retained(call):
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_scratch_stays_bounded_whatever_the_batch_shape(rng, threads, parallel_always):
-    """Wide batches of tracks (the old pool kept scratch proportional to the number of
-    tracks: 8 rows of 20 blocks here) leave at most SCRATCH_LIMIT per thread behind."""
-    keys = random_quats(rng, (3, 20 * BLOCK), np.float64)
+    """Wide batches of tracks leave at most SCRATCH_LIMIT per thread behind (the old pool
+    kept scratch proportional to the number of tracks: 8 float64 rows per track, here
+    over more tracks than SCRATCH_LIMIT holds rows of)."""
+    wide = (_blocks.SCRATCH_LIMIT // (8 * 8 * BLOCK) + 2) * BLOCK
+    keys = random_quats(rng, (3, wide), np.float64)
     times = np.array([0.0, 1.0, 2.5])
     bound = threads * _blocks.SCRATCH_LIMIT
     with quatarray.num_threads(threads):
@@ -246,3 +248,21 @@ def test_scratch_stays_bounded_whatever_the_batch_shape(rng, threads, parallel_a
         p = random_quats(rng, (2, 5 * BLOCK), np.float64)
         kept = _retained(lambda: [IK.slerp(p, p[::-1], np.full(p.shape[:-1], 0.3))])
         assert kept <= bound
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("where", [None, 0, BLOCK + 3, 3 * BLOCK - 1])
+def test_product_and_conjugate_judge_finiteness_block_by_block(rng, threads, where, parallel_always):
+    """`check=True` reports whether the whole result is finite, whichever block holds
+    the one non-finite element (the flag is judged per block, while it is in cache)."""
+    p = random_quats(rng, (3 * BLOCK,), np.float64)
+    q = random_quats(rng, (3 * BLOCK,), np.float64)
+    if where is not None:
+        q[where, 2] = np.inf
+    with quatarray.num_threads(threads):
+        prod, ok_prod = K.multiply(p, q, check=True)
+        conj, ok_conj = K.conjugate(q, check=True)
+    np.testing.assert_array_equal(prod, K.multiply(p, q))
+    np.testing.assert_array_equal(conj, K.conjugate(q))
+    assert ok_prod == bool(np.isfinite(prod).all()) == (where is None)
+    assert ok_conj == bool(np.isfinite(conj).all()) == (where is None)
