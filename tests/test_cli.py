@@ -455,6 +455,21 @@ def test_csv_npz_csv_keeps_the_header_and_crlf(tmp_path):
     assert (tmp_path / "b.csv").read_text().split("\n", 1)[0] == open(example_path("arm.csv")).readline().strip()
 
 
+@pytest.mark.parametrize("precision", ["3", "full"])
+def test_csv_precision_option(tmp_path, precision):
+    out = tmp_path / "out.csv"
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(out), "--fps", "4", "--precision", precision]) == 0
+    want = resample_keyframes(read_csv(example_path("arm.csv")), fps_times(0.0, 4.0, 4))
+    rows = [line.split(",")[1:] for line in out.read_text().splitlines()[1:]]
+    got = read_csv(out)
+    if precision == "full":        # the shortest text that reads back exactly
+        np.testing.assert_array_equal(got.keys, want.keys)
+        assert all(repr(float(c)) == c for row in rows for c in row)
+    else:
+        assert {len(c.partition(".")[2]) for row in rows for c in row} == {3}
+        np.testing.assert_allclose(got.keys, want.keys, rtol=0, atol=0.5e-3 * (1 + 1e-9))
+
+
 @pytest.mark.parametrize("argv", [["--precision", "-1"], ["--precision", "two"], ["--precision", "31"]])
 def test_precision_usage_errors(argv, capsys):
     with pytest.raises(SystemExit) as info:
@@ -490,6 +505,14 @@ def test_readme_says_clone_and_cd_first():
     section = readme_section("Two commands")
     first_pip = section.index("pip install")
     assert "git clone" in section[:first_pip] and "cd quatarray" in section[:first_pip]
+
+
+def test_readme_documents_the_frame_time_rule_and_gltf_from_the_demo():
+    section = readme_section("Resample a keyframe file")
+    assert "rule chosen" in section and "Frame Time" in section and "1/n" in section
+    demo = section.index("quatarray demo")
+    glb = [m.start() for m in re.finditer(r"quatarray resample demo_arm\.glb -o \S+\.(glb|gltf)", section)]
+    assert glb and min(glb) > demo and "demo_arm.csv" in section and "demo_imu.csv" in section
 
 
 def test_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):

@@ -529,6 +529,28 @@ def test_normalized_integer_rotations(tmp_path, rng, ctype):
     np.testing.assert_allclose(got, [spec_value(times, w, "LINEAR", x, False) for x in t], rtol=0, atol=2 * EPS32)
 
 
+@pytest.mark.parametrize("ctype", [5121, 5123])
+def test_unsigned_normalized_integer_rotations(tmp_path, rng, ctype):
+    # unsigned bytes and shorts hold rotations whose components are all >= 0, decoded c / 255, c / 65535
+    scale = float(np.iinfo(DTYPES[ctype]).max)
+    codes = np.round(np.abs(unit(rng, 4)) * scale)
+    times = np.array([0.0, 0.5, 1.0, 2.0], np.float32)
+    b = Builder()
+    b.g.nodes = [pygltflib.Node(name="a")]
+    anim = pygltflib.Animation()
+    b.channel(anim, 0, "rotation", times, codes, "VEC4", "LINEAR", ctype=ctype, normalized=True)
+    b.g.animations = [anim]
+    b.save(tmp_path / "in.glb")
+    decoded = codes / scale
+    np.testing.assert_array_equal(read_accessor(read_gltf(tmp_path / "in.glb"), anim.samplers[0].output), decoded)
+    resample_gltf(tmp_path / "in.glb", tmp_path / "out.glb", fps=8)
+    doc, data = load(tmp_path / "out.glb")
+    t, got, _ = channel_output(doc, data, 0, 0, "rotation")
+    assert len(t) == 17
+    unitkeys = decoded / np.linalg.norm(decoded, axis=1, keepdims=True)
+    assert_close(got, [spec_value(times, unitkeys, "LINEAR", x, True) for x in t], True, 4 * EPS32)
+
+
 def test_sparse_output_accessor(tmp_path, rng):
     times = np.array([0.0, 1.0, 2.0], np.float32)
     base, patch = rng.normal(size=(3, 3)), rng.normal(size=(1, 3))
