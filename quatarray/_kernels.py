@@ -269,12 +269,12 @@ def multiply_rows(p, q):
 _SIGNS = {}
 
 
-def _conj_signs(dtype):
-    """(1, -1, -1, -1) tiled over one block, per dtype (built once)."""
-    dtype = np.dtype(dtype)
-    if dtype not in _SIGNS:
-        _SIGNS[dtype] = np.tile(np.array([1, -1, -1, -1], dtype), _blocks.BLOCK)
-    return _SIGNS[dtype]
+def _conj_signs(dtype, n=_blocks.BLOCK):
+    """(1, -1, -1, -1) tiled over `n` quaternions (one block, or 1), per dtype (built once)."""
+    key = (np.dtype(dtype), n)
+    if key not in _SIGNS:
+        _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], dtype), n)
+    return _SIGNS[key]
 
 
 def conjugate(q, out=None, check=False):
@@ -292,7 +292,7 @@ def conjugate(q, out=None, check=False):
     dtype = result_dtype(q)
     res = _out(out, q.shape, dtype)
     if q.ndim == 1 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
-        np.multiply(q, _conj_signs(dtype)[:4], out=res)
+        np.multiply(q, _conj_signs(dtype, 1), out=res)
         return _checked(res, check)
     src, dst = q.reshape(-1), res.reshape(-1)
     signs = _conj_signs(dtype)
