@@ -451,7 +451,7 @@ def _flip_one(w, x, y, z):
 def _k_as_rotvec(q, o, factor):
     nv = _vector_norm(q)
     w, x, y, z = q
-    half = arctan2(nv, np.abs(w))
+    half = arctan2(nv, np.abs(w), x_nonneg=True)
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
     scale = np.where(_flip_mask(w, x, y, z), -scale, scale)   # not a masked negative: cheaper
@@ -568,7 +568,7 @@ def from_rotvec(rotvec, degrees=False):
 
 
 def _k_magnitude(q, o):
-    arctan2(_vector_norm(q), np.abs(q[0]), out=o[0])
+    arctan2(_vector_norm(q), np.abs(q[0]), out=o[0], x_nonneg=True)
     o[0] *= 2.0
 
 

@@ -90,7 +90,7 @@ def half_angle(angle, scale):
     return cos_sin(angle * (2 * scale))
 
 
-def arctan2(y, x, out=None):
+def arctan2(y, x, out=None, x_nonneg=False):
     """``np.arctan2(y, x)`` from one ``arctan`` of the ratio: arctan(y / x), plus
     ±π (the sign of y) where x is negative or -0.0.
 
@@ -98,6 +98,8 @@ def arctan2(y, x, out=None):
     is within about 2 ulp of ``np.arctan2``'s, signed zeros included, for a
     fraction of its cost on CPUs without AVX-512 (benchmarks/README.md).
     Differs from `np.arctan2` only where both are infinite (NaN here).
+    `x_nonneg`: the caller knows x >= +0 (a norm, an absolute value), so no
+    ±π fix is looked for.  `out` must not be `x` or `y`.
 
     >>> import numpy as np
     >>> from quatarray._kernels import arctan2
@@ -107,10 +109,12 @@ def arctan2(y, x, out=None):
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
-    nan = np.isnan(out)
-    if nan.any():   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
+    if out.size and np.isnan(np.minimum.reduce(out, axis=None)):   # a reduction, no mask, when none
+        nan = np.isnan(out)   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
         np.copyto(out, y, where=nan & (x == 0))
     np.arctan(out, out=out)
+    if x_nonneg:
+        return out
     neg = np.signbit(x)
     if neg.any():   # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan
         turn = np.copysign(np.pi, y, dtype=out.dtype)
