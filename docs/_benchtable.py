@@ -59,3 +59,50 @@ def read(path):
                         row[names[i + 1]] = None
                 rows.append(row)
     return comments, rows
+
+
+#: Peer ratio columns of the README's compact table, in order: (README heading, column here).
+README_COLUMNS = [("÷ np.add", "qa/add"), ("scipy", "scipy /qa"), ("numpy-quaternion", "numpy-quat /qa"),
+                  ("quaternionic", "quaternion /qa")]
+
+
+def _time(seconds):
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9)):
+        if seconds >= scale:
+            value = seconds / scale
+            return f"{value:.3g} {unit}"
+    return f"{seconds / 1e-9:.3g} ns"
+
+
+def readme_table(path):
+    """The README's compact benchmark table (markdown lines) from a run saved at `path`:
+    one row per operation at N = 10⁶ float64 (and the size-less resample rows, and the
+    10⁴-key tracks), with quatarray's time, its ratio to np.add, each peer's ratio, and
+    the N = 1 ratio for scipy."""
+    _, rows = read(path)
+    big = [r for r in rows if r["dtype"] == "float64" and r["N"] in (1_000_000, None)
+           and "10 keys" not in r["operation"]]
+    one = {r["operation"]: r for r in rows if r["dtype"] == "float64" and r["N"] == 1}
+    names = ["operation", "quatarray"] + [h for h, _ in README_COLUMNS] + ["N = 1: scipy"]
+    lines = ["| " + " | ".join(names) + " |", "|---|" + "--:|" * (len(names) - 1)]
+
+    def ratio(row, key):
+        value = None if row is None else row.get(key)
+        return "–" if value is None else f"{value:.2f}"
+
+    seen = set()
+    for r in big:
+        seen.add(r["operation"])
+        cells = [r["operation"].replace("10000", "10⁴"), "–" if r.get("quatarray") is None else _time(r["quatarray"])]
+        cells += [ratio(r, key) for _, key in README_COLUMNS]
+        cells.append(ratio(one.get(r["operation"]), "scipy /qa"))
+        lines.append("| " + " | ".join(cells) + " |")
+    for op, r in one.items():   # operations measured on one element only
+        if op not in seen:
+            lines.append("| " + " | ".join([op, "–"] + ["–"] * len(README_COLUMNS) + [ratio(r, "scipy /qa")]) + " |")
+    return lines
+
+
+if __name__ == "__main__":   # python docs/_benchtable.py docs/guide/benchmark_table.txt
+    import sys
+    print("\n".join(readme_table(sys.argv[1])))

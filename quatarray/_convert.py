@@ -31,6 +31,7 @@ import numpy as np
 
 from . import _blocks, _scale
 from ._kernels import ANGLE_FLOOR, arctan2, matrix_entries, multiply_one
+from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._scale import ONE_HIGH, ONE_LOW
 from ._validate import finite, float_array, quat_array
@@ -472,7 +473,7 @@ def _flip_one(w, x, y, z):
 def _k_as_rotvec(q, o, factor):
     nv = _vector_norm(q)
     w, x, y, z = q
-    half = arctan2(nv, np.abs(w))
+    half = arctan2(nv, np.abs(w), x_nonneg=True)
     # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
     scale = half / np.where(nv > 0, nv, 1.0)
     scale = np.where(_flip_mask(w, x, y, z), -scale, scale)   # not a masked negative: cheaper
@@ -549,7 +550,7 @@ def rotvec_floats(c, degrees=False):
 def _k_from_rotvec(v, q, factor):
     x, y, z = v
     with _blocks.scratch().frame() as work:
-        theta, t, u, d, c = work.rows(5, x.shape, q.dtype)
+        theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
         np.multiply(x, x, out=theta)
         np.multiply(y, y, out=u)
         theta += u
@@ -559,22 +560,9 @@ def _k_from_rotvec(v, q, factor):
         if factor != 1.0:
             theta *= factor
         np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
-        if q.dtype == np.float32:   # float32 sin and cos are SIMD loops (see `_kernels.cos_sin`)
-            np.multiply(theta, 0.5, out=t)
-            np.cos(t, out=q[0])
-            np.sin(t, out=d)
-        else:   # one tangent of the quarter angle, t: cos(θ/2) = (1 - t²) / (1 + t²), sin(θ/2) = 2t / (1 + t²)
-            np.multiply(theta, 0.25, out=t)
-            np.tan(t, out=t)
-            np.multiply(t, t, out=d)
-            d += 1.0
-            np.divide(2.0, d, out=d)         # 2 / (1 + t²)
-            np.subtract(1.0, t, out=u)
-            np.add(t, 1.0, out=c)            # (1 - t)(1 + t): accurate where t ≈ 1 (θ ≈ π)
-            c *= u
-            c *= d
-            np.multiply(c, 0.5, out=q[0])    # one strided pass into the output
-            d *= t                           # sin(θ/2)
+        np.multiply(theta, 0.5, out=t)
+        _cos_sin(t, c, d, (u, v))            # cos(θ/2), sin(θ/2)
+        np.copyto(q[0], c)
         # sin(θ/2) / θ, times the degree factor that converts v itself
         d /= theta
         if factor != 1.0:
@@ -641,7 +629,7 @@ def from_rotvec_floats(v, dtype, factor=1.0):
 
 
 def _k_magnitude(q, o):
-    arctan2(_vector_norm(q), np.abs(q[0]), out=o[0])
+    arctan2(_vector_norm(q), np.abs(q[0]), out=o[0], x_nonneg=True)
     o[0] *= 2.0
 
 

@@ -190,7 +190,7 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
         np.multiply(b, b, out=v)
         u += v
         np.sqrt(u, out=u)                    # |(a, b)|
-        arctan2(r, u, out=mid)
+        arctan2(r, u, out=mid, x_nonneg=True)
         mid *= 2.0                           # the middle angle, in [0, π]
         np.multiply(a, c, out=f)
         np.multiply(b, d, out=g)

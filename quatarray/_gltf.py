@@ -8,8 +8,12 @@ buffer.  Every other object and property -- nodes, meshes, skins, materials,
 images, ``extras``, extensions -- is written back as it was, with accessor and
 buffer-view indices renumbered where the compaction moved them (core
 properties, ``KHR_draco_mesh_compression`` and ``EXT_mesh_gpu_instancing``).
-A parsed object model such as pygltflib's would not do here: it drops
-properties it does not model (a node's default morph ``weights``, for one).
+The file is read and written as JSON here, not through pygltflib's object
+model (the issue asked for pygltflib): a load-and-save with pygltflib 1.16.5
+drops core properties -- a node's default morph ``weights``, a mesh's empty
+``primitives`` array -- and rewrites ``asset.generator``, so the file would
+not come back untouched.  pygltflib stays the tool the tests build their
+input files with.
 
 Reading lives in `quatarray._gltf_read`, the samplers' maths in
 `quatarray._gltf_sampler`.  A ``.glb`` output holds its buffer in the ``BIN``
@@ -118,7 +122,7 @@ def _float_accessor(blob, accessors, values, kind, name=None, bounds=False):
 
 
 def write_gltf(dst, gf, animations):
-    """Write `gf` to `dst` (``.glb`` or ``.gltf``) with the animations' samplers replaced.
+    """Write `gf` to `dst` (``.glb`` or ``.gltf``) with the animations' samplers replaced by LINEAR ones.
 
     Parameters
     ----------
@@ -128,8 +132,8 @@ def write_gltf(dst, gf, animations):
     animations : list
         One entry per animation of the file: ``(times, outputs)`` with
         ``times`` (M,) float32 shared by all its samplers and ``outputs`` a
-        list of ``(values (M, n), interpolation)``, one per sampler; or
-        None to leave that animation's samplers as they are.
+        list of values (M, n), one per sampler, the keys of a LINEAR
+        sampler; or None to leave that animation's samplers as they are.
 
     Accessors and buffer views that only the replaced samplers used are
     dropped; everything else is copied into one compact buffer.
@@ -164,10 +168,10 @@ def write_gltf(dst, gf, animations):
         times, outputs = new
         name = old_accessors[samplers[0]["input"]].get("name") if samplers else None
         shared = _float_accessor(blob, accessors, np.reshape(times, (-1, 1)), "SCALAR", name, bounds=True)
-        for sampler, (values, interpolation) in zip(samplers, outputs):
+        for sampler, values in zip(samplers, outputs):
             old = old_accessors[sampler["output"]]
             n = SIZES[old["type"]]
-            sampler.update(input=shared, interpolation=interpolation,
+            sampler.update(input=shared, interpolation="LINEAR",
                            output=_float_accessor(blob, accessors, np.reshape(values, (-1, n)), old["type"],
                                                   old.get("name")))
     blob.data += b"\0" * (-len(blob.data) % _ALIGN)
@@ -221,8 +225,11 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     Each animation is sampled on one time grid shared by its samplers:
     ``t0 + k / fps`` from its first to its last key time (over all its
     samplers; a sampler whose keys end earlier holds its end values there,
-    as the spec says), or at `times`.  The samplers are written LINEAR at
-    those times (STEP samplers stay STEP, with the values they hold there).
+    as the spec says), or at `times`.  Every sampler is written LINEAR, with
+    keys at those times holding the values its own interpolation gives there
+    (a STEP sampler's held value, a CUBICSPLINE sampler's curve).  Between
+    the new keys a step thus becomes a ramp one frame long: sample at the
+    rate the steps need.
 
     Parameters
     ----------

@@ -88,32 +88,35 @@ def evaluate_sampler(times, values, interpolation, t, rotation=False):
 
 
 def resample_sampler(times, values, interpolation, t, rotation=False, method=None):
-    """Values at `t` to store as a LINEAR (or, for STEP, a STEP) sampler.
+    """Values at `t` to store as the keys of a LINEAR sampler.
 
-    With `method` None the sampler's own interpolation is evaluated
-    (`evaluate_sampler`).  For a rotation sampler with LINEAR or CUBICSPLINE
-    interpolation, `method` ('slerp', 'squad', 'bezier' or 'linear') instead
-    draws `quatarray.interpolate.Track`'s curve through the key values
+    With `method` None the sampler's own interpolation is evaluated at `t`
+    (`evaluate_sampler`): a STEP sampler gives the value it holds at each
+    query time, a CUBICSPLINE sampler the Hermite curve's value.  For a
+    rotation sampler with LINEAR or CUBICSPLINE interpolation, `method`
+    ('slerp', 'squad', 'bezier' or 'linear') instead draws
+    `quatarray.interpolate.Track`'s curve through the key values
     (CUBICSPLINE tangents are then not used).  STEP samplers, and the other
     paths, keep their own interpolation.  Rotations come out normalised, with
-    consecutive signs agreeing (``q · q_next >= 0``).
+    consecutive signs agreeing (``q · q_next >= 0``), so that slerp between
+    written keys takes the short path the curve took.
 
     Returns
     -------
-    tuple
-        ``(out, interpolation)``: the values (M, n) and the interpolation the
-        written sampler needs ('LINEAR', or 'STEP' for a STEP sampler).
+    ndarray, shape (M, n), float64
 
     Examples
     --------
     >>> import numpy as np
     >>> from quatarray._gltf_sampler import resample_sampler
     >>> keys = np.array([[0, 0, 0, 1.0], [0, 0, 1.0, 0]])        # identity, 180 deg about z
-    >>> out, kind = resample_sampler(np.array([0.0, 1.0]), keys, "LINEAR", np.array([0.5]), rotation=True)
-    >>> out.round(4), kind
-    (array([[0.    , 0.    , 0.7071, 0.7071]]), 'LINEAR')
+    >>> resample_sampler(np.array([0.0, 1.0]), keys, "LINEAR", np.array([0.5]), rotation=True).round(4)
+    array([[0.    , 0.    , 0.7071, 0.7071]])
+    >>> resample_sampler(np.array([0.0, 1.0]), np.array([[0.0], [2.0]]), "STEP", np.array([0.0, 0.5, 1.0]))
+    array([[0.],
+           [0.],
+           [2.]])
     """
-    kind = "STEP" if interpolation == "STEP" else "LINEAR"
     if method is None or not rotation or interpolation == "STEP" or len(times) < 2:
         out = evaluate_sampler(times, values, interpolation, t, rotation)
     else:
@@ -124,4 +127,4 @@ def resample_sampler(times, values, interpolation, t, rotation=False, method=Non
         out = np.roll(np.asarray(track(np.asarray(t, np.float64))), -1, axis=-1)
     if rotation:
         out = IK.unflip(_normalise(out), 0)
-    return out, kind
+    return out

@@ -42,7 +42,7 @@ def result_dtype(*arrays):
 ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
 
 
-def cos_sin(angle):
+def cos_sin(angle, c=None, s=None, rows=None):
     """(cos a, sin a) of an array of angles, by the cheaper exact route for its dtype.
 
     float32: `np.cos` and `np.sin`, SIMD loops on every x86 NumPy build.
@@ -53,6 +53,9 @@ def cos_sin(angle):
     ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
     small cosine is accurate to about one ulp of t.
 
+    Kernels pass output rows `c` and `s` and two scratch rows `rows` of the
+    angle's shape (none may overlap `angle`): then nothing is allocated.
+
     >>> import numpy as np
     >>> from quatarray._kernels import cos_sin
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
@@ -60,14 +63,22 @@ def cos_sin(angle):
     """
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
-        return np.cos(angle), np.sin(angle)
-    t = np.tan(angle * 0.5)
-    d = 1.0 / (1.0 + t * t)
-    c = (1.0 - t) * (1.0 + t)
-    c *= d
-    d *= 2.0
-    d *= t
-    return c, d
+        return np.cos(angle, out=c), np.sin(angle, out=s)
+    if c is None:
+        c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
+        rows = (np.empty_like(c), np.empty_like(c))
+    u, v = rows
+    np.multiply(angle, 0.5, out=s)
+    t = np.tan(s, out=s)
+    np.multiply(t, t, out=c)
+    c += 1.0
+    d = np.divide(2.0, c, out=c)            # 2 / (1 + t²)
+    np.subtract(1.0, t, out=u)
+    np.add(t, 1.0, out=v)
+    u *= v
+    u *= d
+    s *= d                                  # sin a = t · 2 / (1 + t²)
+    return np.multiply(u, 0.5, out=c), s    # cos a (halving is exact)
 
 
 def half_angle(angle, scale):
@@ -81,7 +92,7 @@ def half_angle(angle, scale):
     return cos_sin(angle * (2 * scale))
 
 
-def arctan2(y, x, out=None):
+def arctan2(y, x, out=None, x_nonneg=False):
     """``np.arctan2(y, x)`` from one ``arctan`` of the ratio: arctan(y / x), plus
     ±π (the sign of y) where x is negative or -0.0.
 
@@ -89,6 +100,8 @@ def arctan2(y, x, out=None):
     is within about 2 ulp of ``np.arctan2``'s, signed zeros included, for a
     fraction of its cost on CPUs without AVX-512 (benchmarks/README.md).
     Differs from `np.arctan2` only where both are infinite (NaN here).
+    `x_nonneg`: the caller knows x >= +0 (a norm, an absolute value), so no
+    ±π fix is looked for.  `out` must not be `x` or `y`.
 
     >>> import numpy as np
     >>> from quatarray._kernels import arctan2
@@ -98,10 +111,12 @@ def arctan2(y, x, out=None):
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
-    nan = np.isnan(out)
-    if nan.any():   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
+    if out.size and np.isnan(np.minimum.reduce(out, axis=None)):   # a reduction, no mask, when none
+        nan = np.isnan(out)   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
         np.copyto(out, y, where=nan & (x == 0))
     np.arctan(out, out=out)
+    if x_nonneg:
+        return out
     neg = np.signbit(x)
     if neg.any():   # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan
         turn = np.copysign(np.pi, y, dtype=out.dtype)
@@ -270,12 +285,12 @@ def multiply_rows(p, q):
 _SIGNS = {}
 
 
-def _conj_signs(dtype):
-    """(1, -1, -1, -1) tiled over one block, per dtype (built once)."""
-    dtype = np.dtype(dtype)
-    if dtype not in _SIGNS:
-        _SIGNS[dtype] = np.tile(np.array([1, -1, -1, -1], dtype), _blocks.BLOCK)
-    return _SIGNS[dtype]
+def _conj_signs(dtype, n=_blocks.BLOCK):
+    """(1, -1, -1, -1) tiled over `n` quaternions (one block, or 1), per dtype (built once)."""
+    key = (np.dtype(dtype), n)
+    if key not in _SIGNS:
+        _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], dtype), n)
+    return _SIGNS[key]
 
 
 def conjugate(q, out=None, check=False):
@@ -293,7 +308,7 @@ def conjugate(q, out=None, check=False):
     dtype = result_dtype(q)
     res = _out(out, q.shape, dtype)
     if q.ndim == 1 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
-        np.multiply(q, _conj_signs(dtype)[:4], out=res)
+        np.multiply(q, _conj_signs(dtype, 1), out=res)
         return _checked(res, check)
     src, dst = q.reshape(-1), res.reshape(-1)
     signs = _conj_signs(dtype)
@@ -440,16 +455,19 @@ def inverse(q):
 
 
 def _k_exp(q, o):
-    vn = _scale.sum_squares(q, o[0], 1)
-    np.sqrt(vn, out=vn)
-    ew = np.exp(q[0])
-    # cos|v| and sin|v| / |v| (limit 1 at |v| = 0) from one tangent
-    np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
-    c, s = half_angle(vn, 0.5)
-    s /= vn
-    s *= ew
-    np.multiply(q[1:], s, out=o[1:])
-    np.multiply(c, ew, out=o[0])
+    with _blocks.scratch().frame() as work:
+        vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
+        _scale.sum_squares(q, vn, 1)
+        np.sqrt(vn, out=vn)
+        np.exp(q[0], out=ew)
+        # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
+        np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
+        cos_sin(vn, c, s, (u, v))
+        s /= vn
+        s *= ew
+        for k in (1, 2, 3):
+            np.multiply(q[k], s, out=o[k])
+        np.multiply(c, ew, out=o[0])
 
 
 def exp(q):
@@ -479,17 +497,19 @@ def _log_parts(q):
     (θ = π).  Blocks of extreme magnitude are rescaled in place first by
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
     rescaled q, which is what the callers multiply."""
-    work = _blocks.scratch()
-    n2 = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0])
+    n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
+    _scale.sum_squares(q, n2)
     e = _scale.guard(q, n2)
-    vv = _scale.sum_squares(q, work.rows(1, q.shape[1:], q.dtype)[0], 1)
+    _scale.sum_squares(q, vv, 1)
     w = q[0]
-    d = (w - 1) * (w + 1)
-    d += vv
-    u = d + 1
-    ln = np.log(u)
-    um1 = u - 1
-    um1 = np.divide(d, um1, out=um1)      # nan or inf where u = 1: fixed below
+    np.subtract(w, 1, out=d)
+    np.add(w, 1, out=u)
+    d *= u
+    d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
+    np.add(d, 1, out=u)
+    np.log(u, out=ln)
+    um1 = np.subtract(u, 1, out=theta)    # (theta's row as scratch)
+    np.divide(d, um1, out=um1)            # nan or inf where u = 1: fixed below
     ln *= um1
     np.copyto(ln, d, where=u == 1)
     ln *= 0.5
@@ -497,8 +517,8 @@ def _log_parts(q):
     if small.any():
         ln[small] = 0.5 * np.log(n2[small])
     vn = np.sqrt(vv, out=vv)
-    theta = arctan2(vn, w)
-    scale = theta / vn
+    arctan2(vn, w, out=theta)
+    np.divide(theta, vn, out=scale)
     lim = vn == 0
     if lim.any():
         scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
@@ -537,26 +557,34 @@ def log(q):
 def _k_power(q, t, o):
     t = t[0]
     ln, theta, vn, scale, e = _log_parts(q)
-    mag = np.exp(t * ln)
+    mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
+    np.multiply(t, ln, out=mag)
+    np.exp(mag, out=mag)
     if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
-        mag = mag * np.exp2(t * e)
-    zero = (vn == 0) & (q[0] == 0)
+        mag *= np.exp2(t * e)
+    real = vn == 0
+    zero = real & (q[0] == 0)
     if zero.any():
-        mag = np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag)
-    ang = t * theta
-    # sin and cos, not `half_angle`: cos(tθ) keeps its relative accuracy near tθ = π/2
+        np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
+    np.multiply(t, theta, out=ang)
+    # sin and cos, not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2
     # (principal roots of negative reals)
-    cos_a, sin_a = np.cos(ang), np.sin(ang)
+    np.cos(ang, out=c)
+    np.sin(ang, out=sn)
+    np.multiply(mag, c, out=o[0])
     # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
-    s = np.where(vn > 0, sin_a / np.where(vn > 0, vn, 1), t * scale)
-    factor = mag * s
+    if real.any():
+        np.copyto(ang, np.where(real, t * scale, sn / np.where(real, 1, vn)))
+    else:
+        np.divide(sn, vn, out=ang)
+    ang *= mag
     if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
-        factor = np.where(zero, 0.0, factor)
-    np.multiply(mag, cos_a, out=o[0])
-    np.multiply(q[1:], factor, out=o[1:])
-    neg_real = (vn == 0) & (q[0] < 0)
+        ang[zero] = 0.0
+    for k in (1, 2, 3):
+        np.multiply(q[k], ang, out=o[k])
+    neg_real = real & (q[0] < 0)
     if neg_real.any():
-        np.copyto(o[1], mag * sin_a, where=neg_real)
+        np.copyto(o[1], mag * sn, where=neg_real)
 
 
 def power(q, t):

@@ -195,9 +195,18 @@ def _run(graph, scheduler, show):
                 progress(futures)
             client.gather(futures)
         return
-    if show:
-        from dask.diagnostics import ProgressBar
-        with ProgressBar(out=sys.stderr):
-            dask.compute(graph, scheduler="threads")
-    else:
-        dask.compute(graph, scheduler="threads")
+    # our own pool, so that on an error, Ctrl-C or SIGTERM the chunks being written are finished
+    # (and no more started) before `_atomic_dir` removes the temporary store: a write landing
+    # after the removal would create the directory again
+    from concurrent.futures import ThreadPoolExecutor
+    from dask.system import CPU_COUNT
+    workers = dask.config.get("num_workers", None) or CPU_COUNT
+    pool = ThreadPoolExecutor(workers)
+    try:
+        with contextlib.ExitStack() as stack:
+            if show:
+                from dask.diagnostics import ProgressBar
+                stack.enter_context(ProgressBar(out=sys.stderr))
+            dask.compute(graph, scheduler="threads", pool=pool, num_workers=workers)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)

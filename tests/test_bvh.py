@@ -331,12 +331,15 @@ def test_frame_counts_30_to_60_and_120_to_30(tmp_path, rng, frames):
     np.testing.assert_allclose(read_bvh(tmp_path / "b30.bvh").frames, read_bvh(src120).frames[::4], atol=0.5e-4)
 
 
-def test_times_at_k_over_30_are_inside_the_clip(tmp_path, rng):
-    from quatarray.cli import resample_file
-    src = bvh_file(tmp_path, "0.033333", printed(random_frames(rng, 10, ["ZXY"]), 4))
+@pytest.mark.parametrize("frame_time", ["0.0333333", "0.033333"])
+def test_times_at_k_over_30_are_inside_the_clip(tmp_path, rng, frame_time):
+    """`quatarray resample --times` at k/30, the last one k = F - 1 on the last frame, is accepted."""
+    from quatarray.cli import main
+    src = bvh_file(tmp_path, frame_time, printed(random_frames(rng, 10, ["ZXY"]), 4))
     times = tmp_path / "t.txt"
     times.write_text("".join(f"{k / 30!r}\n" for k in range(10)))
-    assert resample_file(src, tmp_path / "out.bvh", times=times) == (10, 10)
+    assert 9 / 30 > 9 * float(frame_time)      # beyond the last frame as printed
+    assert main(["resample", str(src), "-o", str(tmp_path / "out.bvh"), "--times", str(times)]) == 0
     np.testing.assert_allclose(read_bvh(tmp_path / "out.bvh").frames, read_bvh(src).frames, atol=0.5e-4)
 
 

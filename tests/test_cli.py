@@ -344,19 +344,52 @@ def test_sigterm_during_write_removes_the_temporary(tmp_path):
             "    time.sleep(60)\n"
             "qio.write_rows = slow\n"
             "sys.exit(cli.main(sys.argv[1:]))\n")
+    _terminate_while_writing(code, [example_path("arm.csv"), "-o", tmp_path / "out.csv", "--fps", "30"], tmp_path)
+    assert os.listdir(tmp_path) == []
+
+
+def _terminate_while_writing(code, args, folder):
+    """Run `code` (it prints 'writing' once its output is under way) on `args`; SIGTERM it then."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
-    out = tmp_path / "out.csv"
-    proc = subprocess.Popen([sys.executable, "-c", code, "resample", example_path("arm.csv"), "-o", str(out),
-                             "--fps", "30"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen([sys.executable, "-c", code, "resample", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert proc.stdout.readline() == "writing\n"
-        assert [n for n in os.listdir(tmp_path) if n.endswith(".part")]
+        assert [n for n in os.listdir(folder) if n.endswith(".part")]
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 128 + signal.SIGTERM
     finally:
         proc.kill()
         proc.communicate()
-    assert os.listdir(tmp_path) == []
+
+
+def test_sigterm_during_a_zarr_write_removes_the_temporary_store(tmp_path):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
+    group = zarr.open_group(str(tmp_path / "in.zarr"), mode="w")
+    group["times"] = np.arange(50.0)
+    group["keys"] = np.tile([1.0, 0.0, 0.0, 0.0], (50, 1))
+    # many small chunks, each written slowly after the first: SIGTERM comes while Dask's threads write
+    # (and with writes still under way, a temporary store removed before they end would come back)
+    code = ("import sys, time\n"
+            "import zarr\n"
+            "from quatarray import cli, _zarr\n"
+            "_zarr.CHUNK_QUATS = 64\n"
+            "real, said = zarr.Array.__setitem__, []\n"
+            "def slow(self, key, value):\n"
+            "    if said:\n"
+            "        time.sleep(0.2)\n"
+            "    real(self, key, value)\n"
+            "    if not said:\n"
+            "        said.append(1)\n"
+            "        print('writing', flush=True)\n"
+            "zarr.Array.__setitem__ = slow\n"
+            "try:\n"
+            "    sys.exit(cli.main(sys.argv[1:]))\n"
+            "finally:\n"
+            "    time.sleep(0.5)   # a caller that lives on: chunks still being written would land now\n")
+    _terminate_while_writing(code, [tmp_path / "in.zarr", "-o", tmp_path / "out.zarr", "--fps", "100"], tmp_path)
+    assert os.listdir(tmp_path) == ["in.zarr"]
 
 
 def test_output_directory_is_named(tmp_path):
@@ -422,6 +455,21 @@ def test_csv_npz_csv_keeps_the_header_and_crlf(tmp_path):
     assert (tmp_path / "b.csv").read_text().split("\n", 1)[0] == open(example_path("arm.csv")).readline().strip()
 
 
+@pytest.mark.parametrize("precision", ["3", "full"])
+def test_csv_precision_option(tmp_path, precision):
+    out = tmp_path / "out.csv"
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(out), "--fps", "4", "--precision", precision]) == 0
+    want = resample_keyframes(read_csv(example_path("arm.csv")), fps_times(0.0, 4.0, 4))
+    rows = [line.split(",")[1:] for line in out.read_text().splitlines()[1:]]
+    got = read_csv(out)
+    if precision == "full":        # the shortest text that reads back exactly
+        np.testing.assert_array_equal(got.keys, want.keys)
+        assert all(repr(float(c)) == c for row in rows for c in row)
+    else:
+        assert {len(c.partition(".")[2]) for row in rows for c in row} == {3}
+        np.testing.assert_allclose(got.keys, want.keys, rtol=0, atol=0.5e-3 * (1 + 1e-9))
+
+
 @pytest.mark.parametrize("argv", [["--precision", "-1"], ["--precision", "two"], ["--precision", "31"]])
 def test_precision_usage_errors(argv, capsys):
     with pytest.raises(SystemExit) as info:
@@ -457,6 +505,14 @@ def test_readme_says_clone_and_cd_first():
     section = readme_section("Two commands")
     first_pip = section.index("pip install")
     assert "git clone" in section[:first_pip] and "cd quatarray" in section[:first_pip]
+
+
+def test_readme_documents_the_frame_time_rule_and_gltf_from_the_demo():
+    section = readme_section("Resample a keyframe file")
+    assert "rule chosen" in section and "Frame Time" in section and "1/n" in section
+    demo = section.index("quatarray demo")
+    glb = [m.start() for m in re.finditer(r"quatarray resample demo_arm\.glb -o \S+\.(glb|gltf)", section)]
+    assert glb and min(glb) > demo and "demo_arm.csv" in section and "demo_imu.csv" in section
 
 
 def test_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):

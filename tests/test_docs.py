@@ -13,6 +13,7 @@ import functools
 import http.server
 import importlib.util
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -91,6 +92,61 @@ def test_guide_doctests(html):
     assert "0 failures in tests" in report
     tested = [line for line in report.splitlines() if line.startswith("Document: guide/")]
     assert len(tested) >= 5, report
+
+
+# ---- the README's links and figures (no Sphinx needed) --------------------------------
+
+README = ROOT / "README.md"
+
+
+def test_readme_links_into_every_guide_page():
+    """The README links the guide by source path (so the links work on GitHub too)."""
+    links = [t for t in re.findall(r"\]\(([^)#\s]+)", README.read_text(encoding="utf-8"))
+             if "://" not in t]
+    assert [t for t in links if not (ROOT / t).is_file()] == []
+    pages = {p.relative_to(ROOT).as_posix() for p in (DOCS / "guide").glob("*.rst")} - {"docs/guide/index.rst"}
+    assert sorted(pages - set(links)) == []
+
+
+def _readme_table(section):
+    text = README.read_text(encoding="utf-8")
+    start = text.index(f"\n## {section}\n")
+    end = text.find("\n## ", start + 1)
+    rows = [[c.strip() for c in line.strip("|").split("|")]
+            for line in text[start:end if end >= 0 else None].splitlines() if line.startswith("|")]
+    return text[start:end], rows[0], rows[2:]
+
+
+def test_readme_benchmark_table_is_the_guides_run():
+    """The README's compact table is the run in docs/guide/benchmark_table.txt: the same
+    machine, one row per operation (N = 10⁶ float64) with every peer's ratio."""
+    spec = importlib.util.spec_from_file_location("_benchtable", DOCS / "_benchtable.py")
+    benchtable = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(benchtable)
+    header, rows = benchtable.read(DOCS / "guide" / "benchmark_table.txt")
+    section, names, table = _readme_table("Benchmarks")
+    for fact in (r"NumPy SIMD (\S+)", r"\d{4}-\d\d-\d\d"):       # the SIMD level, the date
+        assert re.search(fact, " ".join(header))[0].split()[-1] in section, fact
+    big = {r["operation"]: r for r in rows if r["dtype"] == "float64" and r["N"] in (1_000_000, None)}
+    one = {r["operation"]: r for r in rows if r["dtype"] == "float64" and r["N"] == 1}
+    columns = {"÷ np.add": (big, "qa/add"), "scipy": (big, "scipy /qa"),
+               "numpy-quaternion": (big, "numpy-quat /qa"), "quaternionic": (big, "quaternion /qa"),
+               "N = 1: scipy": (one, "scipy /qa")}
+
+    def shown(value):
+        return "–" if value is None else f"{value:.2f}"
+
+    readme_ops = set()
+    for cells in table:
+        op = cells[0].replace("10⁴", "10000")
+        readme_ops.add(op)
+        for name, cell in zip(names[1:], cells[1:]):
+            if name in columns:
+                source, key = columns[name]
+                expected = shown(source[op][key]) if op in source else "–"
+                assert cell == expected, f"{op}, {name}: README {cell}, guide's run {expected}"
+    stems = {op.split(",")[0] for op in big}
+    assert sorted(stems - {op.split(",")[0] for op in readme_ops}) == []
 
 
 # ---- the browser --------------------------------------------------------------------

@@ -287,7 +287,7 @@ def test_every_channel_follows_the_spec(tmp_path, rng, layout):
     for a, channels in enumerate(animations):
         for node, path, times, values, interp in channels:
             t, got, kind = channel_output(doc, data, a, node, path)
-            assert kind == ("STEP" if interp == "STEP" else "LINEAR")
+            assert kind == "LINEAR"     # STEP and CUBICSPLINE too: their values at the new keys, written LINEAR
             t0 = min(c[2][0] for c in channels)
             np.testing.assert_allclose(t, t0 + np.arange(len(t)) / 24, rtol=0, atol=4 * EPS32)
             rotation = path == "rotation"
@@ -393,6 +393,88 @@ def test_identity_resample_keeps_values(tmp_path, rng, interpolation):
         assert_close(got, keys, path == "rotation", 2 * EPS32)
 
 
+def test_step_and_cubic_samplers_are_written_linear(tmp_path, rng):
+    # the issue: "a valid glTF/GLB with LINEAR samplers at the new rate", whatever the input's interpolation
+    times = np.array([0.0, 0.5, 1.0], np.float32)
+    steps = np.array([[0, 0, 0], [1, 0, 0], [3, 0, 0]], np.float32)
+    rot = unit(rng, 3)
+    cubic = rng.normal(size=(9, 3))
+    b = Builder()
+    b.g.nodes = [pygltflib.Node(name="a"), pygltflib.Node(name="b")]
+    anim = pygltflib.Animation()
+    b.channel(anim, 0, "translation", times, steps, "VEC3", "STEP")
+    b.channel(anim, 0, "rotation", times, rot, "VEC4", "STEP")
+    b.channel(anim, 1, "translation", times, cubic, "VEC3", "CUBICSPLINE")
+    b.g.animations = [anim]
+    b.save(tmp_path / "in.glb")
+    resample_gltf(tmp_path / "in.glb", tmp_path / "out.glb", fps=4)
+    doc, data = load(tmp_path / "out.glb")
+    assert [s["interpolation"] for s in doc["animations"][0]["samplers"]] == ["LINEAR"] * 3
+    t, got, _ = channel_output(doc, data, 0, 0, "translation")
+    np.testing.assert_array_equal(t, [0, 0.25, 0.5, 0.75, 1])
+    np.testing.assert_array_equal(got[:, 0], [0, 0, 1, 1, 3])       # the value each step holds at the new keys
+    t, got, _ = channel_output(doc, data, 0, 0, "rotation")
+    held = np.asarray(rot, np.float32).astype(np.float64)[[0, 0, 1, 1, 2]]
+    assert_close(got, held / np.linalg.norm(held, axis=1, keepdims=True), True, 2 * EPS32)
+    assert (np.sum(got[1:] * got[:-1], axis=1) >= 0).all()            # LINEAR keys: slerp takes the short path
+    t, got, _ = channel_output(doc, data, 0, 1, "translation")
+    c32 = np.asarray(cubic, np.float32).astype(np.float64)
+    want = [spec_value(times, c32, "CUBICSPLINE", x, False) for x in t]
+    np.testing.assert_allclose(got, want, rtol=0, atol=4 * EPS32 * np.abs(c32).max())
+    assert doc["accessors"][doc["animations"][0]["samplers"][2]["output"]]["count"] == len(t)   # no tangents
+
+
+def test_json_that_pygltflib_would_lose_is_kept(tmp_path, rng):
+    # Why the writer keeps the document's JSON instead of saving through pygltflib's model: a load-and-save
+    # with pygltflib 1.16.5 drops a node's default morph `weights` and rewrites `asset.generator`.  This
+    # file is written as plain JSON (no pygltflib), with such properties and `extras` at several levels.
+    pos = np.eye(3, dtype=np.float32)
+    times = np.array([0.0, 0.5, 1.0], np.float32)
+    rot = unit(rng, 3).astype(np.float32)
+    parts = [pos, pos * 0.5, pos * -0.25, times, rot]            # mesh data first: its indices do not move
+    blob = b"".join(p.tobytes() for p in parts)
+    views, at = [], 0
+    for p in parts:
+        views.append({"buffer": 0, "byteOffset": at, "byteLength": p.nbytes})
+        at += p.nbytes
+    vec3 = {"componentType": F32, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]}
+    doc_in = {
+        "asset": {"version": "2.0", "generator": "hand-written JSON", "copyright": "none",
+                  "extras": {"checked": True}},
+        "extras": {"author": "tests", "list": [1, 2.5, None], "nested": {"a": {"b": []}}},
+        "scene": 0, "scenes": [{"nodes": [0], "extras": {"layer": 2}}],
+        "nodes": [{"name": "root", "children": [1], "extras": {"joint": "root"}},
+                  {"name": "face", "mesh": 0, "weights": [0.25, 0.5], "extras": {"morphs": ["smile", "blink"]}}],
+        "meshes": [{"name": "face", "weights": [0.0, 1.0], "primitives": [{
+            "attributes": {"POSITION": 0}, "targets": [{"POSITION": 1}, {"POSITION": 2}],
+            "extras": {"targetNames": ["smile", "blink"]}}]}],
+        "accessors": [dict(vec3, bufferView=0),
+                      dict(vec3, bufferView=1, min=[0, 0, 0], max=[0.5, 0.5, 0.5]),
+                      dict(vec3, bufferView=2, min=[-0.25, -0.25, -0.25], max=[0, 0, 0]),
+                      {"bufferView": 3, "componentType": F32, "count": 3, "type": "SCALAR", "min": [0.0],
+                       "max": [1.0]},
+                      {"bufferView": 4, "componentType": F32, "count": 3, "type": "VEC4"}],
+        "bufferViews": views,
+        "buffers": [{"byteLength": len(blob), "extras": {"origin": "test"},
+                     "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}],
+        "animations": [{"name": "turn", "extras": {"take": 1},
+                        "samplers": [{"input": 3, "output": 4, "interpolation": "LINEAR", "extras": {"s": 0}}],
+                        "channels": [{"sampler": 0, "target": {"node": 0, "path": "rotation"}}]}],
+    }
+    (tmp_path / "in.gltf").write_text(json.dumps(doc_in))
+    resample_gltf(tmp_path / "in.gltf", tmp_path / "out.gltf", fps=4)
+    doc = json.loads((tmp_path / "out.gltf").read_text())
+    for key in ("asset", "extras", "scene", "scenes", "nodes", "meshes"):
+        assert doc[key] == doc_in[key], key
+    assert doc["accessors"][:3] == doc_in["accessors"][:3]
+    assert doc["buffers"][0]["extras"] == {"origin": "test"}
+    anim = doc["animations"][0]
+    assert without(anim, "samplers") == without(doc_in["animations"][0], "samplers")
+    assert anim["samplers"][0]["extras"] == {"s": 0} and anim["samplers"][0]["interpolation"] == "LINEAR"
+    _, data = load(tmp_path / "out.gltf")
+    np.testing.assert_array_equal(decode(doc, data, anim["samplers"][0]["input"])[:, 0], np.arange(5) / 4)
+
+
 @pytest.mark.parametrize("method", ["slerp", "squad", "bezier", "linear"])
 def test_method_reinterpolates_rotation_keys_only(tmp_path, rng, method):
     b, animations = skinned(rng)
@@ -409,7 +491,7 @@ def test_method_reinterpolates_rotation_keys_only(tmp_path, rng, method):
         else:   # translation, scale, weights and STEP rotations keep their own interpolation
             want = [spec_value(times, v32.reshape(-1, got.shape[1]), interp, x, path == "rotation") for x in t]
         assert_close(got, want, path == "rotation", 16 * EPS32 * max(1.0, np.abs(v32).max()))
-        assert kind == ("STEP" if interp == "STEP" else "LINEAR")
+        assert kind == "LINEAR"
 
 
 @pytest.mark.parametrize("ctype", [5120, 5122])
@@ -445,6 +527,28 @@ def test_normalized_integer_rotations(tmp_path, rng, ctype):
     t, got, _ = channel_output(doc, data, 0, 1, "weights")
     w = (wcodes / (255.0 if ctype == 5120 else 65535.0)).reshape(3, 2)
     np.testing.assert_allclose(got, [spec_value(times, w, "LINEAR", x, False) for x in t], rtol=0, atol=2 * EPS32)
+
+
+@pytest.mark.parametrize("ctype", [5121, 5123])
+def test_unsigned_normalized_integer_rotations(tmp_path, rng, ctype):
+    # unsigned bytes and shorts hold rotations whose components are all >= 0, decoded c / 255, c / 65535
+    scale = float(np.iinfo(DTYPES[ctype]).max)
+    codes = np.round(np.abs(unit(rng, 4)) * scale)
+    times = np.array([0.0, 0.5, 1.0, 2.0], np.float32)
+    b = Builder()
+    b.g.nodes = [pygltflib.Node(name="a")]
+    anim = pygltflib.Animation()
+    b.channel(anim, 0, "rotation", times, codes, "VEC4", "LINEAR", ctype=ctype, normalized=True)
+    b.g.animations = [anim]
+    b.save(tmp_path / "in.glb")
+    decoded = codes / scale
+    np.testing.assert_array_equal(read_accessor(read_gltf(tmp_path / "in.glb"), anim.samplers[0].output), decoded)
+    resample_gltf(tmp_path / "in.glb", tmp_path / "out.glb", fps=8)
+    doc, data = load(tmp_path / "out.glb")
+    t, got, _ = channel_output(doc, data, 0, 0, "rotation")
+    assert len(t) == 17
+    unitkeys = decoded / np.linalg.norm(decoded, axis=1, keepdims=True)
+    assert_close(got, [spec_value(times, unitkeys, "LINEAR", x, True) for x in t], True, 4 * EPS32)
 
 
 def test_sparse_output_accessor(tmp_path, rng):
