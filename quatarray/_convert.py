@@ -540,8 +540,12 @@ def rotvec_floats(c, degrees=False):
     >>> rotvec_floats([0.0, 0.0, 0.0, 5.0], degrees=True)
     [0.0, 0.0, 180.0]
     """
-    (w, x, y, z), _ = _scale.guard_one(c)
-    nv = math.sqrt(x * x + y * y + z * z)
+    w, x, y, z = c
+    v2 = x * x + y * y + z * z
+    if not ONE_LOW <= w * w + v2 <= ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
+        (w, x, y, z), _ = _scale.guard_one(c)
+        v2 = x * x + y * y + z * z
+    nv = math.sqrt(v2)
     scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * _ROTVEC_FACTOR[degrees]
     scale = -scale if _flip_one(w, x, y, z) else scale
     return [x * scale, y * scale, z * scale]
