@@ -78,7 +78,7 @@ def readme_table(path):
     """The README's compact benchmark table (markdown lines) from a run saved at `path`:
     one row per operation at N = 10⁶ float64 (and the size-less resample rows, and the
     10⁴-key tracks), with quatarray's time, its ratio to np.add, each peer's ratio, and
-    the N = 1 ratio for scipy."""
+    the N = 1 ratio for scipy where the operation is also timed on one element."""
     _, rows = read(path)
     big = [r for r in rows if r["dtype"] == "float64" and r["N"] in (1_000_000, None)
            and "10 keys" not in r["operation"]]
@@ -90,17 +90,12 @@ def readme_table(path):
         value = None if row is None else row.get(key)
         return "–" if value is None else f"{value:.2f}"
 
-    seen = set()
     for r in big:
-        seen.add(r["operation"])
         cells = [r["operation"].replace("10000", "10⁴"), "–" if r.get("quatarray") is None else _time(r["quatarray"])]
         cells += [ratio(r, key) for _, key in README_COLUMNS]
         cells.append(ratio(one.get(r["operation"]), "scipy /qa"))
         lines.append("| " + " | ".join(cells) + " |")
-    for op, r in one.items():   # operations measured on one element only
-        if op not in seen:
-            lines.append("| " + " | ".join([op, "–"] + ["–"] * len(README_COLUMNS) + [ratio(r, "scipy /qa")]) + " |")
-    return lines
+    return lines   # operations timed on one element only stay in the guide's table
 
 
 if __name__ == "__main__":   # python docs/_benchtable.py docs/guide/benchmark_table.txt

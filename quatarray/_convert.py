@@ -551,16 +551,23 @@ def rotvec_floats(c, degrees=False):
     return [x * scale, y * scale, z * scale]
 
 
-def _k_from_rotvec(v, q, factor):
-    x, y, z = v
+def _k_from_rotvec(r, q, factor):
+    x, y, z = r
     with _blocks.scratch().frame() as work:
         theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
-        np.multiply(x, x, out=theta)
-        np.multiply(y, y, out=u)
-        theta += u
-        np.multiply(z, z, out=u)
-        theta += u
+        with np.errstate(over="ignore"):   # squares that overflow: rescaled below
+            np.multiply(x, x, out=theta)
+            np.multiply(y, y, out=u)
+            theta += u
+            np.multiply(z, z, out=u)
+            theta += u
+        e = None
+        if theta.size and not theta.max() <= _scale.HIGH[theta.dtype]:   # |v| past about 1e154
+            e = _scale.rescale(r)                  # r is the block's copy: r 2**-e, exact
+            _scale.sum_squares(r, theta)
         np.sqrt(theta, out=theta)
+        if e is not None:
+            np.ldexp(theta, e, out=theta)
         if factor != 1.0:
             theta *= factor
         np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
@@ -571,6 +578,8 @@ def _k_from_rotvec(v, q, factor):
         d /= theta
         if factor != 1.0:
             d *= factor
+        if e is not None:
+            np.ldexp(d, e, out=d)
         np.multiply(x, d, out=q[1])
         np.multiply(y, d, out=q[2])
         np.multiply(z, d, out=q[3])
@@ -625,7 +634,7 @@ def from_rotvec_floats(v, dtype, factor=1.0):
     array([0., 0., 0., 1.])
     """
     x, y, z = v
-    theta = max(math.sqrt(x * x + y * y + z * z) * factor, float(ANGLE_FLOOR[dtype]))
+    theta = max(math.hypot(x, y, z) * factor, float(ANGLE_FLOOR[dtype]))
     t = math.tan(theta * 0.25)
     d = 1.0 / (1.0 + t * t)
     scale = 2.0 * t * d / theta * factor
@@ -752,13 +761,35 @@ def as_mrp_one(q):
 
 def _k_from_mrp(p, q):
     x, y, z = p
-    n = x * x + y * y + z * z
+    with np.errstate(over="ignore"):   # |p|² that overflows: the block is redone below
+        n = x * x + y * y + z * z
+    if n.size and not n.max() <= _scale.HIGH[n.dtype]:
+        return _k_from_huge_mrp(p, q)
     d = 1.0 / (1.0 + n)
     np.multiply(1.0 - n, d, out=q[0])
     d *= 2.0
     np.multiply(x, d, out=q[1])
     np.multiply(y, d, out=q[2])
     np.multiply(z, d, out=q[3])
+
+
+def _k_from_huge_mrp(p, q):
+    """`_k_from_mrp` for a block where |p|² overflows (|p| past about 1e154): with
+    s = 1/|p|² (= |p/m|⁻² / m², m a power of two near max |p_k|, no overflow),
+    q = ((s - 1), 2 p s) / (1 + s), the same value as ((1 - |p|²), 2 p) / (1 + |p|²);
+    taken where |p| > 1 only, the usual form elsewhere."""
+    big = np.max(np.abs(p), axis=0) > 1
+    e = _scale.rescale(p)                       # p 2**-e, exact
+    n = _scale.sum_squares(p, np.empty(p.shape[1:], p.dtype))
+    with np.errstate(over="ignore", under="ignore"):
+        s = np.ldexp(1.0 / n, -2 * e)           # 1/|p|², may underflow to 0 (harmless)
+        usual = np.ldexp(n, 2 * e)              # |p|², only used where |p| <= 1
+    m = np.where(big, s, usual)
+    d = 1.0 / (1.0 + m)
+    np.multiply(np.where(big, m - 1.0, 1.0 - m), d, out=q[0])
+    # 2 p / (1 + |p|²) = 2 (p 2**-e) 2**e d_usual, or 2 (p 2**-e) 2**-e / |p 2**-e|² · d_big
+    f = np.where(big, np.ldexp(2.0 / n, -e) * d, np.ldexp(2.0 * d, e))
+    np.multiply(p, f, out=q[1:])
 
 
 def from_mrp(mrp):
@@ -783,6 +814,8 @@ def from_mrp(mrp):
     if p.shape == (3,):  # one rotation: Python floats
         x, y, z = p.tolist()
         n = x * x + y * y + z * z
+        if n > _scale.HIGH[p.dtype]:   # |p|² overflows: the block kernel's rescaled form
+            return from_mrp(p[None])[0]
         d = 1.0 / (1.0 + n)
         return np.array([(1.0 - n) * d, 2.0 * x * d, 2.0 * y * d, 2.0 * z * d], p.dtype)
     out = np.empty(p.shape[:-1] + (4,), p.dtype)

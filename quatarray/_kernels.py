@@ -457,17 +457,30 @@ def inverse(q):
 def _k_exp(q, o):
     with _blocks.scratch().frame() as work:
         vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
-        _scale.sum_squares(q, vn, 1)
-        np.sqrt(vn, out=vn)
+        with np.errstate(over="ignore"):   # squares that overflow are rescaled below
+            _scale.sum_squares(q, vn, 1)
+        e = None
+        if vn.size and not vn.max() <= _scale.HIGH[vn.dtype]:   # |v|² overflows: scale v by 2**-e
+            e = _scale.rescale(q[1:])    # (q is the block's scratch copy; underflow is harmless:
+            _scale.sum_squares(q, vn, 1)  # sin|v| / |v| -> 1 as |v| -> 0)
+            np.sqrt(vn, out=vn)
+            np.ldexp(vn, e, out=vn)
+        else:
+            np.sqrt(vn, out=vn)
         np.exp(q[0], out=ew)
         # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
         np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
         cos_sin(vn, c, s, (u, v))
         s /= vn
         s *= ew
+        if e is not None:
+            np.ldexp(s, e, out=s)
         for k in (1, 2, 3):
             np.multiply(q[k], s, out=o[k])
         np.multiply(c, ew, out=o[0])
+        if ew.size and ew.max() == np.inf:   # e**w overflowed: zero components stay zero (not 0 · inf)
+            for k in (1, 2, 3):
+                np.copyto(o[k], 0.0, where=q[k] == 0)
 
 
 def exp(q):

@@ -443,3 +443,32 @@ def test_from_rotvec_and_from_euler_ulp_levels(rng):
         qx, qy, qz = (_mp_axis_quat(mp, mp.mpf(float(x)), k) for k, x in enumerate(ang))
         ref.append([float(c) for c in _mp_mul(qz, _mp_mul(qy, qx))])   # extrinsic xyz
     assert _ulp_of_largest(E.from_euler("xyz", a), np.array(ref)).max() <= 5
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_huge_rotation_vectors_and_mrps_give_unit_quaternions(rng, dtype):
+    """Rotation vectors and MRPs whose squared norms overflow (mixed in one block with
+    ordinary ones) give finite unit quaternions, single and batched (the squares used to
+    overflow to inf: NaN out).  MRPs, which have no angle to lose to rounding, are within
+    4 eps of a 60-digit reference and the same single or batched; a rotation vector of 1e200
+    rad has no meaningful angle left (one ulp is many turns), so only the unit norm is checked."""
+    mp = pytest.importorskip("mpmath").mp
+    mp.dps = 60
+    top = 300 if dtype == np.float64 else 37
+    v = rng.standard_normal((60, 3)) * 10.0 ** rng.uniform(-top, top, (60, 1))
+    v = v.astype(dtype)
+    eps = np.finfo(dtype).eps
+    for conv in (C.from_rotvec, C.from_mrp):
+        got = conv(v)
+        single = np.array([conv(x) for x in v])
+        for q in (got, single):
+            assert q.dtype == dtype and np.isfinite(q).all()
+            np.testing.assert_allclose(np.linalg.norm(q.astype(np.float64), axis=-1), 1, atol=4 * eps)
+    # (one float32 MRP is converted in Python floats, then rounded: a few eps apart)
+    np.testing.assert_allclose(C.from_mrp(v), np.array([C.from_mrp(x) for x in v]), rtol=0, atol=4 * eps)
+    ref = []
+    for p in v:
+        p = [mp.mpf(float(c)) for c in p]
+        n = sum(c * c for c in p)
+        ref.append([float((1 - n) / (1 + n))] + [float(2 * c / (1 + n)) for c in p])
+    assert np.abs(C.from_mrp(v) - np.array(ref)).max() <= 4 * eps

@@ -230,6 +230,28 @@ def test_log_and_exp_within_a_few_ulp(rng, func):
     assert err.max() <= 3 * np.finfo(float).eps, err.max()
 
 
+def test_exp_of_huge_vector_parts_and_overflowing_scalars(rng):
+    """|v|² beyond float64's range (|v| up to 1e300) still gives a finite exp: the vector
+    part is rescaled by a power of two, not squared to inf.  (At such |v| one ulp of |v| is
+    many turns, so only what does not depend on the angle can be checked: |exp q| = e^w and
+    the vector part along v.)  An overflowing e^w leaves zero components zero, never NaN."""
+    q = random_quats(rng, (40,)) * 10.0 ** rng.uniform(150, 300, (40, 1))
+    q[:, 0] = rng.uniform(-2, 2, 40)
+    q[::5, 2:] = 0
+    got = K.exp(q)
+    np.testing.assert_array_equal(got, np.array([K.exp(qi) for qi in q]))
+    np.testing.assert_allclose(np.linalg.norm(got, axis=-1), np.exp(q[:, 0]), rtol=4 * np.finfo(float).eps)
+    v, gv = q[:, 1:] / np.max(np.abs(q[:, 1:]), axis=-1, keepdims=True), got[:, 1:]
+    assert np.abs(np.cross(v, gv)).max() <= 4 * np.finfo(float).eps * np.linalg.norm(v, axis=-1).max() * np.exp(2)
+    big = np.array([[800.0, 0, 0, 0], [800.0, 1, 0, 0], [-800.0, 1, 0, 2]])
+    with np.errstate(over="ignore"):
+        for got in (K.exp(big), np.array([K.exp(b) for b in big])):
+            assert not np.isnan(got).any()
+            np.testing.assert_array_equal(got[:2, 1:] == 0, big[:2, 1:] == 0)   # e^800: inf, not 0 · inf
+            np.testing.assert_array_equal(got[:2, 0], [np.inf, np.inf])
+            np.testing.assert_array_equal(got[2], 0.0)                          # e^-800 underflows to 0
+
+
 # --- special values -------------------------------------------------------------------
 
 def test_log_special_values():
