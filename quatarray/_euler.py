@@ -168,8 +168,9 @@ def from_euler(seq, angles, degrees=False):
     return out
 
 
-def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
-    """Bernardes & Viollet's step 2-3 on rows a, b, c, d: writes o (3, m).
+def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
+    """Bernardes & Viollet's step 2-3 on rows a, b, c, d (`abcd`, (4, m), scratch that may
+    be rescaled in place): writes o (3, m).
 
     The first and third angles are half_sum ∓ half_diff with half_sum =
     arg(a + ib) and half_diff = arg(c + id); each is read as one argument,
@@ -180,15 +181,24 @@ def _angles(a, b, c, d, o, extrinsic, symmetric, sign, lamb):
     third angle is then set to 0, as in scipy.
     """
     first, third = (0, 2) if extrinsic else (2, 0)
+    a, b, c, d = abcd
     with _blocks.scratch().frame() as work:
         mid, r, u, v, f, g = work.rows(6, a.shape, o.dtype)
-        np.multiply(c, c, out=r)
-        np.multiply(d, d, out=u)
-        r += u
+        for attempt in (0, 1):
+            np.multiply(c, c, out=r)
+            np.multiply(d, d, out=v)
+            r += v                           # |(c, d)|²
+            np.multiply(a, a, out=u)
+            np.multiply(b, b, out=v)
+            u += v                           # |(a, b)|²
+            # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²), which the
+            # two sums give for one more pass: blocks of extreme magnitude are rescaled
+            if attempt or _scale.fits(np.add(r, u, out=mid)):
+                break
+            if not np.isfinite(abcd).all():
+                raise ValueError(_scale.NONFINITE)
+            _scale.rescale(abcd)             # by powers of two: the angles are unchanged
         np.sqrt(r, out=r)                    # |(c, d)|
-        np.multiply(a, a, out=u)
-        np.multiply(b, b, out=v)
-        u += v
         np.sqrt(u, out=u)                    # |(a, b)|
         arctan2(r, u, out=mid, x_nonneg=True)
         mid *= 2.0                           # the middle angle, in [0, π]
@@ -249,15 +259,20 @@ def _angles_one(a, b, c, d, extrinsic, symmetric, sign, lamb):
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
-    _scale.guarded_sqnorm(q)
-    w = q[0]
-    qi, qj, qk = q[i + 1], q[j + 1], q[k + 1]
-    qk = qk if sign > 0 else -qk
-    if symmetric:
-        a, b, c, d = w, qi, qj, qk
-    else:
-        a, b, c, d = w - qj, qi + qk, qj + w, qk - qi
-    return _angles(a, b, c, d, o, extrinsic, symmetric, sign, np.pi / 2)
+    w, qi, qj, qk = q[0], q[i + 1], q[j + 1], q[k + 1]
+    if sign < 0:
+        _negate(qk)                          # q is the block's scratch copy
+    with _blocks.scratch().frame() as work:
+        abcd = work.rows(4, q.shape[1:], q.dtype)
+        if symmetric:
+            for row, src in zip(abcd, (w, qi, qj, qk)):
+                np.copyto(row, src)
+        else:
+            np.subtract(w, qj, out=abcd[0])
+            np.add(qi, qk, out=abcd[1])
+            np.add(qj, w, out=abcd[2])
+            np.subtract(qk, qi, out=abcd[3])
+        return _angles(abcd, o, extrinsic, symmetric, sign, np.pi / 2)
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -450,8 +465,7 @@ def from_davenport(axes, order, angles, degrees=False):
 
 
 def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
-    _scale.guarded_sqnorm(abcd)
-    gimbal = _angles(*abcd, o, extrinsic, False, 1, lamb)
+    gimbal = _angles(abcd, o, extrinsic, False, 1, lamb)
     if flip:
         _negate(o[1])
     return gimbal
