@@ -492,6 +492,12 @@ def exp(q):
     True
     """
     q = np.asarray(q)
+    if q.shape == (4,) and q.dtype in _COMPLEX and q[0] < 709.0:   # one quaternion: Python floats
+        w, x, y, z = q.tolist()
+        vn = math.hypot(x, y, z)
+        ew = math.exp(w)
+        s = ew * (math.sin(vn) / vn if vn else 1.0)
+        return np.array([ew * math.cos(vn), x * s, y * s, z * s], q.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(invalid="ignore", divide="ignore"):
         _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)
@@ -561,10 +567,32 @@ def log(q):
     True
     """
     q = np.asarray(q)
+    if q.shape == (4,) and q.dtype in _COMPLEX:   # one quaternion: Python floats
+        ln, e, theta, vn, scale, (w, x, y, z) = _log_parts_one(q.tolist())
+        if e:   # ln|q| = ln|q 2**-e| + e ln 2
+            ln += e * math.log(2.0)
+        return np.array([ln, math.pi if not vn and w < 0 else x * scale, y * scale, z * scale], q.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
     return res
+
+
+def _log_parts_one(c):
+    """`_log_parts` of one quaternion given as four Python floats: (ln|q 2**-e|, e, θ, |v|,
+    θ/|v|, the components q 2**-e), e from `_scale.guard_one` (0 in range).  ``math.log1p``
+    for log1p; a zero quaternion gives ln = -inf."""
+    (w, x, y, z), e = _scale.guard_one(c)
+    vv = x * x + y * y + z * z
+    n2 = w * w + vv
+    if n2 < 0.5:
+        ln = 0.5 * math.log(n2) if n2 > 0 else -math.inf
+    else:
+        ln = 0.5 * math.log1p((w - 1.0) * (w + 1.0) + vv)
+    vn = math.sqrt(vv)
+    theta = math.atan2(vn, w)
+    scale = theta / vn if vn else (1.0 / w if w > 0 else 0.0)
+    return ln, e, theta, vn, scale, (w, x, y, z)
 
 
 def _k_power(q, t, o):
@@ -600,6 +628,29 @@ def _k_power(q, t, o):
         np.copyto(o[1], mag * sn, where=neg_real)
 
 
+def _power_one(c, t):
+    """`_k_power` for one quaternion (four Python floats) and a float exponent, or None
+    when |q|^t leaves the float range (the block kernel then gives inf or 0 as NumPy does)."""
+    ln, e, theta, vn, scale, (w, x, y, z) = _log_parts_one(c)
+    zero = not vn and w == 0
+    if zero:
+        mag = 0.0 if t > 0 else (1.0 if t == 0 else math.inf)
+    else:
+        try:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
+            mag = math.exp(t * ln) * (2.0 ** (t * e) if e else 1.0)
+        except OverflowError:
+            return None
+        if math.isinf(mag):
+            return None
+    ang = t * theta
+    cos_a, sin_a = math.cos(ang), math.sin(ang)
+    factor = 0.0 if zero else mag * (sin_a / vn if vn else t * scale)
+    out = [mag * cos_a, x * factor, y * factor, z * factor]
+    if not vn and w < 0:
+        out[1] = mag * sin_a
+    return out
+
+
 def power(q, t):
     """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped).
 
@@ -614,6 +665,10 @@ def power(q, t):
     q = np.asarray(q)
     t = np.asarray(t)
     dtype = result_dtype(q)
+    if q.shape == (4,) and t.shape == () and dtype in _COMPLEX:   # one quaternion: Python floats
+        one = _power_one(q.tolist(), float(t))
+        if one is not None:
+            return np.array(one, dtype)
     batch = np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):

@@ -238,11 +238,10 @@ def test_exp_of_huge_vector_parts_and_overflowing_scalars(rng):
     q = random_quats(rng, (40,)) * 10.0 ** rng.uniform(150, 300, (40, 1))
     q[:, 0] = rng.uniform(-2, 2, 40)
     q[::5, 2:] = 0
-    got = K.exp(q)
-    np.testing.assert_array_equal(got, np.array([K.exp(qi) for qi in q]))
-    np.testing.assert_allclose(np.linalg.norm(got, axis=-1), np.exp(q[:, 0]), rtol=4 * np.finfo(float).eps)
-    v, gv = q[:, 1:] / np.max(np.abs(q[:, 1:]), axis=-1, keepdims=True), got[:, 1:]
-    assert np.abs(np.cross(v, gv)).max() <= 4 * np.finfo(float).eps * np.linalg.norm(v, axis=-1).max() * np.exp(2)
+    for got in (K.exp(q), np.array([K.exp(qi) for qi in q])):   # batch, and one at a time
+        np.testing.assert_allclose(np.linalg.norm(got, axis=-1), np.exp(q[:, 0]), rtol=4 * np.finfo(float).eps)
+        v, gv = q[:, 1:] / np.max(np.abs(q[:, 1:]), axis=-1, keepdims=True), got[:, 1:]
+        assert np.abs(np.cross(v, gv)).max() <= 4 * np.finfo(float).eps * np.linalg.norm(v, axis=-1).max() * np.exp(2)
     big = np.array([[800.0, 0, 0, 0], [800.0, 1, 0, 0], [-800.0, 1, 0, 2]])
     with np.errstate(over="ignore"):
         for got in (K.exp(big), np.array([K.exp(b) for b in big])):
@@ -372,3 +371,44 @@ def test_arctan2_from_one_arctan_matches_numpy(rng, dtype):
     assert got.dtype == dtype
     np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
     assert (np.abs(got - want) <= 2 * np.spacing(np.abs(want))).all()
+
+
+def _one_vs_batch(func, q, *args):
+    """func on one quaternion (the Python-float path) and on a batch of one (the block path)."""
+    return func(q, *args), func(q[None], *(np.asarray(a)[None] for a in args))[0]
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_one_quaternion_exp_log_power_equal_the_batch_path(rng, dtype):
+    """One quaternion takes Python floats (math.log1p, math.atan2, math.sin and cos): within a
+    few eps of the block path's result, relative to its norm, over random, near-identity,
+    real, negative-real, zero and extreme-magnitude quaternions; specials agree exactly."""
+    eps = float(np.finfo(dtype).eps)
+    tiny = 4 * float(np.finfo(dtype).smallest_subnormal)   # results on the subnormal grid
+    top = 250 if dtype == np.float64 else 30
+    qs = list(random_quats(rng, (60,), np.float64) * 10.0 ** rng.uniform(-top, top, (60, 1)))
+    qs += list(_near_identity(rng, 20))
+    qs += [np.array(c, float) for c in ([1, 0, 0, 0], [-2, 0, 0, 0], [0, 0, 0, 3], [0.5, 0, 1e-200, 0])]
+    def size(x):   # max |component|: a norm that does not underflow at 1e-200
+        return float(np.max(np.abs(x)))
+
+    with np.errstate(all="ignore"):
+        for q in qs:
+            q = q.astype(dtype)
+            one, batch = _one_vs_batch(K.log, q)
+            assert one.dtype == dtype
+            np.testing.assert_allclose(one, batch, rtol=0, atol=4 * eps * size(batch) + tiny)
+            if abs(float(q[0])) < 5:
+                one, batch = _one_vs_batch(K.exp, q)
+                np.testing.assert_allclose(one, batch, rtol=0, atol=6 * eps * size(batch) + tiny)
+            ln = abs(float(np.log(np.max(np.abs(q.astype(float))))))
+            for t in (0.3, -1.7, 2.0, 0.0):
+                one, batch = _one_vs_batch(K.power, q, t)
+                assert np.isfinite(one).all() == np.isfinite(batch).all()
+                if np.isfinite(batch).all():   # exp(t ln|q|) turns an eps of t ln|q| into as many eps
+                    tol = (8 + 2 * abs(t) * ln) * eps * size(batch) + tiny
+                    np.testing.assert_allclose(one, batch, rtol=0, atol=tol)
+        zero = np.zeros(4, dtype)
+        for t in (2.0, 0.0, -1.0):
+            np.testing.assert_array_equal(*_one_vs_batch(K.power, zero, t))
+        np.testing.assert_array_equal(*_one_vs_batch(K.log, zero))
