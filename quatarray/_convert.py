@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from . import _blocks, _scale
-from ._kernels import ANGLE_FLOOR, arctan2, matrix_entries, multiply_one
+from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2, multiply_one
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._scale import ONE_HIGH, ONE_LOW
@@ -202,9 +202,7 @@ def as_matrix_one(q):
            [ 0., -1.,  0.],
            [ 0.,  0., -1.]])
     """
-    m = np.array(matrix_entries(q.tolist()), q.dtype)  # flat, then shaped in place: the cheapest
-    m.shape = (3, 3)
-    return m
+    return _matrix_one(q, q.dtype)
 
 
 def _shepperd(mat, q):
@@ -555,19 +553,7 @@ def _k_from_rotvec(r, q, factor):
     x, y, z = r
     with _blocks.scratch().frame() as work:
         theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
-        with np.errstate(over="ignore"):   # squares that overflow: rescaled below
-            np.multiply(x, x, out=theta)
-            np.multiply(y, y, out=u)
-            theta += u
-            np.multiply(z, z, out=u)
-            theta += u
-        e = None
-        if theta.size and not theta.max() <= _scale.HIGH[theta.dtype]:   # |v| past about 1e154
-            e = _scale.rescale(r)                  # r is the block's copy: r 2**-e, exact
-            _scale.sum_squares(r, theta)
-        np.sqrt(theta, out=theta)
-        if e is not None:
-            np.ldexp(theta, e, out=theta)
+        e = _scale.true_norm(r, theta)       # |r|; r scaled by 2**-e where |r|² overflows
         if factor != 1.0:
             theta *= factor
         np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)

@@ -25,7 +25,6 @@ __all__ = [
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 
 
-
 def result_dtype(*arrays):
     """The float dtype of a result: float32 only if every quaternion input is float32.
 
@@ -457,16 +456,7 @@ def inverse(q):
 def _k_exp(q, o):
     with _blocks.scratch().frame() as work:
         vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
-        with np.errstate(over="ignore"):   # squares that overflow are rescaled below
-            _scale.sum_squares(q, vn, 1)
-        e = None
-        if vn.size and not vn.max() <= _scale.HIGH[vn.dtype]:   # |v|² overflows: scale v by 2**-e
-            e = _scale.rescale(q[1:])    # (q is the block's scratch copy; underflow is harmless:
-            _scale.sum_squares(q, vn, 1)  # sin|v| / |v| -> 1 as |v| -> 0)
-            np.sqrt(vn, out=vn)
-            np.ldexp(vn, e, out=vn)
-        else:
-            np.sqrt(vn, out=vn)
+        e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
         np.exp(q[0], out=ew)
         # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
         np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)

@@ -26,7 +26,7 @@ import numpy as np
 from . import _blocks
 
 __all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "guard_one",
-           "ONE_LOW", "ONE_HIGH", "unscale"]
+           "ONE_LOW", "ONE_HIGH", "unscale", "true_norm"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 
@@ -43,9 +43,7 @@ LOW = {d: r[0] for d, r in _RANGE.items()}
 HIGH = {d: r[1] for d, r in _RANGE.items()}
 """Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
 
-_ONE = _RANGE[np.dtype(np.float64)]
-
-ONE_LOW, ONE_HIGH = _ONE
+ONE_LOW, ONE_HIGH = _RANGE[np.dtype(np.float64)]
 """`guard_one`'s test as two floats: single-quaternion paths that need the squared norm
 anyway compare it with these and call `guard_one` only when it is out of range."""
 
@@ -116,6 +114,24 @@ def guard(q, n2, start=0):
     return e
 
 
+def true_norm(v, out):
+    """``out = |v|`` for a components-first block `v` (a scratch copy), at its true size even
+    where the squares overflow: such a block is rescaled in place by 2**-e first, and the
+    norm scaled back.  Returns e (None on the common path), so that callers multiplying the
+    rescaled components can undo it.  Underflowing squares are left as they are: callers
+    take the norm as an angle, and their limits at 0 hold there."""
+    with np.errstate(over="ignore"):   # squares that overflow are rescaled below
+        sum_squares(v, out)
+    e = None
+    if out.size and not out.max() <= HIGH[out.dtype]:
+        e = rescale(v)
+        sum_squares(v, out)
+    np.sqrt(out, out=out)
+    if e is not None:
+        np.ldexp(out, e, out=out)
+    return e
+
+
 def guarded_sqnorm(q):
     """Squared norms of a block's scratch copy `q` (in a row of the thread's
     scratch), rescaling `q` in place where they would over- or underflow."""
@@ -135,7 +151,7 @@ def guard_one(c):
     -994
     """
     w, x, y, z = c
-    if _ONE[0] <= w * w + x * x + y * y + z * z <= _ONE[1]:
+    if ONE_LOW <= w * w + x * x + y * y + z * z <= ONE_HIGH:
         return c, 0
     if not (math.isfinite(w) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(NONFINITE)
