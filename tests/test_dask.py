@@ -435,3 +435,100 @@ def test_zarr_fps_grid_is_io_fps_times(t0, t1, fps):
         assert np.array_equal(t.compute(), fps_times(t0, t1, fps))
     else:
         assert t[-1].compute() == t1 and t[-2].compute() < t1
+
+
+# --------------------------------------------------------------------------- the Zarr output's chunk writer
+
+def _chunk_files(root):
+    return {os.path.relpath(os.path.join(d, f), root): open(os.path.join(d, f), "rb").read()
+            for d, _, fs in os.walk(root) for f in fs if f != "zarr.json"}
+
+
+@pytest.mark.parametrize("blosc", [None, ("lz4", 1, "shuffle"), ("zstd", 3, "bitshuffle")])
+@pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("shape, chunks", [((1000, 4), (256, 4)),          # 4096-byte multiples (float32), ragged end
+                                           ((700, 3, 4), (300, 3, 4)),     # an unaligned tail in every chunk
+                                           ((5, 4), (8, 4))])              # one chunk, larger than the array
+def test_raw_chunks_are_the_files_zarr_writes(tmp_path, rng, dtype, shape, chunks, blosc):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    from zarr.codecs import BloscCodec
+
+    from quatarray._zarr import RawChunks
+    data = rng.normal(size=shape).astype(dtype)
+    data[:len(data) // 2] = np.round(data[:len(data) // 2])   # something for a compressor to find
+    compressors = None if blosc is None else BloscCodec(cname=blosc[0], clevel=blosc[1], shuffle=blosc[2])
+    made = {}
+    for name in ("zarr", "ours"):
+        root = str(tmp_path / name)
+        a = zarr.open_group(root, mode="w").create_array("keys", shape=shape, chunks=chunks, dtype=dtype,
+                                                         compressors=compressors)
+        if name == "zarr":
+            a[...] = data
+        else:
+            da.store(da.from_array(data, chunks=chunks), RawChunks(a, root), lock=False, scheduler="threads")
+        made[name] = _chunk_files(root)
+        np.testing.assert_array_equal(zarr.open_group(root, mode="r")["keys"][...], data)
+    assert made["ours"] == made["zarr"] and len(made["ours"]) == -(-shape[0] // chunks[0])
+
+
+def test_raw_chunks_fall_back_to_plain_writes(tmp_path, rng, monkeypatch):
+    """Where O_DIRECT is refused (tmpfs at open; a device's alignment at write), the same bytes
+    are written plainly."""
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import errno
+
+    from quatarray import _zarr
+    data = rng.normal(size=(2048, 4)).astype(np.float32)
+    real_open, real_write = os.open, os.write
+    direct = getattr(os, "O_DIRECT", 0)
+    for refuse in ("open", "write"):
+        seen = []
+
+        def fake_open(path, flags, mode=0o777, *args, refuse=refuse, seen=seen, **kw):
+            if os.sep + "c" + os.sep in os.fspath(path):   # a chunk file (zarr's own files pass)
+                seen.append(flags & direct)
+                if refuse == "open" and flags & direct:
+                    raise OSError(errno.EINVAL, "Invalid argument")
+            return real_open(path, flags, mode, *args, **kw)
+
+        def fake_write(fd, data, refuse=refuse):
+            if refuse == "write" and direct and _fcntl_flags(fd) & direct:
+                raise OSError(errno.EINVAL, "Invalid argument")
+            return real_write(fd, data)
+
+        monkeypatch.setattr(_zarr.os, "open", fake_open)
+        monkeypatch.setattr(_zarr.os, "write", fake_write)
+        root = str(tmp_path / refuse)
+        a = zarr.open_group(root, mode="w").create_array("keys", shape=data.shape, chunks=(1024, 4),
+                                                         dtype=np.float32, compressors=None)
+        w = _zarr.RawChunks(a, root)
+        w[0:1024, 0:4] = data[:1024]
+        w[1024:2048, 0:4] = data[1024:]
+        monkeypatch.undo()
+        np.testing.assert_array_equal(zarr.open_group(root, mode="r")["keys"][...], data)
+        if direct:   # O_DIRECT asked for once per chunk (then plainly where refused at open)
+            assert sum(1 for f in seen if f) == 2
+
+
+def _fcntl_flags(fd):
+    import fcntl
+    return fcntl.fcntl(fd, fcntl.F_GETFL)
+
+
+def test_raw_chunks_refuse_what_they_cannot_write(tmp_path):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    from quatarray._zarr import RawChunks
+    g = zarr.open_group(str(tmp_path / "s.zarr"), mode="w")
+    packed = g.create_array("packed", shape=(10, 4), chunks=(5, 4), dtype=np.float32)   # zstd by default
+    with pytest.raises(ValueError, match="expected a Zarr v3 array with codec bytes"):
+        RawChunks(packed, str(tmp_path / "s.zarr"))
+    raw = g.create_array("raw", shape=(10, 4), chunks=(5, 4), dtype=np.float32, compressors=None)
+    w = RawChunks(raw, str(tmp_path / "s.zarr"))
+    with pytest.raises(ValueError, match="expected one whole chunk"):
+        w[2:7, 0:4] = np.zeros((5, 4))
+    # a store removed under a late write is not created again
+    import shutil
+    shutil.rmtree(tmp_path / "s.zarr")
+    with pytest.raises(FileNotFoundError):
+        w[0:5, 0:4] = np.zeros((5, 4))
+    assert os.listdir(tmp_path) == []
