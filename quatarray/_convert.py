@@ -134,20 +134,35 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
-def _k_as_matrix(q, o):
+def _k_as_matrix(q, o, unit=False):
     w, x, y, z = q
-    s = np.divide(2.0, _scale.guarded_sqnorm(q))
     with _blocks.scratch().frame() as work:
-        xs, ys, zs, xx, yy, zz, a, b = work.rows(8, s.shape, o.dtype)
-        np.multiply(x, s, out=xs)
-        np.multiply(y, s, out=ys)
-        np.multiply(z, s, out=zs)
-        np.multiply(x, xs, out=xx)
-        np.multiply(y, ys, out=yy)
-        np.multiply(z, zs, out=zz)
-        for k, (p, r) in ((0, (yy, zz)), (4, (xx, zz)), (8, (xx, yy))):
-            np.add(p, r, out=a)
-            np.subtract(1.0, a, out=o[k])
+        xs, ys, zs, xx, yy, zz, a, b = work.rows(8, w.shape, o.dtype)
+        if unit:   # |q| = 1: scipy's diagonal, (w² ∓ z²) ± (x² ∓ y²), exact zeros where |w| = |z| etc.
+            np.add(x, x, out=xs)
+            np.add(y, y, out=ys)
+            np.add(z, z, out=zs)
+            ww = work.rows(1, w.shape, o.dtype)[0]
+            for sq, c in ((ww, w), (xx, x), (yy, y), (zz, z)):
+                np.multiply(c, c, out=sq)
+            np.subtract(ww, zz, out=a)
+            np.subtract(xx, yy, out=b)
+            np.add(a, b, out=o[0])
+            np.subtract(a, b, out=o[4])
+            np.add(ww, zz, out=a)
+            np.add(xx, yy, out=b)
+            np.subtract(a, b, out=o[8])
+        else:
+            s = np.divide(2.0, _scale.guarded_sqnorm(q))
+            np.multiply(x, s, out=xs)
+            np.multiply(y, s, out=ys)
+            np.multiply(z, s, out=zs)
+            np.multiply(x, xs, out=xx)
+            np.multiply(y, ys, out=yy)
+            np.multiply(z, zs, out=zz)
+            for k, (p, r) in ((0, (yy, zz)), (4, (xx, zz)), (8, (xx, yy))):
+                np.add(p, r, out=a)
+                np.subtract(1.0, a, out=o[k])
         # off-diagonal pairs (i, j) = p -/+ r, each output row written once
         for (i, j), (p1, p2, r1, r2) in (((1, 3), (x, ys, w, zs)), ((6, 2), (x, zs, w, ys)),
                                          ((5, 7), (y, zs, w, xs))):
@@ -157,13 +172,19 @@ def _k_as_matrix(q, o):
             np.add(a, b, out=o[j])
 
 
-def as_matrix(q):
+def as_matrix(q, unit=False):
     """Rotation matrices of quaternions (the rotation by q/|q|).
 
     Parameters
     ----------
     q : ndarray, shape (..., 4)
         Scalar-first quaternions, not necessarily unit.
+    unit : bool, default False
+        The caller knows every q is a finite unit quaternion (`Rotation`'s
+        storage): |q|² is taken as 1, saving the squared norms and their
+        range check, and the diagonal is scipy's w² ± x² ± y² ± z² (exact
+        zeros where two components are equal in magnitude, as scipy's).
+        Within a few ulp of the general path for unit q.
 
     Returns
     -------
@@ -184,7 +205,7 @@ def as_matrix(q):
     if q.shape == (4,):  # one rotation: Python floats (no block run)
         return as_matrix_one(q)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
-    _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)])
+    _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
     return out
 
 

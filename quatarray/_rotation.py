@@ -96,7 +96,10 @@ class Rotation:
     array([  0.,   0., 180.])
     """
 
-    __slots__ = ("_q", "__weakref__")
+    # _unit: every stored quaternion is known to be a unit one (made by a normalising path and
+    # never handed out writable), so that `as_matrix` may skip the squared norms; False is
+    # always safe (the general path normalises)
+    __slots__ = ("_q", "_unit", "__weakref__")
 
     def __init__(self, quat, normalize=True, copy=True, scalar_first=False):
         if _is_scipy_rotation(quat):
@@ -112,12 +115,15 @@ class Rotation:
         elif copy and (q is quat or isinstance(quat, np.ndarray) and np.may_share_memory(q, quat)):
             q = q.copy()
         self._q = q
+        self._unit = bool(normalize)
 
     @classmethod
-    def _wrap(cls, q):
-        """A rotation holding the raw unit scalar-first array `q` (no checks, no copy)."""
+    def _wrap(cls, q, unit=False):
+        """A rotation holding the raw unit scalar-first array `q` (no checks, no copy); `unit`:
+        `q` was made by a normalising path (see ``_unit``)."""
         r = object.__new__(cls)
         r._q = q
+        r._unit = unit
         return r
 
     # --- the stored quaternions -----------------------------------------------------------
@@ -154,6 +160,7 @@ class Rotation:
         >>> Rotation.from_euler("x", 0).as_quatarray()
         QuatArray([1., 0., 0., 0.])
         """
+        self._unit = False   # the caller may write anything into it
         return self._q.view(QuatArray)
 
     @classmethod
@@ -167,7 +174,7 @@ class Rotation:
         """
         if not _is_scipy_rotation(r):
             raise TypeError(f"expected a scipy.spatial.transform.Rotation, got {type(r).__name__}")
-        return cls._wrap(np.asarray(r.as_quat(scalar_first=True), dtype=np.float64))
+        return cls._wrap(np.asarray(r.as_quat(scalar_first=True), dtype=np.float64), unit=True)
 
     def to_scipy(self):
         """This rotation as a ``scipy.spatial.transform.Rotation`` (float64).
@@ -242,7 +249,7 @@ class Rotation:
         m = float_array(matrix, "matrix")
         if m.ndim < 2 or m.shape[-2:] != (3, 3):
             raise ValueError(f"Expected `matrix` to have shape (3, 3) or (..., 3, 3), got {m.shape}")
-        return cls._wrap(C.from_matrix(m, assume_valid=assume_valid))
+        return cls._wrap(C.from_matrix(m, assume_valid=assume_valid), unit=True)
 
     def as_matrix(self):
         """Rotation matrices, shape (..., 3, 3).
@@ -255,7 +262,7 @@ class Rotation:
                [ 0.,  0.,  1.]])
         """
         q = self._q
-        return C.as_matrix_one(q) if q.ndim == 1 else C.as_matrix(q)
+        return C.as_matrix_one(q) if q.ndim == 1 else C.as_matrix(q, unit=self._unit)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -269,7 +276,7 @@ class Rotation:
         v = float_array(rotvec, "rotvec")
         if v.ndim == 0 or v.shape[-1] != 3:
             raise ValueError(f"Expected `rot_vec` to have shape (3,) or (..., 3), got {v.shape}")
-        return cls._wrap(C.from_rotvec(v, degrees=degrees))
+        return cls._wrap(C.from_rotvec(v, degrees=degrees), unit=True)
 
     def as_rotvec(self, degrees=False):
         """Rotation vectors, shape (..., 3), angle (the norm) in [0, π].
@@ -293,7 +300,7 @@ class Rotation:
         p = float_array(mrp, "mrp")
         if p.ndim == 0 or p.shape[-1] != 3:
             raise ValueError(f"Expected `mrp` to have shape (3,) or (..., 3), got {p.shape}")
-        return cls._wrap(C.from_mrp(p))
+        return cls._wrap(C.from_mrp(p), unit=True)
 
     def as_mrp(self):
         """Modified Rodrigues parameters, shape (..., 3), norm ≤ 1.
@@ -333,7 +340,7 @@ class Rotation:
             raise ValueError(f"Expected last dimension of `angles` to match number of sequence "
                              f"axes specified, got {a.shape[-1]}: expected angles of shape "
                              f"(..., {len(seq)}) for seq {seq!r}, got {a.shape}")
-        return cls._wrap(E.from_euler(seq, a, degrees=degrees))
+        return cls._wrap(E.from_euler(seq, a, degrees=degrees), unit=True)
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles, shape (..., 3), in scipy's ranges, with its gimbal-lock warning.
@@ -384,7 +391,7 @@ class Rotation:
         if ax2.ndim == 2:
             if any(abs(c) > 1e-7 for c in _cosines(ax2)):
                 raise ValueError("Consecutive axes must be orthogonal.")
-            return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees))
+            return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees), unit=True)
         unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
         if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
@@ -474,10 +481,10 @@ class Rotation:
             return NotImplemented
         p = self._q
         if p.ndim == 1 and q.ndim == 1:  # two single rotations: from_quat normalises in Python floats
-            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True))
+            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True), unit=True)
         _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
                          f"{q.shape[:-1]} rotations in second object.")
-        return type(self)._wrap(K.normalize(K.multiply(p, q)))
+        return type(self)._wrap(K.normalize(K.multiply(p, q)), unit=True)
 
     def __rmul__(self, other):
         if _is_scipy_rotation(other):
@@ -532,7 +539,7 @@ class Rotation:
         >>> Rotation.from_rotvec([0, 0, 1]).inv().as_rotvec() + 0.0
         array([ 0.,  0., -1.])
         """
-        return type(self)._wrap(K.conjugate(self._q))
+        return type(self)._wrap(K.conjugate(self._q), unit=self._unit)
 
     def magnitude(self):
         """Rotation angles in [0, π], batch shape (a NumPy float for one rotation).
@@ -744,7 +751,7 @@ class Rotation:
         """
         q = np.zeros(_batch_shape(num, shape) + (4,), dtype)
         q[..., 0] = 1
-        return Rotation._wrap(q)
+        return Rotation._wrap(q, unit=True)
 
     @staticmethod
     def random(*args, **kwargs):
@@ -780,7 +787,7 @@ class Rotation:
         (3,)
         """
         if isinstance(rotations, Rotation):
-            return cls._wrap(rotations._q.copy())
+            return cls._wrap(rotations._q.copy(), unit=rotations._unit)
         if _is_scipy_rotation(rotations):
             return cls.from_scipy(rotations)
         rotations = list(rotations)
@@ -793,7 +800,8 @@ class Rotation:
                                 f"{type(r).__name__} at position {i}")
         if not rotations:
             raise ValueError("need at least one rotation to concatenate, got an empty sequence")
-        return cls._wrap(np.concatenate([np.atleast_2d(r._q) for r in rotations]))
+        return cls._wrap(np.concatenate([np.atleast_2d(r._q) for r in rotations]),
+                         unit=all(r._unit for r in rotations))
 
     @classmethod
     def align_vectors(cls, a, b, weights=None, return_sensitivity=False):
@@ -850,12 +858,12 @@ class Rotation:
         if self._q.ndim == 1:
             raise TypeError("Single rotation is not iterable.")
         cls = type(self)
-        return (cls._wrap(q) for q in self._q)
+        return (cls._wrap(q, unit=self._unit) for q in self._q)
 
     def __getitem__(self, indexer):
         if self._q.ndim == 1:
             raise TypeError("Single rotation is not subscriptable.")
-        return type(self)._wrap(np.array(self._q[_batch_key(indexer, self.shape)], copy=True))
+        return type(self)._wrap(np.array(self._q[_batch_key(indexer, self.shape)], copy=True), unit=self._unit)
 
     def __setitem__(self, indexer, value):
         if self._q.ndim == 1:
@@ -865,12 +873,14 @@ class Rotation:
         if not isinstance(value, Rotation):
             raise TypeError(f"value must be a Rotation object, got {type(value).__name__}")
         self._q[_batch_key(indexer, self.shape)] = value._q
+        self._unit = self._unit and value._unit
 
     def __getstate__(self):
         return self._q
 
     def __setstate__(self, state):
         self._q = np.array(state, copy=True)
+        self._unit = False
 
     def __repr__(self):
         m = repr(self.as_matrix()).splitlines()

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation as SR
 
 import quatarray
 from quatarray import QuatArray, Rotation
+from quatarray._convert import as_matrix
 from quatarray.testing import assert_allclose
 
 from .conftest import random_quats, tol
@@ -847,3 +848,27 @@ def test_tuple_index_of_an_nd_batch_indexes_its_axes_as_numpy_does():
     assert np.allclose(r[1, 2].as_quat(), s[1].as_quat()[2], rtol=0, atol=1e-15)
     assert r[:, 1].shape == (2,) and np.allclose(r[:, 1].as_quat(), s.as_quat()[:, 1], rtol=0, atol=1e-15)
     assert s[1, 0].shape == (2, 3)   # scipy's reading, which we do not copy
+
+
+def test_as_matrix_of_rotations_known_unit_and_held_as_given(rng, dtype):
+    """Rotations made by normalising paths skip the squared norms in `as_matrix` (a few ulp
+    from the general path); rotations holding quaternions as given - and any whose storage
+    was handed out writable or received such quaternions - still get q/|q|'s matrix."""
+    q = random_quats(rng, (50,), dtype)
+    eps = np.finfo(dtype).eps
+    general = as_matrix(q)
+    made = Rotation.from_quat(q, scalar_first=True)
+    np.testing.assert_allclose(made.as_matrix(), general, rtol=0, atol=8 * eps)
+    for r in (made.inv(), made[3:9], Rotation.concatenate([made, made[:2]]), next(iter(made))):
+        np.testing.assert_allclose(r.as_matrix(), as_matrix(r.as_quat(scalar_first=True)), rtol=0, atol=8 * eps)
+    scaled = (3 * q).view(QuatArray)
+    for held in (Rotation.from_quatarray(scaled), Rotation(3 * q, normalize=False, scalar_first=True)):
+        np.testing.assert_allclose(held.as_matrix(), general, rtol=0, atol=8 * eps)
+        np.testing.assert_allclose(held.inv().as_matrix(), np.swapaxes(general, -1, -2), rtol=0, atol=8 * eps)
+        np.testing.assert_allclose(held[2:5].as_matrix(), general[2:5], rtol=0, atol=8 * eps)
+    exposed = Rotation.from_quat(q, scalar_first=True)
+    exposed.as_quatarray()[...] *= 5          # written through the zero-copy view
+    np.testing.assert_allclose(exposed.as_matrix(), general, rtol=0, atol=8 * eps)
+    target = Rotation.from_quat(q, scalar_first=True)
+    target[:10] = Rotation.from_quatarray((7 * q[:10]).view(QuatArray))
+    np.testing.assert_allclose(target.as_matrix(), general, rtol=0, atol=8 * eps)
