@@ -507,10 +507,15 @@ def _log_parts(q):
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
     rescaled q, which is what the callers multiply."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
-    _scale.sum_squares(q, n2)
-    e = _scale.guard(q, n2)
-    _scale.sum_squares(q, vv, 1)
     w = q[0]
+    _scale.sum_squares(q, vv, 1)
+    np.multiply(w, w, out=n2)
+    n2 += vv                              # w² + |v|², as the one-quaternion path
+    e = _scale.guard(q, n2)
+    if e is not None:                     # q was rescaled: |v|² again
+        _scale.sum_squares(q, vv, 1)
+        np.multiply(w, w, out=n2)
+        n2 += vv
     np.subtract(w, 1, out=d)
     np.add(w, 1, out=u)
     d *= u
@@ -522,14 +527,14 @@ def _log_parts(q):
     ln *= um1
     np.copyto(ln, d, where=u == 1)
     ln *= 0.5
-    small = n2 < 0.5   # |q|² - 1 = -1 + |q|² has lost |q|² to rounding: ln|q| = ln(|q|²) / 2
-    if small.any():
+    if n2.min() < 0.5:   # |q|² - 1 = -1 + |q|² has lost |q|² to rounding: ln|q| = ln(|q|²) / 2
+        small = n2 < 0.5
         ln[small] = 0.5 * np.log(n2[small])
     vn = np.sqrt(vv, out=vv)
     arctan2(vn, w, out=theta)
     np.divide(theta, vn, out=scale)
-    lim = vn == 0
-    if lim.any():
+    if vn.min() == 0:   # one reduction instead of a mask and a test when none (vn >= 0)
+        lim = vn == 0
         scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
     return ln, theta, vn, scale, e
 
@@ -540,9 +545,8 @@ def _k_log(q, o):
     np.copyto(o[0], ln)
     if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
         o[0] += e * np.log(o.dtype.type(2))
-    neg_real = (vn == 0) & (q[0] < 0)
-    if neg_real.any():
-        np.copyto(o[1], np.pi, where=neg_real)
+    if vn.min() == 0:   # a real quaternion in the block: the negative ones get θ = π about x
+        np.copyto(o[1], np.pi, where=(vn == 0) & (q[0] < 0))
 
 
 def log(q):
