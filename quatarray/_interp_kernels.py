@@ -34,6 +34,7 @@ import numpy as np
 from . import _blocks
 from ._blocks import soa
 from ._kernels import result_dtype
+from ._validate import all_finite
 
 __all__ = [
     "vdot", "soa", "sqsum", "slerp_weights", "hemisphere", "wide_arcs", "slerp_core", "squad_param", "squad_blend",
@@ -444,12 +445,29 @@ def _sq_last(x):
     return _dot_last(x, x)
 
 
-def slerp(q0, q1, t, shortest=True):
-    """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`)."""
+def slerp(q0, q1, t, shortest=True, check=False):
+    """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`).
+
+    With `check`, returns ``(result, all finite)``, judged block by block while
+    each block is in cache: non-finite input always gives non-finite output
+    (it reaches |B ∓ A|² or the angle), so callers check the inputs only then.
+    """
     dtype = result_dtype(q0, q1)
     if _small((q0, q1), t) is not None:
-        return _slerp_small(q0, q1, t, shortest, dtype)
-    return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
+        out = _slerp_small(q0, q1, t, shortest, dtype)
+        return (out, all_finite(out)) if check else out
+    if not check:
+        return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
+    batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], t.shape)
+    out = np.empty(batch + (4,), dtype)
+    bad = _blocks.blockwise(_slerp_checked, [q0, q1], [out], batch, dtype, views=[t], shortest=shortest)
+    return out, not bad
+
+
+def _slerp_checked(A, B, h, O, shortest):
+    """`slerp_core`, returning True when the block's output is not all finite."""
+    slerp_core(A, B, h, O, shortest)
+    return not all_finite(O)
 
 
 def _slerp_small(q0, q1, t, shortest, dtype):

@@ -191,9 +191,13 @@ def slerp(q0, q1, t, *, shortest=True):
     >>> slerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5)    # the same rotation: stays put
     QuatArray([1., 0., 0., 0.])
     """
-    q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
+    q0, q1, t = quat_array(q0, "q0"), quat_array(q1, "q1"), float_array(t, "t")
     _pairwise(("q0", "q1"), (q0, q1), t)
-    return QuatArray._wrap(IK.slerp(q0, q1, t, bool(shortest)))
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):   # non-finite input: named below
+        res, ok = IK.slerp(q0, q1, t, bool(shortest), check=True)
+    if not ok:   # finite input gives finite output: one of them is not finite
+        finite(q0, "q0"), finite(q1, "q1"), finite(t, "t")
+    return QuatArray._wrap(res)
 
 
 def unflip(q, axis=0):
