@@ -27,6 +27,7 @@ sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
 every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
+import math
 from math import prod
 
 import numpy as np
@@ -453,6 +454,11 @@ def slerp(q0, q1, t, shortest=True, check=False):
     (it reaches |B ∓ A|² or the angle), so callers check the inputs only then.
     """
     dtype = result_dtype(q0, q1)
+    if q0.shape == q1.shape == (4,) and t.ndim == 0:   # one pair: Python floats
+        res = slerp_one(q0.tolist(), q1.tolist(), float(t), shortest)
+        if res is not None:
+            out = np.array(res, dtype)
+            return (out, all_finite(out)) if check else out
     if _small((q0, q1), t) is not None:
         out = _slerp_small(q0, q1, t, shortest, dtype)
         return (out, all_finite(out)) if check else out
@@ -462,6 +468,40 @@ def slerp(q0, q1, t, shortest=True, check=False):
     out = np.empty(batch + (4,), dtype)
     bad = _blocks.blockwise(_slerp_checked, [q0, q1], [out], batch, dtype, views=[t], shortest=shortest)
     return out, not bad
+
+
+def slerp_one(p, q, h, shortest=True):
+    """`slerp_core` for one pair of quaternions (lists of four floats) at a float `h`, with
+    Python floats: the float64 formulas of `slerp_weights` in the same order.  None where
+    the array path is needed: non-finite input (it raises there) and wide arcs followed as
+    given (`wide_arcs`).
+
+    >>> from quatarray._interp_kernels import slerp_one
+    >>> [round(c, 12) for c in slerp_one([1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], 0.5)]
+    [0.707106781187, 0.0, 0.0, 0.707106781187]
+    """
+    if not (math.isfinite(h) and math.isfinite(sum(p) + sum(q))):
+        return None
+    d = [y - x for x, y in zip(p, q)]
+    e = [y + x for x, y in zip(p, q)]
+    a2 = ((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]) + d[3] * d[3]
+    b2 = ((e[0] * e[0] + e[1] * e[1]) + e[2] * e[2]) + e[3] * e[3]
+    flip = 1.0
+    if shortest:
+        flip = math.copysign(1.0, b2 - a2)   # +0 keeps B
+        a2, b2 = min(a2, b2), max(a2, b2)
+    elif b2 < a2:
+        return None
+    tiny, floor = _TINY[np.dtype(np.float64)]
+    r2 = a2 / max(b2, floor)
+    rho = max(math.sqrt(r2), tiny)
+    tau = math.tan(math.atan(rho) * h)
+    t2 = tau * tau
+    v = tau / rho
+    g = 1.0 / (t2 + 1.0)
+    w0 = (1.0 - (t2 + (1.0 - r2) * v)) * g
+    w1 = (r2 + 1.0) * v * g * flip
+    return [w0 * x + w1 * y for x, y in zip(p, q)]
 
 
 def _slerp_checked(A, B, h, O, shortest):

@@ -390,6 +390,8 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
+    if out is None and q.shape == (4,) and q.dtype in _COMPLEX:   # one quaternion: Python floats
+        return np.array(_normalize_one(q.tolist()), q.dtype)
     res = _out(out, q.shape, result_dtype(q))
     if res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype and not np.may_share_memory(q, res):
         with np.errstate(over="ignore"):   # squares that overflow are rescaled
@@ -400,6 +402,16 @@ def normalize(q, out=None):
         _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
+
+
+def _normalize_one(c):
+    """`normalize` of one quaternion given as four Python floats (the block path's operations
+    in the same order; float32 input is computed in float64, then rounded)."""
+    (w, x, y, z), _ = _scale.guard_one(c)   # rescaled by a power of two if extreme: same direction
+    n = math.sqrt(((w * w + x * x) + y * y) + z * z)
+    if not n > 0:
+        raise ValueError(_ZERO_NORMALIZE)
+    return [w / n, x / n, y / n, z / n]
 
 
 def _normalize_flat(q, out):

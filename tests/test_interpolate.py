@@ -1034,3 +1034,22 @@ def test_extend_is_finite_and_unit_up_to_its_limit(method, dtype, rng):
             track(far)
         with pytest.raises(ValueError, match="expected t within 10000 end-segment lengths"):
             track.angular_velocity([0.5, far])
+
+
+@pytest.mark.parametrize("shortest", [True, False])
+def test_one_pair_slerp_equals_the_batch_path(rng, dtype, shortest):
+    """One pair at a scalar t takes Python floats (math.atan, math.tan): within a few eps of
+    the block path (libm's and NumPy's tan and arctan may differ in the last bit; the block
+    path's float32 weights are sines); near-equal, equal and opposite pairs and
+    extrapolation included."""
+    n = 2 * IK.SMALL    # the batch goes through the blocks
+    a = random_quats(rng, (n,), np.float64)
+    b = random_quats(rng, (n,), np.float64)
+    b[:50] = a[:50] + 1e-9 * rng.standard_normal((50, 4))
+    b[50:60], b[60:70] = a[50:60], -a[60:70]
+    t = rng.uniform(-0.5, 1.5, n)
+    a, b, t = a.astype(dtype), b.astype(dtype), t.astype(dtype)
+    batch = IK.slerp(a, b, t, shortest)
+    one = np.array([IK.slerp(x, y, np.array(h), shortest) for x, y, h in zip(a, b, t)])
+    assert one.dtype == dtype
+    np.testing.assert_allclose(one, batch, rtol=0, atol=4 * np.finfo(dtype).eps)

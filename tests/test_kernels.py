@@ -412,3 +412,20 @@ def test_one_quaternion_exp_log_power_equal_the_batch_path(rng, dtype):
         for t in (2.0, 0.0, -1.0):
             np.testing.assert_array_equal(*_one_vs_batch(K.power, zero, t))
         np.testing.assert_array_equal(*_one_vs_batch(K.log, zero))
+
+
+def test_one_quaternion_normalize_equals_the_batch_path(rng, dtype):
+    """One quaternion takes Python floats, the block path's operations in the same order:
+    float64 bit for bit at any magnitude, float32 within an eps; zero and non-finite raise."""
+    top = 300 if dtype == np.float64 else 30
+    qs = (random_quats(rng, (80,), np.float64) * 10.0 ** rng.uniform(-top, top, (80, 1))).astype(dtype)
+    batch = K.normalize(qs)
+    one = np.array([K.normalize(q) for q in qs])
+    assert one.dtype == dtype
+    if dtype == np.float64:
+        np.testing.assert_array_equal(one, batch)
+    else:
+        np.testing.assert_allclose(one, batch, rtol=0, atol=np.finfo(dtype).eps)
+    for bad, match in (([0, 0, 0, 0], "non-zero"), ([np.nan, 1, 0, 0], "finite"), ([0, np.inf, 0, 0], "finite")):
+        with pytest.raises(ValueError, match=match):
+            K.normalize(np.array(bad, dtype))
