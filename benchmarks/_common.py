@@ -198,12 +198,13 @@ class Quatarray(Lib):
         return q.conj()
 
     def _rotation(self, q):
-        """The scipy-surface `Rotation` over the same quaternions (no copy), made once per
-        array (as the scipy adapter makes its Rotation in setup, outside the timings)."""
+        """The scipy-surface `Rotation` of the same quaternions, made once per array as a
+        user makes one (``from_quat``, as the scipy adapter does in setup, outside the
+        timings)."""
         memo = self.__dict__.setdefault("_rotations", {})
         held = memo.get(id(q))
         if held is None or held[0] is not q:
-            held = memo[id(q)] = (q, self.qa.Rotation.from_quatarray(q))
+            held = memo[id(q)] = (q, self.qa.Rotation.from_quat(q.view(np.ndarray), scalar_first=True))
         return held[1]
 
     def inv(self, q):
