@@ -174,7 +174,7 @@ class Rotation:
         """
         if not _is_scipy_rotation(r):
             raise TypeError(f"expected a scipy.spatial.transform.Rotation, got {type(r).__name__}")
-        return cls._wrap(np.asarray(r.as_quat(scalar_first=True), dtype=np.float64), unit=True)
+        return cls._wrap(np.asarray(r.as_quat(scalar_first=True), dtype=np.float64))   # may hold normalize=False quaternions
 
     def to_scipy(self):
         """This rotation as a ``scipy.spatial.transform.Rotation`` (float64).

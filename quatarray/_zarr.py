@@ -230,12 +230,13 @@ class RawChunks:
     with the fill value to the full chunk shape), so zarr reads them.
     Uncompressed chunks are written with ``O_DIRECT`` where the filesystem
     takes it (Linux; not tmpfs), from a page-aligned buffer per thread,
-    falling back to plain writes for the rest.  Measured on the 2-CPU KVM machine: 50 chunks of
-    32 MiB took 5.7 s of system CPU through the page cache (230 MB/s, a core
-    taken from the computation) and 0.24 s with ``O_DIRECT`` (800 MB/s); a 16 GB
-    output also no longer evicts the page cache.  Compressed chunks skip
-    zarr's write path (an event-loop thread, hops to worker threads): for a
-    16 MiB chunk of times, 21 ms per chunk there against ~5 ms here.
+    falling back to plain writes for the rest.  Measured on the 2-CPU KVM
+    machine: 50 chunks of 32 MiB took 5.7 s of system CPU through the page
+    cache (230 MB/s, a core taken from the computation) and 0.24 s with
+    ``O_DIRECT`` (800 MB/s); a 16 GB output also no longer evicts the page
+    cache.  Compressed chunks skip zarr's write path (an event-loop thread,
+    hops to worker threads): for a 16 MiB chunk of times, 21 ms per chunk
+    there against about 5 ms here.
 
     Every `__setitem__` key must be exactly one chunk (the source is chunked
     like the array).  Directories are made below the array's own directory
