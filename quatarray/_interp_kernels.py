@@ -411,13 +411,14 @@ def frame_core(F, phi, u, O):
 # Pairwise functions: broadcasting, blocks, preallocated output
 # --------------------------------------------------------------------------
 
-def _pairwise(kernel, quats, t, dtype, **params):
+def _pairwise(kernel, quats, t, dtype, flagged=False, **params):
     """Run ``kernel(*quats_block, t_block, O, **params)`` on the block engine;
-    returns the (batch, 4) output."""
+    returns the (batch, 4) output, and with `flagged` also whether any block's
+    kernel returned True (`_blocks.blockwise`)."""
     batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)
     out = np.empty(batch + (4,), dtype)
-    _blocks.blockwise(kernel, list(quats), [out], batch, dtype, views=[t], **params)
-    return out
+    flag = _blocks.blockwise(kernel, list(quats), [out], batch, dtype, views=[t], **params)
+    return (out, flag) if flagged else out
 
 
 #: Up to this many quaternions the pairwise functions use direct (..., 4)
@@ -454,19 +455,17 @@ def slerp(q0, q1, t, shortest=True, check=False):
     (it reaches |B ∓ A|² or the angle), so callers check the inputs only then.
     """
     dtype = result_dtype(q0, q1)
+    out = None
     if q0.shape == q1.shape == (4,) and t.ndim == 0:   # one pair: Python floats
         res = slerp_one(q0.tolist(), q1.tolist(), float(t), shortest)
-        if res is not None:
-            out = np.array(res, dtype)
-            return (out, all_finite(out)) if check else out
-    if _small((q0, q1), t) is not None:
+        out = None if res is None else np.array(res, dtype)
+    if out is None and _small((q0, q1), t) is not None:
         out = _slerp_small(q0, q1, t, shortest, dtype)
+    if out is not None:
         return (out, all_finite(out)) if check else out
     if not check:
         return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
-    batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], t.shape)
-    out = np.empty(batch + (4,), dtype)
-    bad = _blocks.blockwise(_slerp_checked, [q0, q1], [out], batch, dtype, views=[t], shortest=shortest)
+    out, bad = _pairwise(_slerp_checked, (q0, q1), t, dtype, flagged=True, shortest=shortest)
     return out, not bad
 
 

@@ -196,7 +196,8 @@ def slerp(q0, q1, t, *, shortest=True):
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):   # non-finite input: named below
         res, ok = IK.slerp(q0, q1, t, bool(shortest), check=True)
     if not ok:   # finite input gives finite output: one of them is not finite
-        finite(q0, "q0"), finite(q1, "q1"), finite(t, "t")
+        for a, name in ((q0, "q0"), (q1, "q1"), (t, "t")):
+            finite(a, name)
     return QuatArray._wrap(res)
 
 
