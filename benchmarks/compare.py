@@ -73,15 +73,25 @@ class Row:
         return (self.op, self.n, self.dtype)
 
 
-def _callable(row, lib):
+def _callable(row, lib, setups=None):
     """Set the benchmark up for `lib`; return (zero-argument call, seconds of the warm-up
-    call), or None when skipped."""
-    bench = row.cls()
+    call), or None when skipped.
+
+    `setups` (a dict) holds benchmark objects already set up, by class and
+    parameters: rows of one class with the same parameters (the conversions,
+    the rigid transforms) share one setup instead of building the same inputs again.
+    """
     args = row.params + (lib,)
-    if hasattr(bench, "setup_cache"):
+    key = (row.cls, args)
+    bench = None if setups is None else setups.get(key)
+    if hasattr(row.cls, "setup_cache"):
         args = (_cache(row.cls),) + args
     try:
-        bench.setup(*args)
+        if bench is None:
+            bench = row.cls()
+            bench.setup(*args)
+            if setups is not None:
+                setups[key] = bench
         fn = getattr(bench, row.method)
         t0 = time.perf_counter()
         fn(*args)  # warm-up, and checks that the library has the operation
@@ -178,11 +188,15 @@ def _add_reference(size, dtype):
 def run_rows(rows, repeat, min_time, log=None, budget=3.0):
     """Time every row; returns a list of result dicts."""
     results = []
+    setups = {}   # the current row's set-up benchmarks, kept for the next row if it shares them
     for row in rows:
         calls, warm = {}, {}
+        used = {(row.cls, row.params + (lib,)) for lib in row.libs}
+        for key in [k for k in setups if k not in used]:
+            del setups[key]
         for lib in row.libs:
             if installed(lib):
-                got = _callable(row, lib)
+                got = _callable(row, lib, setups)
                 if got is not None:
                     calls[lib], warm[lib] = got
         if "quatarray" not in calls:
@@ -288,7 +302,11 @@ def _rows(full):
         for n in sizes:
             for dt in dtypes:
                 use = [lib for lib in (LIBS if full else libs) if not (n >= BIG and (op, lib) in SLOW_PEERS)]
-                rows.append(Row(op, cls, method, (n, dt), size=n, libs=use))
+                if not full and dt != "float64":   # the float32 targets compare quatarray with itself
+                    use, one = [qa], False
+                else:
+                    one = None
+                rows.append(Row(op, cls, method, (n, dt), size=n, libs=use, one_thread=one))
 
     sizes = _common.SIZES if full else [BIG]
     f64 = ["float64"]
@@ -318,8 +336,8 @@ def _rows(full):
                     libs=(qa, sp), n=BIG))
     rows.append(Row("spline build, 10000 keys", SplineEvaluate, "time_build", (10_000, 10, "float64"),
                     libs=(qa, sp), n=10_000, one_thread=False))
-    for op in RIGID_OPS:
-        for n in (1, BIG) if op in ("rigid apply", "rigid compose") else (1,):
+    for n in (1, BIG):   # n outer: the rows of one n share their setup
+        for op in RIGID_OPS if n == 1 else ("rigid apply", "rigid compose"):
             rows.append(Row(op, RigidTransforms, RIGID_OPS[op], (n, "float64"), size=n, libs=(qa, sp)))
     if full:
         for case in ("npz", "bvh"):
