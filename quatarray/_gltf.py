@@ -195,6 +195,34 @@ def _json_bytes(doc, **style):
         return json.dumps(doc, **style).encode("ascii")
 
 
+def _sidecar(dst):
+    """The ``.bin`` file a ``.gltf`` output at `dst` keeps its buffer in (unless embedded)."""
+    return os.path.join(os.path.dirname(dst), os.path.splitext(os.path.basename(dst))[0] + ".bin")
+
+
+def _input_files(gf):
+    """The files a glTF input is made of: itself and the files its buffers and images name."""
+    folder = os.path.dirname(os.path.abspath(gf.path))
+    files = [gf.path]
+    items = [x for key in ("buffers", "images") if isinstance(gf.json.get(key), list) for x in gf.json[key]]
+    for item in items:
+        uri = item.get("uri") if isinstance(item, dict) else None
+        if isinstance(uri, str) and not uri.startswith("data:") and len(urllib.parse.urlsplit(uri).scheme) <= 1:
+            files.append(os.path.join(folder, urllib.parse.unquote(uri)))
+    return files
+
+
+def _replaces_input(path, gf):
+    """Whether writing `path` would replace one of the input's files."""
+    for file in _input_files(gf):
+        try:
+            if os.path.samefile(path, file):
+                return True
+        except OSError:
+            pass
+    return False
+
+
 def _write_document(dst, doc, data, layout):
     """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it."""
     if os.path.splitext(dst)[1].lower() == ".glb":
@@ -209,9 +237,9 @@ def _write_document(dst, doc, data, layout):
     if data and layout == "embedded":
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
     elif data:
-        name = os.path.splitext(os.path.basename(dst))[0] + ".bin"
+        name = os.path.basename(_sidecar(dst))
         doc["buffers"][0]["uri"] = urllib.parse.quote(name)
-        with atomic_write(os.path.join(os.path.dirname(dst), name), binary=True) as f:
+        with atomic_write(_sidecar(dst), binary=True) as f:
             f.write(data)
     with atomic_write(dst, binary=True) as f:
         f.write(_json_bytes(doc, indent=2) + b"\n")
@@ -219,7 +247,7 @@ def _write_document(dst, doc, data, layout):
 
 # --------------------------------------------------------------------------- resampling
 
-def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="raise"):
+def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", force=False):
     """Resample every animation of a glTF file and write it to `dst` (``.gltf`` or ``.glb``).
 
     Each animation is sampled on one time grid shared by its samplers:
@@ -245,6 +273,10 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         `times` outside an animation's keys: 'raise' a ValueError, or 'clamp'
         to its end values, as glTF players do; 'extend' is refused there
         (glTF defines no extrapolation).
+    force : bool, default False
+        Allow the ``.bin`` file a ``.gltf`` output writes beside it to
+        replace a file of the input (its buffer, an image); without it that
+        is a `FormatError`, before anything is written.
 
     Returns
     -------
@@ -263,6 +295,10 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     (11, 241)
     """
     gf = read_gltf(src)
+    if (not force and os.path.splitext(dst)[1].lower() == ".gltf" and gf.layout != "embedded"
+            and _replaces_input(_sidecar(dst), gf)):
+        raise FormatError(f"would replace {os.path.basename(_sidecar(dst))!r}, a file of the input "
+                          f"{os.path.basename(gf.path)!r}; give --force (force=True) to replace it", dst)
     animations = read_animations(gf)
     if not any(animations):
         raise FormatError("no animation samplers to resample", gf.path)

@@ -45,6 +45,7 @@ class Request:
     extrapolate: str = "raise"
     scalar_last: bool = False
     precision: object = None
+    force: bool = False
 
     def grid(self, t0, t1, per_frame):
         """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first)."""
@@ -82,7 +83,7 @@ def _resample_gltf(src, dst, kind_in, kind_out, request):
     from ._gltf import resample_gltf
 
     return resample_gltf(src, dst, fps=request.fps, times=request.times, method=request.method,
-                         extrapolate=request.extrapolate)
+                         extrapolate=request.extrapolate, force=request.force)
 
 
 #: File extension (lower case) -> family; a family converts into its own extensions only.
@@ -132,7 +133,8 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         writes the shortest text that reads back exactly.  Times are always
         written exactly.
     force : bool
-        Allow `dst` to be `src` (replaced atomically).
+        Allow `dst` to be `src` (replaced atomically), and a ``.gltf`` output's
+        ``.bin`` to replace a file of a glTF input.
 
     Returns
     -------
@@ -143,7 +145,8 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     ------
     FormatError
         An unknown extension, or an unreadable input or times file (the
-        message names the file and line), or `dst` is `src` without `force`.
+        message names the file and line), or `dst` is `src` (or a ``.gltf``
+        output's ``.bin`` a file of the input) without `force`.
     ValueError
         Query times outside the keys with ``extrapolate="raise"``, a single key,
         an output of more than ``quatarray._text.MAX_VALUES`` values.
@@ -174,7 +177,7 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     if method is None and FORMATS[kind_in] != "glTF":
         method = "slerp"
     request = Request(fps, None if times is None else np.asarray(times, np.float64), method, extrapolate,
-                      scalar_last, precision)
+                      scalar_last, precision, force)
     return RESAMPLERS[FORMATS[kind_in]](src, dst, kind_in, kind_out, request)
 
 

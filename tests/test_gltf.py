@@ -704,6 +704,27 @@ def test_cli_resample_and_conversions(tmp_path, rng):
     assert res.returncode == 2 and "--force" in res.stderr
 
 
+def test_a_gltf_output_does_not_replace_the_inputs_buffer_without_force(tmp_path, rng):
+    # in.gltf keeps its buffer in in_data.bin; out "in_data.gltf" would write its own in_data.bin
+    b, _ = skinned(rng)
+    b.save(tmp_path / "in.gltf", "external")
+    buffer = tmp_path / "in_data.bin"
+    before = buffer.read_bytes()
+    dst = tmp_path / "in_data.gltf"
+    res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60)
+    assert res.returncode == 2 and "would replace 'in_data.bin', a file of the input 'in.gltf'" in res.stderr
+    assert "--force" in res.stderr and buffer.read_bytes() == before and not dst.exists()
+    with pytest.raises(cli.FormatError, match="would replace"):
+        resample_gltf(tmp_path / "in.gltf", dst, fps=60)
+    assert buffer.read_bytes() == before
+    # an output elsewhere, or embedded into a .glb, is fine; with force the .bin is replaced
+    assert run("resample", tmp_path / "in.gltf", "-o", tmp_path / "in.glb", "--fps", 60).returncode == 0
+    res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60, "--force")
+    assert res.returncode == 0, res.stderr
+    assert buffer.read_bytes() != before
+    np.testing.assert_array_equal(read_accessor(read_gltf(dst), 0), read_accessor(read_gltf(tmp_path / "in.glb"), 0))
+
+
 def _malformed(tmp_path, rng, how):
     b, _ = skinned(rng)
     if how == "missing buffer":
