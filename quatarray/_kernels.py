@@ -240,7 +240,7 @@ def multiply(p, q, out=None, check=False):
         def block(idx):
             _mul_views(_blocks.part(P, idx, nb), _blocks.part(Q, idx, nb), O[idx])
 
-        _blocks.run(block, _blocks.split(batch), prod(batch))
+        _blocks.run(block, _blocks.split(batch, _blocks.block_size(dtype)), prod(batch))
     else:
         target[...] = _mul_scalar(p.reshape(4), q.reshape(4), dtype)
     if target is not res:
@@ -263,7 +263,7 @@ def _mul_flat(p, q, o):
         _mul_views(P[idx], Q[idx], O[idx])
         return all_finite(o[idx])   # the block is still in cache
 
-    return all(_blocks.run(block, _blocks.split((len(o),)), len(o)))
+    return all(_blocks.run(block, _blocks.split((len(o),), _blocks.block_size(o.dtype)), len(o)))
 
 
 def multiply_rows(p, q):
@@ -284,8 +284,9 @@ def multiply_rows(p, q):
 _SIGNS = {}
 
 
-def _conj_signs(dtype, n=_blocks.BLOCK):
-    """(1, -1, -1, -1) tiled over `n` quaternions (one block, or 1), per dtype (built once)."""
+def _conj_signs(dtype, n=None):
+    """(1, -1, -1, -1) tiled over `n` quaternions (default one block), per dtype (built once)."""
+    n = _blocks.block_size(dtype) if n is None else n
     key = (np.dtype(dtype), n)
     if key not in _SIGNS:
         _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], dtype), n)
@@ -433,7 +434,7 @@ def _normalize_flat(q, out):
         for c in range(4):
             np.divide(blk[:, c], t, o[:, c])
 
-    _blocks.run(block, _blocks.split((len(q),)), len(q))
+    _blocks.run(block, _blocks.split((len(q),), _blocks.block_size(q.dtype)), len(q))
 
 
 def _k_inverse(q, o):

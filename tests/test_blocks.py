@@ -144,6 +144,7 @@ def test_bad_thread_counts(bad, exc):
 # --- same bits for any thread count -------------------------------------------------------------
 
 def _ops(rng, dtype):
+    BLOCK = _blocks.block_size(dtype)   # float32 blocks hold twice as many elements
     n = 3 * BLOCK + 77
     p, q = random_quats(rng, (n,), dtype), random_quats(rng, (n,), dtype)
     t = rng.uniform(-0.2, 1.2, n).astype(dtype)
@@ -251,14 +252,16 @@ def test_scratch_stays_bounded_whatever_the_batch_shape(rng, threads, parallel_a
 
 
 @pytest.mark.parametrize("threads", [1, 2])
-@pytest.mark.parametrize("where", [None, 0, BLOCK + 3, 3 * BLOCK - 1])
-def test_product_and_conjugate_judge_finiteness_block_by_block(rng, threads, where, parallel_always):
+@pytest.mark.parametrize("where", [None, 0, 1, 2])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_product_and_conjugate_judge_finiteness_block_by_block(rng, threads, where, dtype, parallel_always):
     """`check=True` reports whether the whole result is finite, whichever block holds
     the one non-finite element (the flag is judged per block, while it is in cache)."""
-    p = random_quats(rng, (3 * BLOCK,), np.float64)
-    q = random_quats(rng, (3 * BLOCK,), np.float64)
-    if where is not None:
-        q[where, 2] = np.inf
+    block = _blocks.block_size(dtype)
+    p = random_quats(rng, (3 * block,), dtype)
+    q = random_quats(rng, (3 * block,), dtype)
+    if where is not None:   # in the first, second or last block
+        q[(0, block + 3, 3 * block - 1)[where], 2] = np.inf
     with quatarray.num_threads(threads):
         prod, ok_prod = K.multiply(p, q, check=True)
         conj, ok_conj = K.conjugate(q, check=True)
