@@ -203,18 +203,18 @@ def as_matrix(q, unit=False):
     """
     q = quat_array(q, "quat")
     if q.shape == (4,):  # one rotation: Python floats (no block run)
-        return as_matrix_one(q)
+        return as_matrix_one(q, unit)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
     return out
 
 
-def as_matrix_one(q):
+def as_matrix_one(q, unit=False):
     """`as_matrix` of one quaternion, in Python floats (no block run, no checks).
 
-    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude: the
-    one-rotation path of `as_matrix`, for callers that hold such an array
-    already (`Rotation`).
+    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude
+    (unless `unit`, as in `as_matrix`): the one-rotation path of `as_matrix`,
+    for callers that hold such an array already (`Rotation`).
 
     >>> import numpy as np
     >>> from quatarray._convert import as_matrix_one
@@ -223,7 +223,7 @@ def as_matrix_one(q):
            [ 0., -1.,  0.],
            [ 0.,  0., -1.]])
     """
-    return _matrix_one(q, q.dtype)
+    return _matrix_one(q, q.dtype, unit)
 
 
 def _shepperd(mat, q):

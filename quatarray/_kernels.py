@@ -19,7 +19,8 @@ from ._validate import all_finite
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
     "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
-    "normalize", "inverse", "dot", "exp", "log", "power", "rotate", "matrix_entries", "multiply_one",
+    "normalize", "inverse", "dot", "exp", "log", "power", "rotate", "matrix_entries", "matrix_entries_unit",
+    "multiply_one",
 ]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
@@ -740,10 +741,31 @@ def matrix_entries(c):
             xz - wy, yz + wx, 1.0 - (xx + yy)]
 
 
-def _matrix_one(q, dtype):
-    """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero)."""
+def matrix_entries_unit(c):
+    """`matrix_entries` of a quaternion known to be unit (`Rotation`'s storage): |q|² taken
+    as 1, and the operations of `_convert`'s block kernel with ``unit=True``, in its order
+    (the same bits in float64: scipy's diagonal w² ± x² ± y² ± z²).
+
+    >>> from quatarray._kernels import matrix_entries_unit
+    >>> matrix_entries_unit([0.0, 0.0, 0.0, 1.0])  # 180° about z
+    [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]
+    """
+    w, x, y, z = c
+    xs, ys, zs = x + x, y + y, z + z
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    a, b = ww - zz, xx - yy
+    xy, wz, xz, wy, yz, wx = x * ys, w * zs, x * zs, w * ys, y * zs, w * xs
+    return [a + b, xy - wz, xz + wy,
+            xy + wz, a - b, yz - wx,
+            xz - wy, yz + wx, (ww + zz) - (xx + yy)]
+
+
+def _matrix_one(q, dtype, unit=False):
+    """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero); `unit`: q is
+    known to be unit (`matrix_entries_unit`)."""
+    c = q.tolist() if q.ndim == 1 else q.reshape(4).tolist()
     # a flat list (half the cost of nested ones), shaped in place (cheaper than reshape's new view)
-    m = np.array(matrix_entries(q.tolist() if q.ndim == 1 else q.reshape(4).tolist()), dtype)
+    m = np.array(matrix_entries_unit(c) if unit else matrix_entries(c), dtype)
     m.shape = (3, 3)
     return m
 

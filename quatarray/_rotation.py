@@ -262,7 +262,7 @@ class Rotation:
                [ 0.,  0.,  1.]])
         """
         q = self._q
-        return C.as_matrix_one(q) if q.ndim == 1 else C.as_matrix(q, unit=self._unit)
+        return C.as_matrix_one(q, self._unit) if q.ndim == 1 else C.as_matrix(q, unit=self._unit)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):

@@ -710,6 +710,9 @@ def test_single_rotation_paths_equal_batch_paths(rng, dtype):
             for key, value in got.items():
                 assert value.dtype == dtype
                 np.testing.assert_allclose(value, batch[key][i], rtol=0, atol=t, err_msg=key)
+            if dtype == np.float64:   # unit storage: one rotation's matrix is the batch kernel's, bit for bit
+                assert one._unit and r._unit
+                np.testing.assert_array_equal(got["as_matrix"], batch["as_matrix"][i])
     v = (3 * rng.standard_normal((40, 3))).astype(dtype)
     v[0] = 0
     v64 = v.astype(np.float64)
