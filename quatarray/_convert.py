@@ -34,6 +34,7 @@ from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2, multiply_one
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._scale import ONE_HIGH, ONE_LOW
+from ._trig import tan_one
 from ._validate import finite, float_array, quat_array
 
 __all__ = [
@@ -642,7 +643,7 @@ def from_rotvec_floats(v, dtype, factor=1.0):
     """
     x, y, z = v
     theta = max(math.hypot(x, y, z) * factor, float(ANGLE_FLOOR[dtype]))
-    t = math.tan(theta * 0.25)
+    t = tan_one(theta * 0.25)
     d = 1.0 / (1.0 + t * t)
     scale = 2.0 * t * d / theta * factor
     return np.array([(1.0 - t) * (1.0 + t) * d, x * scale, y * scale, z * scale], dtype)

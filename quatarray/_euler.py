@@ -18,6 +18,7 @@ import numpy as np
 from . import _blocks, _scale
 from ._convert import _blockwise, _half_angle
 from ._kernels import arctan2, hamilton, multiply_rows
+from ._trig import tan_one
 from ._validate import finite, float_array, quat_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "as_euler_one", "check_order", "from_davenport", "as_davenport"]
@@ -155,7 +156,7 @@ def from_euler(seq, angles, degrees=False):
     if a.shape == (len(axes),):  # one rotation: Python floats, elementary turns composed
         q = None
         for axis, angle in zip(axes, a.tolist()):
-            t = math.tan(angle * scale)
+            t = tan_one(angle * scale)
             d = 1.0 / (1.0 + t * t)
             e = [(1.0 - t) * (1.0 + t) * d, 0.0, 0.0, 0.0]
             e[axis + 1] = 2.0 * t * d
@@ -452,7 +453,7 @@ def from_davenport(axes, order, angles, degrees=False):
     if a.ndim == 1:  # one rotation: Python floats, the turns composed with `hamilton`
         q = None
         for (x, y, z), angle in zip(ax.tolist(), a.tolist()):
-            t = math.tan(angle * scale)
+            t = tan_one(angle * scale)
             d = 1.0 / (1.0 + t * t)
             s = 2.0 * t * d
             e = (complex((1.0 - t) * (1.0 + t) * d, s * x), complex(s * y, s * z))

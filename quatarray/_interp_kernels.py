@@ -35,6 +35,7 @@ import numpy as np
 from . import _blocks
 from ._blocks import soa
 from ._kernels import result_dtype
+from ._trig import tan, tan_one
 from ._validate import all_finite
 
 __all__ = [
@@ -156,7 +157,7 @@ def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
     np.maximum(rho, _tiny(dtype), out=rho)
     np.arctan(rho, out=tau)
     np.multiply(tau, h, out=tau, casting="unsafe")
-    np.tan(tau, out=tau)
+    tan(tau, out=tau, rows=(t2, w0, a2))
     np.multiply(tau, tau, out=t2)
     v = tau
     np.divide(tau, rho, out=v)           # tau / rho  (-> h for tiny angles)
@@ -395,7 +396,7 @@ def frame_core(F, phi, u, O):
         np.cos(sn, out=c)
         np.sin(sn, out=sn)
     else:
-        np.tan(sn, out=sn)                   # tau
+        tan(sn, out=sn, rows=_rows(3, s, O.dtype))   # tau
         np.multiply(sn, sn, out=c)
         c += 1
         np.divide(2, c, out=c)               # 2 / (1 + tau²)
@@ -494,7 +495,7 @@ def slerp_one(p, q, h, shortest=True):
     tiny, floor = _TINY[np.dtype(np.float64)]
     r2 = a2 / max(b2, floor)
     rho = max(math.sqrt(r2), tiny)
-    tau = math.tan(math.atan(rho) * h)
+    tau = tan_one(math.atan(rho) * h)
     t2 = tau * tau
     v = tau / rho
     g = 1.0 / (t2 + 1.0)

@@ -24,6 +24,7 @@ from . import _convert as C
 from . import _kernels as Kn
 from . import _track as TR
 from ._blocks import soa
+from ._trig import tan
 
 MAX_ITER = 10
 TOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 4 * float(np.finfo(np.float32).eps)}
@@ -303,7 +304,7 @@ def _rotation_rows(G, s, O):
     np.maximum(theta, _TINY[O.dtype], out=theta)
     tau, d, cos_half = r                      # r is no longer needed
     np.multiply(theta, 0.25, out=tau)
-    np.tan(tau, out=tau)                      # τ = tan(θ/4)
+    tan(tau, out=tau, rows=(d, cos_half, tmp))   # τ = tan(θ/4)
     np.multiply(tau, tau, out=d)
     d += 1
     np.divide(1, d, out=d)                    # 1 / (1 + τ²)

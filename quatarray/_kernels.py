@@ -11,7 +11,7 @@ from math import prod
 
 import numpy as np
 
-from . import _blocks, _scale
+from . import _blocks, _scale, _trig
 from ._blocks import soa
 from ._scale import ONE_HIGH, ONE_LOW
 from ._validate import all_finite
@@ -69,7 +69,7 @@ def cos_sin(angle, c=None, s=None, rows=None):
         rows = (np.empty_like(c), np.empty_like(c))
     u, v = rows
     np.multiply(angle, 0.5, out=s)
-    t = np.tan(s, out=s)
+    t = _trig.tan(s, out=s, rows=(c, u, v))
     np.multiply(t, t, out=c)
     c += 1.0
     d = np.divide(2.0, c, out=c)            # 2 / (1 + t²)

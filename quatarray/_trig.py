@@ -1,0 +1,207 @@
+"""The float64 tangent the kernels use: a rational approximation where NumPy's is a scalar loop.
+
+NumPy's float64 ``tan`` is a SIMD loop only on CPUs with AVX-512 (SVML);
+elsewhere it calls the C library element by element (12-23 ns per element
+on the AVX2 machines of benchmarks/README.md, against about 1.4 ns with
+AVX-512).  The kernels need it on small arguments: quarter angles of
+rotations up to a half turn and SLERP's partial half arcs, all within
+[-π/4, π/4].  There Cephes' rational approximation
+
+    tan x = x + x z P(z) / Q(z),   z = x²  (P of degree 2, Q of degree 4)
+
+is within 1 ulp of the correctly rounded tangent (and takes that at ±π/4
+itself, the quarter angle of a half turn), and costs 16 ufunc
+passes (about 5 ns per element on AVX2).  Larger arguments are first
+reduced by multiples of π/2 (within 2 ulp); beyond `REDUCE_LIMIT`, NaN and
+infinities go to `np.tan`.  Each element takes the same operations whatever
+the rest of its block holds, so its result does not depend on the block.
+On CPUs where NumPy's tangent is a SIMD loop, `tan` is `np.tan`.
+
+`tan_one` is the same rule for one Python float, operation for operation:
+one-rotation paths give the bits of the batch paths.
+"""
+
+import math
+
+import numpy as np
+
+__all__ = ["SIMD_TAN", "QUARTER_PI", "TAN_QUARTER_PI", "REDUCE_LIMIT", "tan", "tan_one", "rational", "reduced"]
+
+# Cephes, tan.c: P with the highest degree first; Q monic (leading 1 implied)
+_P0, _P1, _P2 = -1.30936939181383777646e4, 1.15351664838587416140e6, -1.79565251976484877988e7
+_Q0, _Q1, _Q2, _Q3 = (1.36812963470692954678e4, -1.32089234440210967447e6,
+                      2.50083801823357915839e7, -5.38695755929454629881e7)
+
+#: Arguments up to this magnitude take the rational approximation as they are.
+QUARTER_PI = math.pi / 4
+
+#: tan(±QUARTER_PI), correctly rounded: 1 - 2⁻⁵³, where the rational approximation
+#: gives 1.  The exact tangent is within 6e-18 of the midpoint between the two, and
+#: this one matters: it is the quarter angle of a half turn, whose w = cos(π/2)
+#: must keep the sign of the rounded π (as scipy's, and NumPy's tangent, give it).
+TAN_QUARTER_PI = 0.9999999999999999
+
+#: Arguments up to this magnitude are reduced by multiples of π/2 first; larger
+#: ones go to `np.tan`.
+REDUCE_LIMIT = 2.0 ** 20
+
+_TWO_OVER_PI = 2 / math.pi
+# Cephes' π/4 in three parts: DP1 and DP2 have few enough bits that their products
+# with the even multipliers used here are exact
+_DP1, _DP2, _DP3 = 7.853981554508209228515625e-1, 7.94662735614792836714e-9, 3.06161699786838294307e-17
+
+
+def _numpy_tan_is_simd():
+    """True when NumPy runs its float64 tangent as a SIMD loop (AVX-512 builds with SVML)."""
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as features
+    except ImportError:  # NumPy 1.x
+        try:
+            from numpy.core._multiarray_umath import __cpu_features__ as features
+        except ImportError:
+            return False
+    return bool(features.get("AVX512_SKX") or features.get("X86_V4"))
+
+
+#: NumPy's float64 tangent is a SIMD loop on this CPU: `tan` is `np.tan`.
+SIMD_TAN = _numpy_tan_is_simd()
+
+
+def rational(x, out, z, p, q):
+    """out = tan x for |x| <= π/4 (out may be x; z, p, q scratch rows overlapping neither).
+
+    >>> import numpy as np
+    >>> from quatarray._trig import rational
+    >>> x = np.array([0.25, -0.5])
+    >>> bool(np.allclose(rational(x, np.empty(2), *np.empty((3, 2))), np.tan(x), rtol=2e-16, atol=0))
+    True
+    """
+    np.multiply(x, x, out=z)
+    np.multiply(z, _P0, out=p)
+    p += _P1
+    p *= z
+    p += _P2
+    np.add(z, _Q0, out=q)
+    q *= z
+    q += _Q1
+    q *= z
+    q += _Q2
+    q *= z
+    q += _Q3
+    p *= z
+    np.divide(p, q, out=p)
+    p *= x
+    return np.add(x, p, out=out)
+
+
+def reduced(x, out, rows):
+    """out = tan x for |x| <= `REDUCE_LIMIT`: x = z + k π/2 with |z| <= π/4 (π/2 in three
+    parts, as in Cephes), tan x = tan z for even k and -1 / tan z for odd k, blended as
+    ``(t e - o) / (t o + e)`` (o = 1 - e = k mod 2) without a mask.  For k = 0 every
+    step is exact: the bits of `rational`.
+
+    >>> import numpy as np
+    >>> from quatarray._trig import reduced
+    >>> x = np.array([1.0, -4.0, 100.0])
+    >>> bool(np.allclose(reduced(x, np.empty(3), np.empty((3, 3))), np.tan(x), rtol=5e-16, atol=0))
+    True
+    """
+    k, y, z = rows
+    o, p = np.empty_like(x), np.empty_like(x)
+    np.multiply(x, _TWO_OVER_PI, out=k)
+    np.rint(k, out=k)
+    np.add(k, k, out=y)                          # multiples of π/4: y·DP1, y·DP2 are exact
+    np.multiply(y, _DP1, out=z)
+    np.subtract(x, z, out=z)
+    np.multiply(y, _DP2, out=p)
+    z -= p
+    np.multiply(y, _DP3, out=p)
+    z -= p
+    np.multiply(k, 0.5, out=y)                   # o = |k - 2 rint(k / 2)|: 1 for odd k
+    np.rint(y, out=y)
+    y += y
+    np.subtract(k, y, out=o)
+    np.abs(o, out=o)
+    t = rational(z, k, y, p, out)               # x is not read again: out may be x
+    np.subtract(1.0, o, out=p)                   # e
+    np.multiply(t, o, out=y)
+    y += p                                       # t o + e
+    np.multiply(t, p, out=z)
+    z -= o                                       # t e - o
+    return np.divide(z, y, out=out)
+
+
+def tan(x, out=None, rows=None):
+    """``np.tan(x, out=out)``, within 2 ulp, by the cheaper route on this CPU.
+
+    Parameters
+    ----------
+    x : ndarray
+        Angles in radians (float64 takes the rational approximation where
+        ``|x| <= REDUCE_LIMIT``; other dtypes go to `np.tan`).
+    out : ndarray, optional
+        Output of x's shape and dtype; may be `x` itself.
+    rows : sequence of three ndarrays, optional
+        Scratch of x's shape and dtype, overlapping neither `x` nor `out`
+        (kernels pass rows they hold): then nothing is allocated for
+        arguments within [-π/4, π/4].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray._trig import tan
+    >>> x = np.array([0.0, 0.5, -0.75, 2.0, 1e300])
+    >>> bool(np.allclose(tan(x), np.tan(x), rtol=3e-16, atol=0))
+    True
+    """
+    if SIMD_TAN or x.dtype != np.float64 or x.size == 0:
+        return np.tan(x, out=out)
+    if out is None:
+        out = np.empty_like(x)
+    if rows is None:
+        rows = (np.empty_like(x), np.empty_like(x), np.empty_like(x))
+    lo, hi = np.minimum.reduce(x, axis=None), np.maximum.reduce(x, axis=None)
+    if -QUARTER_PI < lo and hi < QUARTER_PI:     # the common case (NaN fails the test)
+        return rational(x, out, *rows)
+    quarter = np.nonzero(np.abs(x) == QUARTER_PI)
+    signs = np.sign(x[quarter])
+    if -REDUCE_LIMIT <= lo and hi <= REDUCE_LIMIT:
+        reduced(x, out, rows)
+    else:
+        wide = ~(np.abs(x) <= REDUCE_LIMIT)      # NaN, ±inf, huge: the C library's reduction
+        at = np.nonzero(wide)
+        big = x[at]                              # copied before `out` (maybe x) is written
+        reduced(np.where(wide, 0.0, x), out, rows)
+        out[at] = np.tan(big)
+    out[quarter] = signs * TAN_QUARTER_PI
+    return out
+
+
+def tan_one(x):
+    """`tan` of one Python float: the same operations as the array path, in the same order.
+
+    >>> from quatarray._trig import tan_one
+    >>> import math
+    >>> abs(tan_one(0.5) - math.tan(0.5)) <= 2 ** -53 * math.tan(0.5)
+    True
+    """
+    if SIMD_TAN or not -REDUCE_LIMIT <= x <= REDUCE_LIMIT:
+        return math.tan(x)
+    if -QUARTER_PI < x < QUARTER_PI:
+        return _rational_one(x)
+    if x == QUARTER_PI or x == -QUARTER_PI:
+        return math.copysign(TAN_QUARTER_PI, x)
+    k = float(round(x * _TWO_OVER_PI))           # round half to even, as np.rint
+    y = k + k
+    z = ((x - y * _DP1) - y * _DP2) - y * _DP3
+    o = abs(k - 2.0 * round(k * 0.5))
+    t = _rational_one(z)
+    e = 1.0 - o
+    return (t * e - o) / (t * o + e)
+
+
+def _rational_one(x):
+    z = x * x
+    p = ((z * _P0 + _P1) * z + _P2) * z
+    q = (((z + _Q0) * z + _Q1) * z + _Q2) * z + _Q3
+    return x + (p / q) * x

@@ -1,0 +1,122 @@
+"""The kernels' float64 tangent (`quatarray._trig`): accuracy against 50-digit references,
+element-wise results whatever the block holds, the one-float path's bits, the dispatch."""
+
+import math
+
+import mpmath
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from quatarray import _trig
+
+
+@pytest.fixture
+def rational_path(monkeypatch):
+    """The rational path, whatever this CPU would choose."""
+    monkeypatch.setattr(_trig, "SIMD_TAN", False)
+
+
+def _ulps(got, x):
+    """|got - tan x| in ulps of the correctly rounded tan x (50-digit reference)."""
+    with mpmath.workdps(50):
+        ref = np.array([float(mpmath.tan(mpmath.mpf(float(v)))) for v in x])
+    return np.abs(got - ref) / np.spacing(np.abs(ref))
+
+
+def _samples(rng, lo, hi, n=4000):
+    return np.concatenate([rng.uniform(lo, hi, n), np.geomspace(1e-300, 1e-3, 50), -np.geomspace(1e-300, 1e-3, 50)])
+
+
+def test_within_one_ulp_up_to_a_quarter_turn(rational_path, rng):
+    x = np.concatenate([_samples(rng, -np.pi / 4, np.pi / 4),
+                        [np.pi / 4, -np.pi / 4, np.nextafter(np.pi / 4, 0), 0.66, 5e-324]])
+    assert _ulps(_trig.tan(x), x).max() <= 1
+
+
+def test_reduced_arguments_within_two_ulp(rational_path, rng):
+    k = rng.integers(-1000, 1000, 500)
+    near_poles = k * (np.pi / 2) + rng.normal(scale=1e-6, size=500)
+    x = np.concatenate([_samples(rng, -20.0, 20.0), rng.uniform(-_trig.REDUCE_LIMIT, _trig.REDUCE_LIMIT, 500),
+                        near_poles, [np.pi / 2, -np.pi / 2, np.pi, 3 * np.pi / 4]])
+    assert _ulps(_trig.tan(x), x).max() <= 2
+
+
+def test_signed_zeros_and_tiny_arguments_are_kept(rational_path):
+    x = np.array([0.0, -0.0, 1e-320, -1e-320, 1e-200])
+    got = _trig.tan(x)
+    np.testing.assert_array_equal(got, x)
+    np.testing.assert_array_equal(np.signbit(got), np.signbit(x))
+
+
+def test_each_element_is_computed_alone(rational_path, rng):
+    """A block holding huge, infinite or NaN arguments (np.tan's) or reduced ones gives every
+    other element the bits it gets on its own."""
+    x = np.concatenate([rng.uniform(-0.7, 0.7, 64), rng.uniform(-9, 9, 64), [1e300, -1e10, np.inf, np.nan]])
+    with np.errstate(invalid="ignore"):
+        whole = _trig.tan(x)
+        alone = np.array([_trig.tan(x[i:i + 1])[0] for i in range(x.size)])
+        ref = np.tan(x[-4:])
+    np.testing.assert_array_equal(whole, alone)
+    np.testing.assert_array_equal(whole[-4:], ref)   # beyond the reduction: the C library's
+    small = x[:64]
+    np.testing.assert_array_equal(_trig.tan(small), whole[:64])
+
+
+@given(st.floats(-_trig.REDUCE_LIMIT, _trig.REDUCE_LIMIT, allow_nan=False))
+def test_one_float_gives_the_array_bits(x):
+    saved = _trig.SIMD_TAN
+    _trig.SIMD_TAN = False
+    try:
+        assert _trig.tan_one(x) == _trig.tan(np.array([x]))[0]
+    finally:
+        _trig.SIMD_TAN = saved
+
+
+def test_out_may_be_the_input_and_rows_are_used(rational_path, rng):
+    x = rng.uniform(-3, 3, 1000)
+    expected = _trig.tan(x)
+    y = x.copy()
+    rows = tuple(np.empty_like(x) for _ in range(3))
+    assert _trig.tan(y, out=y, rows=rows) is y
+    np.testing.assert_array_equal(y, expected)
+
+
+def test_input_not_modified_and_shapes_kept(rational_path, rng):
+    x = rng.uniform(-3, 3, (4, 5, 6))
+    x.flags.writeable = False
+    got = _trig.tan(x)
+    assert got.shape == x.shape
+    np.testing.assert_allclose(got, np.tan(x), rtol=5e-16, atol=0)
+    assert _trig.tan(np.empty((0, 3))).shape == (0, 3)
+
+
+def test_simd_cpus_and_float32_use_numpy(monkeypatch, rng):
+    x = rng.uniform(-1, 1, 100)
+    monkeypatch.setattr(_trig, "SIMD_TAN", True)
+    np.testing.assert_array_equal(_trig.tan(x), np.tan(x))
+    assert _trig.tan_one(0.3) == math.tan(0.3)
+    monkeypatch.setattr(_trig, "SIMD_TAN", False)
+    x32 = x.astype(np.float32)
+    got = _trig.tan(x32)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, np.tan(x32))
+
+
+def test_reduction_of_small_arguments_is_exact(rng):
+    x = rng.uniform(-np.pi / 4, np.pi / 4, 10_000)
+    rows = np.empty((3,) + x.shape)
+    np.testing.assert_array_equal(_trig.reduced(x, np.empty_like(x), rows),
+                                  _trig.rational(x, np.empty_like(x), *np.empty((3,) + x.shape)))
+
+
+def test_the_quarter_angle_of_a_half_turn_is_correctly_rounded(rational_path, rng):
+    """tan(±fl(π)/4) is 1 - 2⁻⁵³, not 1: a half turn's w = cos(fl(π)/2) keeps its sign."""
+    with mpmath.workdps(50):
+        assert _trig.TAN_QUARTER_PI == float(mpmath.tan(mpmath.mpf(np.pi / 4)))
+    for x in (np.array([np.pi / 4, -np.pi / 4]), np.array([np.pi / 4, -np.pi / 4, 3.0]),
+              np.array([np.pi / 4, 1e300])):
+        at = np.abs(x) == np.pi / 4
+        np.testing.assert_array_equal(_trig.tan(x)[at], np.sign(x[at]) * _trig.TAN_QUARTER_PI)
+    assert _trig.tan_one(np.pi / 4) == _trig.TAN_QUARTER_PI == -_trig.tan_one(-np.pi / 4)
