@@ -37,9 +37,13 @@ def _ops(dtype, n):
         "sqrt": lambda: np.sqrt(y, out=o), "divide": lambda: np.divide(x, y, out=o),
         "multiply": lambda: np.multiply(x, y, out=o), "add": lambda: np.add(x, y, out=o),
     }
-    if dtype == np.float64:   # quatarray's own tangent (`quatarray._trig`), whatever this CPU would pick
+    # quatarray's own functions (`quatarray._trig`), whatever this CPU would pick
+    if dtype == np.float64:
         ops["tan, quatarray rational (x in ±π/4)"] = lambda: _trig.rational(quarter, o, *rows)
         ops["tan, quatarray reduced (x in ±1.5)"] = lambda: _trig.reduced(x, o, rows)
+    else:
+        unit = np.abs(s)
+        ops["arctan, quatarray on [0, 1]"] = lambda: _trig.atan_unit32(unit, o, *rows)
     return ops
 
 
@@ -64,8 +68,9 @@ def main(argv=None):
     c64, c32 = costs(np.float64), costs(np.float32)
     print("| ufunc | float64 | float32 |")
     print("|---|---|---|")
-    for name in c64:
-        print(f"| {name} | {c64[name]:.2f} | {c32[name]:.2f} |" if name in c32 else f"| {name} | {c64[name]:.2f} | – |")
+    for name in {**c64, **c32}:
+        cells = [f"{c[name]:.2f}" if name in c else "–" for c in (c64, c32)]
+        print(f"| {name} | {cells[0]} | {cells[1]} |")
     return 0
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from . import _blocks
 from ._blocks import soa
 from ._kernels import result_dtype
-from ._trig import tan, tan_one
+from ._trig import atan_unit32, tan, tan_one
 from ._validate import all_finite
 
 __all__ = [
@@ -126,13 +126,13 @@ def slerp_weights(a2, b2, h, sign=None):
 
 def _sine_weights(r2, b2, h, w0, th, s2, w1):
     """float32 weights sin((1 - h) Ω) / sin Ω and sin(h Ω) / sin Ω, Ω = 2θ with
-    sin θ = sqrt(r2 / (r2 + b2)) (θ <= π/4): float32 sin and arcsin are SIMD
-    loops, far cheaper than tan and arctan (benchmarks/README.md)."""
-    np.add(r2, b2, out=s2)
-    np.maximum(s2, _floor(r2.dtype), out=s2)
-    np.divide(r2, s2, out=th)
-    np.sqrt(th, out=th)
-    np.arcsin(th, out=th)
+    tan θ = sqrt(r2 / b2) <= 1: float32 sin is a SIMD loop, and θ comes from
+    `_trig.atan_unit32` (NumPy's float32 arcsin and arctan are scalar loops on
+    AVX2; benchmarks/README.md)."""
+    np.maximum(b2, _floor(r2.dtype), out=b2)
+    np.divide(r2, b2, out=s2)
+    np.sqrt(s2, out=s2)
+    atan_unit32(s2, th, r2, b2, w0)           # r2, b2 and w0 are not needed again
     np.maximum(th, _tiny(r2.dtype), out=th)   # sin(2hθ) / sin(2θ) -> h at θ = 0
     th *= 2                                   # Ω
     np.sin(th, out=s2)

@@ -120,3 +120,16 @@ def test_the_quarter_angle_of_a_half_turn_is_correctly_rounded(rational_path, rn
         at = np.abs(x) == np.pi / 4
         np.testing.assert_array_equal(_trig.tan(x)[at], np.sign(x[at]) * _trig.TAN_QUARTER_PI)
     assert _trig.tan_one(np.pi / 4) == _trig.TAN_QUARTER_PI == -_trig.tan_one(-np.pi / 4)
+
+
+def test_float32_arctangent_on_the_unit_interval(rng):
+    edges = np.array([0.0, 1e-38, 1e-30, 1e-8, 0.41421354, 0.41421357, 0.4142136, 0.99999994, 1.0], np.float32)
+    x = np.concatenate([rng.uniform(0, 1, 5000).astype(np.float32), edges])
+    got = _trig.atan_unit32(x, *np.empty((4,) + x.shape, np.float32))
+    assert got.dtype == np.float32
+    with mpmath.workdps(30):
+        ref = np.array([float(mpmath.atan(mpmath.mpf(float(v)))) for v in x])
+    ulps = np.abs(got - ref) / np.spacing(np.abs(ref).astype(np.float32)).astype(np.float64)
+    assert ulps.max() <= 2
+    assert got[x.size - edges.size] == 0 and not np.signbit(got[x.size - edges.size])
+    assert np.all(np.diff(got[np.argsort(x)]) >= 0)   # monotonic across the reduction's edge
