@@ -512,10 +512,13 @@ def _log_parts(q):
     """(ln|q|, angle θ = atan2(|v|, w), |v|, scale θ/|v|, e) for the principal log of
     components-first rows.
 
-    ln|q| is ``log1p((w - 1)(w + 1) + |v|²) / 2``, accurate near the identity
-    where ``log(|q|)`` keeps only the rounding error of |q| ≈ 1; log1p is
-    taken as ``log(u) · d / (u - 1)`` with u = 1 + d (exact for u ≠ 1, d where
-    u = 1), one call to log.  The scale has its limit 1/w at |v| = 0, w > 0;
+    ln|q| is ``log1p(d) / 2`` with d = (w - 1)(w + 1) + |v|², accurate near the
+    identity where ``log(|q|)`` keeps only the rounding error of |q| ≈ 1;
+    log1p(d) is taken as Kahan's ``log(u) · d / (u - 1)`` (d where u = 1), one
+    call to log, with u = w² + |v|² = |q|² itself rather than 1 + d: then u - 1
+    is exact near 1, the ratio log(u) / (u - 1) changes by half an ulp of u
+    between u and 1 + d, and a small |q|² is not lost to 1 + d's rounding, so
+    one formula serves every magnitude.  The scale has its limit 1/w at |v| = 0, w > 0;
     for a negative real quaternion (|v| = 0, w < 0) the axis is taken as x
     (θ = π).  Blocks of extreme magnitude are rescaled in place first by
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
@@ -534,16 +537,14 @@ def _log_parts(q):
     np.add(w, 1, out=u)
     d *= u
     d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
-    np.add(d, 1, out=u)
-    np.log(u, out=ln)
-    um1 = np.subtract(u, 1, out=theta)    # (theta's row as scratch)
-    np.divide(d, um1, out=um1)            # nan or inf where u = 1: fixed below
+    np.log(n2, out=ln)
+    um1 = np.subtract(n2, 1, out=u)       # exact for |q|² in [1/2, 2]
+    unit = not um1.all()                  # one reduction instead of a mask when none
+    np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
     ln *= um1
-    np.copyto(ln, d, where=u == 1)
+    if unit:
+        np.copyto(ln, d, where=n2 == 1)
     ln *= 0.5
-    if n2.min() < 0.5:   # |q|² - 1 = -1 + |q|² has lost |q|² to rounding: ln|q| = ln(|q|²) / 2
-        small = n2 < 0.5
-        ln[small] = 0.5 * np.log(n2[small])
     vn = np.sqrt(vv, out=vv)
     arctan2(vn, w, out=theta)
     np.divide(theta, vn, out=scale)
