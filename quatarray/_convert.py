@@ -19,8 +19,9 @@ Python, no ``(N, 4, 4)`` temporaries.
 
 Half-angle sines and cosines come from `_kernels.cos_sin`: in float64 one
 tangent, ``t = tan(a / 4)``, gives ``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and
-``sin(a / 2) = 2 t / (1 + t²)`` (one transcendental call instead of two); float32
-uses its SIMD sin and cos.  Angles come back through `_kernels.arctan2` (one
+``sin(a / 2) = 2 t / (1 + t²)`` (one transcendental call instead of two, and
+`_trig.tan`'s rational one where NumPy's float64 tangent is not a SIMD loop);
+float32 uses its SIMD sin and cos.  Angles come back through `_kernels.arctan2` (one
 arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
 costs behind these choices are in benchmarks/README.md.
 """

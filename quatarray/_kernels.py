@@ -49,7 +49,8 @@ def cos_sin(angle, c=None, s=None, rows=None):
     float64: one tangent, ``t = tan(a / 2)``, ``cos a = (1 - t)(1 + t) / (1 + t²)``
     and ``sin a = 2 t / (1 + t²)``: one transcendental call instead of two,
     the cheaper on AVX2 and much the cheaper on AVX-512, where float64 sin
-    and cos have no SIMD loop (costs in benchmarks/README.md).
+    and cos have no SIMD loop (costs in benchmarks/README.md).  The tangent
+    is `_trig.tan`: NumPy's where it is a SIMD loop, a rational one elsewhere.
     ``(1 - t)(1 + t)`` rather than ``1 - t²``: near a = π/2 (t ≈ 1) the
     small cosine is accurate to about one ulp of t.
 
