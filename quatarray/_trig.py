@@ -168,16 +168,15 @@ def tan(x, out=None, rows=None):
     lo, hi = np.minimum.reduce(x, axis=None), np.maximum.reduce(x, axis=None)
     if -QUARTER_PI < lo and hi < QUARTER_PI:     # the common case (NaN fails the test)
         return rational(x, out, *rows)
-    quarter = np.nonzero(np.abs(x) == QUARTER_PI)
+    quarter = np.abs(x) == QUARTER_PI            # masks, not indices: x may be 0-d
     signs = np.sign(x[quarter])
     if -REDUCE_LIMIT <= lo and hi <= REDUCE_LIMIT:
         reduced(x, out, rows)
     else:
         wide = ~(np.abs(x) <= REDUCE_LIMIT)      # NaN, ±inf, huge: the C library's reduction
-        at = np.nonzero(wide)
-        big = x[at]                              # copied before `out` (maybe x) is written
+        big = x[wide]                            # copied before `out` (maybe x) is written
         reduced(np.where(wide, 0.0, x), out, rows)
-        out[at] = np.tan(big)
+        out[wide] = np.tan(big)
     out[quarter] = signs * TAN_QUARTER_PI
     return out
 

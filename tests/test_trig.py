@@ -133,3 +133,14 @@ def test_float32_arctangent_on_the_unit_interval(rng):
     assert ulps.max() <= 2
     assert got[x.size - edges.size] == 0 and not np.signbit(got[x.size - edges.size])
     assert np.all(np.diff(got[np.argsort(x)]) >= 0)   # monotonic across the reduction's edge
+
+
+@pytest.mark.parametrize("value", [0.3, np.pi / 4, -np.pi / 4, 2.0, -7.5, 1e300])
+def test_zero_dimensional_and_strided_arguments(rational_path, value):
+    x = np.array(value)
+    got = _trig.tan(x)
+    assert got.shape == ()
+    np.testing.assert_allclose(got, np.tan(x), rtol=5e-16, atol=0)
+    assert _trig.tan(x, out=x) is x and x == got
+    strided = np.full((6, 4), value)[::2, 1::2]
+    np.testing.assert_array_equal(_trig.tan(strided), np.full((3, 2), got))
