@@ -64,7 +64,7 @@ class ChunkedTrack:
             from quatarray import dask as qd
             qd.evaluate(self.track, self.td).compute(scheduler="threads")
         else:
-            from quatarray._zarr import resample_zarr
+            from quatarray.formats import resample_zarr
             resample_zarr(os.path.join(self.folder, "in.zarr"), os.path.join(self.folder, "out.zarr"),
                           fps=self.fps, method="squad", progress=False)
 

@@ -114,9 +114,9 @@ class Resample:
         self.dst = os.path.join(os.path.dirname(self.src), f"out-{lib}.{case}")
         if lib == "quatarray":
             try:
-                from quatarray.cli import resample_file
+                from quatarray.formats import resample_file
             except ImportError as exc:
-                raise NotImplementedError(f"quatarray.cli is not available ({exc})") from None
+                raise NotImplementedError(f"quatarray.formats is not available ({exc})") from None
             self.run = lambda: resample_file(self.src, self.dst, fps=2 * FPS, method="slerp")
         else:
             twin = scipy_resample_npz if case == "npz" else scipy_resample_bvh

@@ -45,13 +45,12 @@ NAMES = {
 }
 
 #: Public submodules and their group, documented through their ``__all__``.
-SUBMODULES = {"io": "files", "cli": "files", "dask": "dask", "testing": "testing"}
+SUBMODULES = {"formats": "files", "cli": "files", "dask": "dask", "testing": "testing"}
 
 
 def _group_of_module(module):
     parts = module.split(".")
-    for key, group in (("dask", "dask"), ("testing", "testing"), ("io", "files"), ("_io", "files"),
-                       ("cli", "files"), ("_bvh", "files"), ("_gltf", "files"), ("gltf", "files"),
+    for key, group in (("dask", "dask"), ("testing", "testing"), ("formats", "files"), ("cli", "files"),
                        ("_rotation", "rotations"), ("_rigid_transform", "rotations")):
         if key in parts:
             return group

@@ -8,15 +8,15 @@
     quatarray demo [-o DIR]
     quatarray --version
 
-Formats follow the extensions: ``.csv``, ``.npz`` (interchangeable),
-``.bvh``, and glTF ``.gltf``, ``.glb`` (interchangeable).  Bad input ends
+Formats follow the extensions, as registered in `quatarray.formats.FORMATS`:
+``.csv``, ``.npz`` (interchangeable), ``.bvh``, glTF ``.gltf``, ``.glb``
+(interchangeable) and Zarr stores ``.zarr``.  Bad input ends
 with a one-line message naming the file (and line) on stderr and exit status
 2; the output file is then not created or touched (also on Ctrl-C and SIGTERM).
 """
 
 import argparse
 import contextlib
-import dataclasses
 import os
 import signal
 import sys
@@ -24,161 +24,16 @@ import time
 
 import numpy as np
 
-from ._text import FormatError, TextStyle, atomic_write, echo
-from .io import (example_path, fps_times, read_bvh, read_csv, read_npz, read_times, resample_keyframes,
-                 resample_motion, write_bvh, write_csv, write_npz)
+from .formats import (FORMATS, FormatError, example_path, format_of, fps_times, read_bvh, read_csv, resample_file,
+                      resample_motion, write_bvh, write_csv, write_npz)
+from .formats.atomic import atomic_write
+from .formats.text import echo
 from .interpolate import EXTRAPOLATE, METHODS as _TRACK_METHODS, Track
 
-__all__ = ["main", "resample_file", "demo"]
+__all__ = ["main", "demo"]
 
 #: The Track methods the command line offers, default first (every one but 'spline').
 METHODS = ("slerp",) + tuple(m for m in _TRACK_METHODS if m not in ("slerp", "spline"))
-
-
-@dataclasses.dataclass(frozen=True)
-class Request:
-    """What `resample_file` was asked for, handed to the format's resampler."""
-
-    fps: float = None
-    times: np.ndarray = None
-    method: str = "slerp"
-    extrapolate: str = "raise"
-    scalar_last: bool = False
-    precision: object = None
-    force: bool = False
-
-    def grid(self, t0, t1, per_frame):
-        """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first)."""
-        return fps_times(t0, t1, self.fps, per_frame) if self.times is None else self.times
-
-    def style(self, style):
-        """`style` (the input's, or None) with the decimals `precision` asks for."""
-        if self.precision is None:
-            return style
-        return dataclasses.replace(style or TextStyle(), decimals=None if self.precision == "full" else self.precision)
-
-
-def _resample_keyframes(src, dst, kind_in, kind_out, request):
-    data = read_csv(src, scalar_last=request.scalar_last) if kind_in == ".csv" else read_npz(src)
-    t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size)
-    out = resample_keyframes(data, t, method=request.method, extrapolate=request.extrapolate)
-    if kind_out == ".csv":
-        write_csv(dst, dataclasses.replace(out, style=request.style(out.style)), scalar_last=request.scalar_last)
-    else:
-        write_npz(dst, out)
-    return len(data.times), len(t)
-
-
-def _resample_bvh(src, dst, kind_in, kind_out, request):
-    data = read_bvh(src)
-    times = data.times
-    t = request.grid(times[0], times[-1], data.frames.shape[1])
-    out = resample_motion(data, t, method=request.method, extrapolate=request.extrapolate,
-                          frame_time=None if request.fps is None else 1 / request.fps)
-    write_bvh(dst, dataclasses.replace(out, style=request.style(out.style)))
-    return len(times), len(t)
-
-
-def _resample_gltf(src, dst, kind_in, kind_out, request):
-    from ._gltf import resample_gltf
-
-    return resample_gltf(src, dst, fps=request.fps, times=request.times, method=request.method,
-                         extrapolate=request.extrapolate, force=request.force)
-
-
-#: File extension (lower case) -> family; a family converts into its own extensions only.
-FORMATS = {".csv": "keyframes", ".npz": "keyframes", ".bvh": "BVH", ".gltf": "glTF", ".glb": "glTF"}
-#: Family -> ``resample(src, dst, ext_in, ext_out, request) -> (keys read, frames written)``.
-RESAMPLERS = {"keyframes": _resample_keyframes, "BVH": _resample_bvh, "glTF": _resample_gltf}
-
-
-def _format_of(path):
-    ext = os.path.splitext(os.fspath(path))[1].lower()
-    if ext not in FORMATS:
-        raise FormatError(f"unknown extension {echo(ext) if ext else '(none)'} (expected {', '.join(FORMATS)})", path)
-    return ext
-
-
-def _same_file(src, dst):
-    try:
-        return os.path.samefile(src, dst)
-    except OSError:
-        return False
-
-
-def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False,
-                  precision=None, force=False):
-    """Read `src`, resample it and write `dst`; formats follow the extensions.
-
-    Parameters
-    ----------
-    src, dst : str or os.PathLike
-        ``.csv``, ``.npz``, ``.bvh``, ``.gltf`` or ``.glb``.  CSV and NPZ
-        convert into each other, and so do glTF and GLB; BVH goes to BVH
-        only.  `dst` is written atomically.
-    fps : float, optional
-        Sample at ``t0 + k / fps`` for k = 0, 1, ... up to the last key time.
-    times : array_like or str or os.PathLike, optional
-        Query times, or a file of one time per line.  For BVH they count from
-        the first frame and must be evenly spaced.  Give `fps` or `times`.
-    method, extrapolate : str
-        Passed to `quatarray.interpolate.Track`.  `method` None is 'slerp',
-        except for glTF, where it keeps each sampler's own interpolation
-        (see `quatarray._gltf.resample_gltf`).
-    scalar_last : bool
-        CSV input and output have components ``x, y, z, w``.
-    precision : int or "full", optional
-        Decimals of the values written to CSV or BVH.  By default those of the
-        input (for BVH, the most decimals among its frame values); ``"full"``
-        writes the shortest text that reads back exactly.  Times are always
-        written exactly.
-    force : bool
-        Allow `dst` to be `src` (replaced atomically), and a ``.gltf`` output's
-        ``.bin`` to replace a file of a glTF input.
-
-    Returns
-    -------
-    tuple of int
-        ``(keys read, frames written)``.
-
-    Raises
-    ------
-    FormatError
-        An unknown extension, or an unreadable input or times file (the
-        message names the file and line), or `dst` is `src` (or a ``.gltf``
-        output's ``.bin`` a file of the input) without `force`.
-    ValueError
-        Query times outside the keys with ``extrapolate="raise"``, a single key,
-        an output of more than ``quatarray._text.MAX_VALUES`` values.
-    OSError
-        A missing input or an unwritable output.
-
-    Examples
-    --------
-    >>> from quatarray.cli import resample_file
-    >>> import os, tempfile
-    >>> from quatarray.io import example_path
-    >>> tmp = tempfile.TemporaryDirectory()
-    >>> resample_file(example_path("arm.csv"), os.path.join(tmp.name, "arm.npz"), fps=60, method="squad")
-    (11, 241)
-    """
-    kind_in, kind_out = _format_of(src), _format_of(dst)
-    if FORMATS[kind_in] != FORMATS[kind_out]:
-        raise FormatError(f"cannot write {kind_out} from {kind_in} input ({FORMATS[kind_in]} files convert into "
-                          f"{', '.join(e for e, f in FORMATS.items() if f == FORMATS[kind_in])} only)", dst)
-    if (fps is None) == (times is None):
-        raise ValueError("give exactly one of fps and times")
-    if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
-        raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
-    if not force and _same_file(src, dst):
-        raise FormatError("is the input file; give --force (force=True) to replace it", dst)
-    if times is not None and isinstance(times, (str, os.PathLike)):
-        times = read_times(times)
-    if method is None and FORMATS[kind_in] != "glTF":
-        method = "slerp"
-    request = Request(fps, None if times is None else np.asarray(times, np.float64), method, extrapolate,
-                      scalar_last, precision, force)
-    return RESAMPLERS[FORMATS[kind_in]](src, dst, kind_in, kind_out, request)
 
 
 # --------------------------------------------------------------------------- demo
@@ -224,7 +79,7 @@ def demo(outdir=".", *, fps=120, file=None):
     print(f"BVH: {len(walk.joints)} joints, {len(walk.frames)} frames at {1 / walk.frame_time:g} fps -> "
           f"{len(fine.frames)} frames at 60 fps (squad) in {1e3 * elapsed:.2f} ms", file=file)
 
-    from ._gltf import keyframes_to_gltf
+    from .formats import keyframes_to_gltf
 
     imu = read_csv(example_path("imu.csv"), scalar_last=True)
     inputs = {"demo_arm.csv": lambda p: write_csv(p, kf), "demo_arm.npz": lambda p: write_npz(p, kf),
@@ -286,6 +141,14 @@ def _precision(text):
     return int(text)
 
 
+def _families():
+    """One sentence per family of the format registry that converts between several extensions."""
+    families = {}
+    for ext, fmt in FORMATS.items():
+        families.setdefault(fmt.family, []).append(ext)
+    return [f"{' and '.join(exts)} convert into each other." for exts in families.values() if len(exts) > 1]
+
+
 def build_parser():
     """The argument parser of the ``quatarray`` command."""
     from . import __version__
@@ -294,13 +157,16 @@ def build_parser():
     parser.add_argument("--version", action="version", version=f"quatarray {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    extensions = list(FORMATS)
     p = commands.add_parser(
-        "resample", help="resample a keyframe file (.csv, .npz, .bvh, .gltf or .glb) with a chosen curve",
+        "resample", help=f"resample a keyframe file ({', '.join(extensions[:-1])} or {extensions[-1]}) with a "
+                         "chosen curve",
         description="Resample keyframes at a new rate or at given times. Formats follow the extensions: "
                     "CSV (time,<track>.w,<track>.x,<track>.y,<track>.z,...), NPZ (times (K,), keys (K, ..., 4) "
-                    "scalar-first), BVH (Euler channels resampled through quaternions) and glTF 2.0 "
-                    "(.gltf, .glb: every animation, written back with LINEAR samplers). CSV and NPZ "
-                    "convert into each other, and so do .gltf and .glb.")
+                    "scalar-first), BVH (Euler channels resampled through quaternions), glTF 2.0 "
+                    "(.gltf, .glb: every animation, written back with LINEAR samplers) and Zarr stores (.zarr, "
+                    "the NPZ layout, resampled chunk by chunk with Dask). "
+                    + " ".join(_families()))
     p.add_argument("input", metavar="IN", help="keyframe file to read")
     p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
     when = p.add_mutually_exclusive_group(required=True)
@@ -329,22 +195,13 @@ def build_parser():
 
 def _run_resample(args):
     start = time.perf_counter()
-    from ._zarr import is_zarr, resample_zarr   # Dask and Zarr are imported only for .zarr stores
-    if is_zarr(args.input) or is_zarr(args.output):
-        if not (is_zarr(args.input) and is_zarr(args.output)):
-            raise FormatError("Zarr stores resample to Zarr stores only (both IN and OUT end in .zarr)", args.output)
-        nkeys, nframes = resample_zarr(args.input, args.output, fps=args.fps, times=args.times,
-                                       method=args.method or "slerp", extrapolate=args.extrapolate,
-                                       scheduler=args.scheduler, progress=False if args.quiet else None)
-        print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
-              f"({args.method or 'slerp'}, {time.perf_counter() - start:.2f} s)")
-        return 0
     nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
                                    extrapolate=args.extrapolate, scalar_last=args.scalar_last,
-                                   precision=args.precision, force=args.force)
+                                   precision=args.precision, force=args.force, scheduler=args.scheduler,
+                                   progress=False if args.quiet else None)
+    own = FORMATS[format_of(args.input)].family == "glTF"
     print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
-          f"({args.method or ('own' if FORMATS.get(_format_of(args.input)) == 'glTF' else 'slerp')}, "
-          f"{time.perf_counter() - start:.2f} s)")
+          f"({args.method or ('own' if own else 'slerp')}, {time.perf_counter() - start:.2f} s)")
     return 0
 
 

@@ -1,4 +1,4 @@
-"""BVH motion-capture files: parsing, writing, Shoemake resampling (quatarray.io, quatarray._bvh)."""
+"""BVH motion-capture files: parsing, writing, Shoemake resampling (quatarray.formats.bvh)."""
 
 import itertools
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from quatarray.io import Motion, read_bvh, resample_motion, write_bvh
-from quatarray.io import FormatError, example_path
+from quatarray.formats import Motion, read_bvh, resample_motion, write_bvh
+from quatarray.formats import FormatError, example_path
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 METHODS = ("slerp", "squad", "bezier", "linear")
@@ -273,14 +273,14 @@ def printed(values, decimals, trim=False):
     ("0.0166667", 60), ("0.0166666", 60), ("0.00416667", 240), ("8.33333e-03", 120), ("0.125", 8), ("1", 1),
 ])
 def test_frame_time_printed_from_one_over_n_is_exactly_that(text, n):
-    from quatarray._bvh import read_frame_time
+    from quatarray.formats.bvh import read_frame_time
     assert read_frame_time(text) == 1 / n
 
 
 def test_frame_time_rule_holds_for_every_rate_and_print():
     """1/n for n up to 500, rounded or truncated to 4-9 significant digits, reads as exactly 1/n."""
     import decimal
-    from quatarray._bvh import read_frame_time
+    from quatarray.formats.bvh import read_frame_time
     for n in range(1, 501):
         for digits in range(4, 10):
             for rounding in (decimal.ROUND_HALF_EVEN, decimal.ROUND_DOWN):
@@ -291,13 +291,13 @@ def test_frame_time_rule_holds_for_every_rate_and_print():
 @pytest.mark.parametrize("text", ["0.3", "0.03456789", "0.1234567", "2.5", "0.0101"])
 def test_frame_time_not_near_one_over_n_stays_as_printed(text):
     """Short prints near several 1/n (0.3, 0.0101) and values far from any stay as written."""
-    from quatarray._bvh import read_frame_time
+    from quatarray.formats.bvh import read_frame_time
     assert read_frame_time(text) == float(text)
 
 
 def test_issue_reproducer_4_frames_at_30_fps(tmp_path):
     """Zrotation 0/10/20/30 with Frame Time 0.0333333, --fps 30: the 4 frames, text unchanged."""
-    from quatarray.cli import resample_file
+    from quatarray.formats import resample_file
     src = bvh_file(tmp_path, "0.0333333", [f"0 0 0 {z} 0 0" for z in (0, 10, 20, 30)])
     clip = read_bvh(src)
     assert clip.frame_time == 1 / 30
@@ -308,7 +308,7 @@ def test_issue_reproducer_4_frames_at_30_fps(tmp_path):
 
 @pytest.mark.parametrize("frames", [7, 128, 1064])
 def test_own_rate_reproduces_every_frame_and_the_text(tmp_path, rng, frames):
-    from quatarray.cli import resample_file
+    from quatarray.formats import resample_file
     values = random_frames(rng, frames, ["ZXY"], span=170.0)
     src = bvh_file(tmp_path, "0.0333333", printed(values, 5))
     out = tmp_path / "out.bvh"
@@ -319,7 +319,7 @@ def test_own_rate_reproduces_every_frame_and_the_text(tmp_path, rng, frames):
 
 @pytest.mark.parametrize("frames", [7, 128, 1064])
 def test_frame_counts_30_to_60_and_120_to_30(tmp_path, rng, frames):
-    from quatarray.cli import resample_file
+    from quatarray.formats import resample_file
     values = random_frames(rng, frames, ["ZXY"])
     src30 = bvh_file(tmp_path, "0.0333333", printed(values, 4), "a.bvh")
     assert resample_file(src30, tmp_path / "a60.bvh", fps=60) == (frames, 2 * frames - 1)
@@ -347,7 +347,7 @@ def test_times_at_k_over_30_are_inside_the_clip(tmp_path, rng, frame_time):
 
 def test_g_style_values_crlf_identity_is_byte_identical(tmp_path, rng):
     """%g-style values (0, -5.14473, 12.5) and CRLF: an identity resample gives the same bytes."""
-    from quatarray.cli import resample_file
+    from quatarray.formats import resample_file
     values = random_frames(rng, 40, ["ZXY"])
     values[::3, 0] = 0.0
     values[1::5, 5] = 12.5
@@ -363,7 +363,7 @@ def test_g_style_values_crlf_identity_is_byte_identical(tmp_path, rng):
 
 
 def test_identity_of_shipped_example_is_identical_text(tmp_path):
-    from quatarray.cli import resample_file
+    from quatarray.formats import resample_file
     src = example_path("walk.bvh")
     resample_file(src, tmp_path / "out.bvh", fps=8)
     assert (tmp_path / "out.bvh").read_text() == open(src).read()
@@ -371,7 +371,7 @@ def test_identity_of_shipped_example_is_identical_text(tmp_path):
 
 @pytest.mark.parametrize("precision", [0, 2, 7, "full"])
 def test_precision_option(tmp_path, rng, precision):
-    from quatarray.cli import resample_file
+    from quatarray.formats import resample_file
     src = bvh_file(tmp_path, "0.0333333", printed(random_frames(rng, 6, ["ZXY"]), 4))
     out = tmp_path / "out.bvh"
     resample_file(src, out, fps=45, precision=precision)

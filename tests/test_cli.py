@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from quatarray import cli
-from quatarray.io import read_bvh, resample_motion
-from quatarray.io import example_path, fps_times, read_csv, read_npz, resample_keyframes, write_csv, write_npz
+from quatarray.formats import registry
+from quatarray.formats import read_bvh, resample_motion
+from quatarray.formats import example_path, fps_times, read_csv, read_npz, resample_keyframes, write_csv, write_npz
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 METHODS = ("slerp", "squad", "bezier", "linear")
@@ -334,7 +335,7 @@ def test_huge_bad_cell_is_cut(tmp_path):
 
 def test_sigterm_during_write_removes_the_temporary(tmp_path):
     code = ("import sys, time\n"
-            "import quatarray.io as qio\n"
+            "import quatarray.formats.csv as qio\n"
             "from quatarray import cli\n"
             "real = qio.write_rows\n"
             "def slow(f, *args, **kwargs):\n"
@@ -373,7 +374,8 @@ def test_sigterm_during_a_zarr_write_removes_the_temporary_store(tmp_path):
     # (and with writes still under way, a temporary store removed before they end would come back)
     code = ("import sys, time\n"
             "import zarr\n"
-            "from quatarray import cli, _zarr\n"
+            "from quatarray import cli\n"
+            "from quatarray.formats import zarr as _zarr\n"
             "_zarr.CHUNK_QUATS = 64\n"
             "said = []\n"
             "def slowed(real):\n"
@@ -522,7 +524,7 @@ def test_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
     def exhausted(*args, **kwargs):
         raise MemoryError
 
-    monkeypatch.setattr(cli, "resample_keyframes", exhausted)
+    monkeypatch.setattr(registry, "resample_keyframes", exhausted)
     assert cli.main(["resample", example_path("arm.csv"), "-o", str(tmp_path / "o.csv"), "--fps", "30"]) == 2
     assert capsys.readouterr().err == f"quatarray: error: {example_path('arm.csv')}: out of memory (try a lower " \
                                       "--fps or fewer --times)\n"

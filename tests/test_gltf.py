@@ -1,4 +1,4 @@
-"""glTF 2.0 animations (quatarray._gltf, quatarray._gltf_sampler, ``quatarray resample`` on .gltf / .glb).
+"""glTF 2.0 animations (quatarray.formats.gltf, quatarray.formats.gltf_sampler, ``quatarray resample`` on .gltf / .glb).
 
 The input files are built here with pygltflib; the outputs are read back with
 pygltflib and a few lines of NumPy written here, and compared with the
@@ -19,10 +19,10 @@ import pytest
 pygltflib = pytest.importorskip("pygltflib", reason="the glTF tests need pygltflib (pip install 'quatarray[gltf]')")
 
 from quatarray import cli  # noqa: E402
-from quatarray._gltf import keyframes_to_gltf, resample_gltf  # noqa: E402
-from quatarray._gltf_read import read_accessor, read_gltf  # noqa: E402
-from quatarray._gltf_sampler import evaluate_sampler  # noqa: E402
-from quatarray.io import example_path, read_csv  # noqa: E402
+from quatarray.formats import keyframes_to_gltf, resample_gltf  # noqa: E402
+from quatarray.formats.gltf_read import read_accessor, read_gltf  # noqa: E402
+from quatarray.formats.gltf_sampler import evaluate_sampler  # noqa: E402
+from quatarray.formats import example_path, read_csv  # noqa: E402
 from quatarray.interpolate import Track  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -1,6 +1,7 @@
-"""CSV and NPZ keyframe files, query times, atomic writes (quatarray.io)."""
+"""CSV and NPZ keyframe files, query times, atomic writes (quatarray.formats)."""
 
 import os
+import re
 
 import numpy as np
 import pytest
@@ -8,8 +9,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from .conftest import random_quats, tol
-from quatarray import _text, io as qio
-from quatarray.io import (FormatError, Keyframes, fps_times, read_csv, read_npz, read_times,
+from quatarray import formats as qio
+from quatarray.formats import csv as qcsv, text as _text
+from quatarray.formats import (FormatError, Keyframes, fps_times, read_csv, read_npz, read_times,
                            resample_keyframes, write_csv, write_npz)
 
 METHODS = ("slerp", "squad", "bezier", "linear")
@@ -300,7 +302,7 @@ def test_failed_write_leaves_target_untouched(tmp_path, rng, monkeypatch):
         calls.append(1)
         raise RuntimeError("disk full")
 
-    monkeypatch.setattr(qio, "write_rows", broken)
+    monkeypatch.setattr(qcsv, "write_rows", broken)
     with pytest.raises(RuntimeError, match="disk full"):
         write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
     assert calls and path.read_text() == "precious\n"
@@ -440,17 +442,20 @@ def test_failed_rename_names_the_target(tmp_path, rng, monkeypatch):
 
 
 def test_file_modules_share_public_in_package_names_only():
-    """io, _bvh and cli import no `_private` name from another module; docstrings point at quatarray.io."""
+    """The format modules and cli import no `_private` name from another module; docstrings point at
+    quatarray.formats, never at a private module."""
     import ast
     import inspect
-    from quatarray import _bvh, cli
-    for module in (qio, _bvh, cli, _text):
+    from quatarray import cli, formats
+    from quatarray.formats import atomic, bvh, gltf, gltf_read, gltf_sampler, keyframes, npz, registry, zarr
+    for module in (formats, qcsv, npz, keyframes, bvh, gltf, gltf_read, gltf_sampler, zarr, registry, atomic, cli,
+                   _text):
         source = inspect.getsource(module)
         for node in ast.walk(ast.parse(source)):
             if isinstance(node, ast.ImportFrom) and node.level and node.module:  # `from . import _mod` is a module
                 private = [a.name for a in node.names if a.name.startswith("_")]
                 assert not private, f"{module.__name__} imports {private} from {node.module}"
-        assert "quatarray._io" not in source and "quatarray._bvh import" not in source
+        assert not re.search(r"quatarray\._(io|text|bvh|gltf|zarr)", source), module.__name__
     assert set(qio.__all__) >= {"read_csv", "write_csv", "read_npz", "write_npz", "read_bvh", "write_bvh",
                                 "resample_motion", "resample_keyframes", "FormatError", "Keyframes", "Motion"}
     assert all(hasattr(qio, name) for name in qio.__all__)

@@ -1,7 +1,7 @@
 """glTF 2.0 files (``.gltf``, ``.glb``): the container, buffers, accessors and animations, read.
 
 The document is kept as the JSON object it was read as (`GltfFile.json`),
-with the bytes of its buffers beside it; `quatarray._gltf` writes it back.
+with the bytes of its buffers beside it; `quatarray.formats.gltf` writes it back.
 Buffers are read from a GLB ``BIN`` chunk, a base64 ``data:`` URI or a file
 beside the ``.gltf``.  Accessors are decoded to float64 as the spec says
 (normalized integers, sparse accessors, byte strides); the animations'
@@ -19,8 +19,8 @@ import urllib.parse
 
 import numpy as np
 
-from ._gltf_sampler import INTERPOLATIONS
-from ._text import FormatError
+from .gltf_sampler import INTERPOLATIONS
+from .text import FormatError
 
 __all__ = ["SUPPORTED_EXTENSIONS", "GltfFile", "Sampler", "read_gltf", "read_accessor", "read_animations"]
 

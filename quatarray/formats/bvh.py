@@ -11,7 +11,7 @@ channels are interpolated linearly.
 A ``Frame Time`` printed rounded from 1/n s (``0.0333333``, ``.0083333``) is
 read as exactly 1/n (see `read_frame_time`), so frame k is at k/n s and a
 resample at the file's own rate lands on every frame.  Values are written back
-with the input's decimals and line endings.  Use them through `quatarray.io`.
+with the input's decimals and line endings.  Use them through `quatarray.formats`.
 """
 
 import dataclasses
@@ -19,10 +19,11 @@ import decimal
 
 import numpy as np
 
-from . import _euler
-from ._text import (ROWS, FormatError, TextStyle, atomic_write, check_query, check_size, echo, load_table,
-                    measure_style, row_line, write_rows)
-from .interpolate import Track
+from .. import _euler
+from .atomic import atomic_write
+from .text import (ROWS, FormatError, TextStyle, check_query, check_size, echo, load_table, measure_style, row_line,
+                   write_rows)
+from ..interpolate import Track
 
 __all__ = ["Joint", "Motion", "read_bvh", "write_bvh", "resample_motion"]
 
@@ -211,7 +212,7 @@ def read_frame_time(text):
     the frame time is 1/n; otherwise it is the number as printed.  Needing a
     single n keeps short prints such as ``0.3`` or ``0.04`` as written.
 
-    >>> from quatarray import _bvh
+    >>> from quatarray.formats import bvh as _bvh
     >>> _bvh.read_frame_time("0.0333333") == 1 / 30, _bvh.read_frame_time(".0083333") == 1 / 120
     (True, True)
     >>> _bvh.read_frame_time("0.3"), _bvh.read_frame_time("0.03456789")
@@ -277,8 +278,8 @@ def read_bvh(path):
 
     Examples
     --------
-    >>> from quatarray.io import example_path
-    >>> from quatarray.io import read_bvh
+    >>> from quatarray.formats import example_path
+    >>> from quatarray.formats import read_bvh
     >>> clip = read_bvh(example_path("walk.bvh"))
     >>> clip.joints[0].name, clip.joints[0].channels[3:]
     ('Hips', ('Zrotation', 'Xrotation', 'Yrotation'))
@@ -336,8 +337,8 @@ def write_bvh(path, motion):
     Examples
     --------
     >>> import os, tempfile
-    >>> from quatarray.io import example_path
-    >>> from quatarray.io import read_bvh, write_bvh
+    >>> from quatarray.formats import example_path
+    >>> from quatarray.formats import read_bvh, write_bvh
     >>> clip = read_bvh(example_path("walk.bvh"))
     >>> tmp = tempfile.TemporaryDirectory()
     >>> path = os.path.join(tmp.name, "copy.bvh")
@@ -413,8 +414,8 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
     Examples
     --------
     >>> import numpy as np
-    >>> from quatarray.io import example_path
-    >>> from quatarray.io import read_bvh, resample_motion
+    >>> from quatarray.formats import example_path
+    >>> from quatarray.formats import read_bvh, resample_motion
     >>> clip = read_bvh(example_path("walk.bvh"))
     >>> fine = resample_motion(clip, np.arange(91) / 60, method="squad", frame_time=1 / 60)
     >>> fine.frames.shape, fine.frame_time

@@ -18,9 +18,9 @@ component order, squad and Bézier do, so those see scalar-first keys.
 
 import numpy as np
 
-from . import _interp_kernels as IK
-from ._interp_lookup import SegmentIndex
-from .interpolate import Track
+from .. import _interp_kernels as IK
+from .._interp_lookup import SegmentIndex
+from ..interpolate import Track
 
 __all__ = ["INTERPOLATIONS", "evaluate_sampler", "resample_sampler"]
 
@@ -53,7 +53,7 @@ def evaluate_sampler(times, values, interpolation, t, rotation=False):
     Examples
     --------
     >>> import numpy as np
-    >>> from quatarray._gltf_sampler import evaluate_sampler
+    >>> from quatarray.formats.gltf_sampler import evaluate_sampler
     >>> evaluate_sampler(np.array([0.0, 1.0]), np.array([[0.0], [2.0]]), "LINEAR", np.array([-1.0, 0.25, 5.0]))
     array([[0. ],
            [0.5],
@@ -108,7 +108,7 @@ def resample_sampler(times, values, interpolation, t, rotation=False, method=Non
     Examples
     --------
     >>> import numpy as np
-    >>> from quatarray._gltf_sampler import resample_sampler
+    >>> from quatarray.formats.gltf_sampler import resample_sampler
     >>> keys = np.array([[0, 0, 0, 1.0], [0, 0, 1.0, 0]])        # identity, 180 deg about z
     >>> resample_sampler(np.array([0.0, 1.0]), keys, "LINEAR", np.array([0.5]), rotation=True).round(4)
     array([[0.    , 0.    , 0.7071, 0.7071]])

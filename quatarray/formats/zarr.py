@@ -50,7 +50,7 @@ def is_zarr(path):
 
 def _open_group(path, what):
     import zarr
-    from ._text import FormatError
+    from .text import FormatError
     try:
         return zarr.open_group(os.fspath(path), mode="r")
     except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
@@ -61,7 +61,7 @@ def _open_group(path, what):
 
 def _array(group, name, path):
     import dask.array as da
-    from ._text import FormatError
+    from .text import FormatError
     if name not in group:
         raise FormatError(f"missing array {name!r} (found {', '.join(sorted(group.array_keys())) or 'none'})", path)
     return da.from_zarr(group[name])
@@ -69,7 +69,7 @@ def _array(group, name, path):
 
 def read_store(path):
     """``(times, keys)`` of a Zarr store: times in memory, keys a Dask array."""
-    from ._text import FormatError
+    from .text import FormatError
     group = _open_group(path, "arrays 'times' and 'keys'")
     times = np.asarray(group["times"][...] if "times" in group else _array(group, "times", path), np.float64)
     keys = _array(group, "keys", path)
@@ -83,10 +83,10 @@ def read_store(path):
 def _query_times(key_times, fps, times, rows):
     """Query times as a Dask array chunked by `rows`, and whether they may leave the key range."""
     import dask.array as da
-    from .io import fps_steps, read_times
+    from .keyframes import fps_steps, read_times
     if fps is not None:
         t0, t1 = float(key_times[0]), float(key_times[-1])
-        n = fps_steps(t0, t1, fps)     # the same count and values as io.fps_times
+        n = fps_steps(t0, t1, fps)     # the same count and values as keyframes.fps_times
         return da.minimum(t0 + da.arange(n + 1, chunks=rows, dtype=np.float64) / fps, t1), False
     if isinstance(times, (str, os.PathLike)) and is_zarr(times):
         import zarr
@@ -142,7 +142,7 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     Examples
     --------
     >>> import numpy as np
-    >>> from quatarray._zarr import resample_zarr
+    >>> from quatarray.formats import resample_zarr
     >>> import os, tempfile, zarr
     >>> tmp = tempfile.mkdtemp()
     >>> g = zarr.open_group(os.path.join(tmp, "in.zarr"), mode="w")
@@ -158,9 +158,9 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     import zarr
     from zarr.codecs import BloscCodec
 
-    from . import dask as qd
-    from ._text import check_query
-    from .interpolate import Track
+    from .. import dask as qd
+    from .text import check_query
+    from ..interpolate import Track
     if (fps is None) == (times is None):
         raise ValueError("give exactly one of fps and times")
     key_times, keys = read_store(src)
@@ -244,7 +244,7 @@ class RawChunks:
     again.
 
     >>> import numpy as np, os, tempfile, zarr
-    >>> from quatarray._zarr import RawChunks
+    >>> from quatarray.formats.zarr import RawChunks
     >>> root = tempfile.mkdtemp()
     >>> a = zarr.open_group(root, mode="w").create_array("keys", shape=(5, 4), chunks=(3, 4),
     ...                                                   dtype=np.float32, compressors=None)

@@ -15,8 +15,8 @@ drops core properties -- a node's default morph ``weights``, a mesh's empty
 not come back untouched.  pygltflib stays the tool the tests build their
 input files with.
 
-Reading lives in `quatarray._gltf_read`, the samplers' maths in
-`quatarray._gltf_sampler`.  A ``.glb`` output holds its buffer in the ``BIN``
+Reading lives in `quatarray.formats.gltf_read`, the samplers' maths in
+`quatarray.formats.gltf_sampler`.  A ``.glb`` output holds its buffer in the ``BIN``
 chunk; a ``.gltf`` output embeds it as a data URI when the input did, and
 otherwise writes ``<name>.bin`` beside it.  Files are written atomically.
 Every problem with a file raises `FormatError` naming the file and the object.
@@ -31,10 +31,11 @@ import urllib.parse
 
 import numpy as np
 
-from ._gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
-from ._gltf_sampler import resample_sampler
-from ._text import FormatError, atomic_write, check_size
-from .io import fps_times
+from .atomic import atomic_write
+from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
+from .gltf_sampler import resample_sampler
+from .keyframes import fps_times
+from .text import FormatError, check_size
 
 __all__ = ["write_gltf", "resample_gltf", "keyframes_to_gltf"]
 
@@ -286,8 +287,8 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     Examples
     --------
     >>> import os, tempfile
-    >>> from quatarray.io import example_path, read_csv
-    >>> from quatarray._gltf import keyframes_to_gltf, resample_gltf
+    >>> from quatarray.formats import example_path, read_csv
+    >>> from quatarray.formats import keyframes_to_gltf, resample_gltf
     >>> tmp = tempfile.TemporaryDirectory()
     >>> src, dst = os.path.join(tmp.name, "arm.glb"), os.path.join(tmp.name, "arm_60.glb")
     >>> keyframes_to_gltf(src, read_csv(example_path("arm.csv")))

@@ -1,8 +1,6 @@
-"""Machinery shared by the file readers and writers (`quatarray.io`, BVH, the command line).
+"""Machinery shared by the text formats' readers and writers (CSV, BVH, query times) and the command line.
 
 - `FormatError`, the one exception for a file that cannot be read;
-- `atomic_write`, which writes to a temporary file beside the target and
-  renames it into place only when complete;
 - `TextStyle`, `measure_style` and `write_rows`: how a text file printed its
   numbers and ended its lines, so that it can be written back the same way;
 - `load_table`, `data_lines`, `row_line`: bulk parsing by NumPy in one pass,
@@ -11,15 +9,13 @@
 - `check_numbers`, `check_query`, `check_size`: the checks every format shares;
 - `echo`: a value quoted in a message, cut to about 60 characters.
 
-Everything here is public inside the package and private to users.
+`FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
+shared inside the package.
 """
 
-import contextlib
 import dataclasses
-import errno
 import os
 import re
-import tempfile
 import warnings
 
 import numpy as np
@@ -36,7 +32,7 @@ class FormatError(ValueError):
     ``str(err)`` is one line, ``path:line: message`` (``path: message`` when
     no line applies); the parts are kept as `path`, `line` and `message`.
 
-    >>> from quatarray.io import FormatError
+    >>> from quatarray.formats import FormatError
     >>> str(FormatError("bad header", "a.csv", 1))
     'a.csv:1: bad header'
     """
@@ -55,7 +51,7 @@ class FormatError(ValueError):
 def echo(value, limit=60):
     """`value` quoted for a message, cut to about `limit` characters.
 
-    >>> from quatarray._text import echo
+    >>> from quatarray.formats.text import echo
     >>> echo("abc")
     "'abc'"
     >>> echo("x" * 1000)
@@ -228,50 +224,6 @@ def _time_texts(times, style):
                 text = short
         out.append(text)
     return out
-
-
-# --------------------------------------------------------------------------- writing
-
-@contextlib.contextmanager
-def atomic_write(path, binary=False, newline="\n"):
-    """Open a temporary file beside `path`; rename it to `path` only on success.
-
-    An existing file's permission bits are kept; a new file gets the usual
-    mode (``0o666`` less the umask).  Every error names `path`, never the
-    temporary file; on any exception (including KeyboardInterrupt and the
-    SystemExit the command line raises on SIGTERM) the temporary file is
-    removed and `path` is left as it was.
-    """
-    path = os.fspath(path)
-    if os.path.isdir(path):
-        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
-    try:
-        mode = os.stat(path).st_mode & 0o7777
-    except OSError:
-        mask = os.umask(0)
-        os.umask(mask)
-        mode = 0o666 & ~mask
-    folder = os.path.dirname(os.path.abspath(path))
-    try:
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
-    except OSError as exc:  # name the file asked for, not the temporary one
-        raise type(exc)(exc.errno, exc.strerror, path) from None
-    try:
-        os.chmod(tmp, mode)  # mkstemp makes 0600
-        with (os.fdopen(fd, "wb") if binary else
-              os.fdopen(fd, "w", encoding="utf-8", errors="surrogateescape", newline=newline)) as f:
-            fd = None
-            yield f
-        try:
-            os.replace(tmp, path)
-        except OSError as exc:
-            raise type(exc)(exc.errno, exc.strerror, path) from None
-    except BaseException:
-        if fd is not None:
-            os.close(fd)
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
 
 
 # --------------------------------------------------------------------------- checks

@@ -1,0 +1,54 @@
+"""Atomic writes: a temporary file beside the target, renamed onto it only when complete.
+
+Shared by every format's writer, so a failed or interrupted write never leaves a
+partial file at the name asked for.
+"""
+
+import contextlib
+import errno
+import os
+import tempfile
+
+__all__ = ["atomic_write"]
+
+
+@contextlib.contextmanager
+def atomic_write(path, binary=False, newline="\n"):
+    """Open a temporary file beside `path`; rename it to `path` only on success.
+
+    An existing file's permission bits are kept; a new file gets the usual
+    mode (``0o666`` less the umask).  Every error names `path`, never the
+    temporary file; on any exception (including KeyboardInterrupt and the
+    SystemExit the command line raises on SIGTERM) the temporary file is
+    removed and `path` is left as it was.
+    """
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), path)
+    try:
+        mode = os.stat(path).st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        mode = 0o666 & ~mask
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
+    except OSError as exc:  # name the file asked for, not the temporary one
+        raise type(exc)(exc.errno, exc.strerror, path) from None
+    try:
+        os.chmod(tmp, mode)  # mkstemp makes 0600
+        with (os.fdopen(fd, "wb") if binary else
+              os.fdopen(fd, "w", encoding="utf-8", errors="surrogateescape", newline=newline)) as f:
+            fd = None
+            yield f
+        try:
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise type(exc)(exc.errno, exc.strerror, path) from None
+    except BaseException:
+        if fd is not None:
+            os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise

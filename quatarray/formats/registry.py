@@ -1,0 +1,231 @@
+"""The one table of file formats, and `resample_file`, which the command line and the API both use.
+
+Each format registers its extensions, its family (formats of one family
+convert into each other), its reader and writer (None where it has none in
+memory) and the resampler of its family.  `resample_file`, the command line's
+messages and ``quatarray --help`` read this table, so a format added here is
+everywhere at once.
+"""
+
+import dataclasses
+import os
+
+import numpy as np
+
+from . import bvh, csv, gltf, npz, zarr
+from .keyframes import fps_times, read_times, resample_keyframes
+from .text import FormatError, TextStyle, echo
+
+__all__ = ["Format", "FORMATS", "format_of", "resample_file"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Request:
+    """What `resample_file` was asked for, handed to the format's resampler."""
+
+    fps: float = None
+    times: object = None
+    method: str = "slerp"
+    extrapolate: str = "raise"
+    scalar_last: bool = False
+    precision: object = None
+    force: bool = False
+    scheduler: str = None
+    progress: bool = None
+
+    def grid(self, t0, t1, per_frame):
+        """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first)."""
+        return fps_times(t0, t1, self.fps, per_frame) if self.times is None else self.times
+
+    def style(self, style):
+        """`style` (the input's, or None) with the decimals `precision` asks for."""
+        if self.precision is None:
+            return style
+        return dataclasses.replace(style or TextStyle(), decimals=None if self.precision == "full" else self.precision)
+
+
+def _read_csv(path, request):
+    return csv.read_csv(path, scalar_last=request.scalar_last)
+
+
+def _write_csv(path, data, request):
+    csv.write_csv(path, dataclasses.replace(data, style=request.style(data.style)), scalar_last=request.scalar_last)
+
+
+def _read_npz(path, request):
+    return npz.read_npz(path)
+
+
+def _write_npz(path, data, request):
+    npz.write_npz(path, data)
+
+
+def _resample_keyframes(src, dst, kind_in, kind_out, request):
+    data = FORMATS[kind_in].read(src, request)
+    t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size)
+    out = resample_keyframes(data, t, method=request.method, extrapolate=request.extrapolate)
+    FORMATS[kind_out].write(dst, out, request)
+    return len(data.times), len(t)
+
+
+def _read_bvh(path, request):
+    return bvh.read_bvh(path)
+
+
+def _write_bvh(path, data, request):
+    bvh.write_bvh(path, dataclasses.replace(data, style=request.style(data.style)))
+
+
+def _resample_bvh(src, dst, kind_in, kind_out, request):
+    data = _read_bvh(src, request)
+    times = data.times
+    t = request.grid(times[0], times[-1], data.frames.shape[1])
+    out = bvh.resample_motion(data, t, method=request.method, extrapolate=request.extrapolate,
+                              frame_time=None if request.fps is None else 1 / request.fps)
+    _write_bvh(dst, out, request)
+    return len(times), len(t)
+
+
+def _resample_gltf(src, dst, kind_in, kind_out, request):
+    return gltf.resample_gltf(src, dst, fps=request.fps, times=request.times, method=request.method,
+                              extrapolate=request.extrapolate, force=request.force)
+
+
+def _resample_zarr(src, dst, kind_in, kind_out, request):
+    return zarr.resample_zarr(src, dst, fps=request.fps, times=request.times, method=request.method or "slerp",
+                              extrapolate=request.extrapolate, scheduler=request.scheduler,
+                              progress=request.progress)
+
+
+@dataclasses.dataclass(frozen=True)
+class Format:
+    """One file format of the registry.
+
+    Attributes
+    ----------
+    name : str
+        As messages name it (``"CSV"``).
+    family : str
+        Formats of one family convert into each other.
+    read, write : callable or None
+        ``read(path, request) -> data`` and ``write(path, data, request)``;
+        None where the format has none in memory.
+    resample : callable
+        ``resample(src, dst, ext_in, ext_out, request) -> (keys read,
+        frames written)``, the resampler of the family.
+    """
+
+    name: str
+    family: str
+    read: object
+    write: object
+    resample: object
+
+
+#: File extension (lower case) -> `Format`.
+FORMATS = {
+    ".csv": Format("CSV", "keyframes", _read_csv, _write_csv, _resample_keyframes),
+    ".npz": Format("NPZ", "keyframes", _read_npz, _write_npz, _resample_keyframes),
+    ".bvh": Format("BVH", "BVH", _read_bvh, _write_bvh, _resample_bvh),
+    ".gltf": Format("glTF", "glTF", None, None, _resample_gltf),
+    ".glb": Format("GLB", "glTF", None, None, _resample_gltf),
+    ".zarr": Format("Zarr", "Zarr", None, None, _resample_zarr),
+}
+
+
+def format_of(path):
+    """The registry's extension for `path` (lower case), or a `FormatError` that lists the known ones.
+
+    >>> from quatarray.formats import format_of
+    >>> format_of("walk.BVH")
+    '.bvh'
+    """
+    ext = os.path.splitext(os.fspath(path).rstrip("/\\"))[1].lower()
+    if ext not in FORMATS:
+        raise FormatError(f"unknown extension {echo(ext) if ext else '(none)'} (expected {', '.join(FORMATS)})", path)
+    return ext
+
+
+def _same_file(src, dst):
+    try:
+        return os.path.samefile(src, dst)
+    except OSError:
+        return False
+
+
+def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False,
+                  precision=None, force=False, scheduler=None, progress=None):
+    """Read `src`, resample it and write `dst`; formats follow the extensions.
+
+    Parameters
+    ----------
+    src, dst : str or os.PathLike
+        ``.csv``, ``.npz``, ``.bvh``, ``.gltf``, ``.glb`` or ``.zarr``.  CSV
+        and NPZ convert into each other, and so do glTF and GLB; BVH goes to
+        BVH only, Zarr to Zarr only.  `dst` is written atomically.
+    fps : float, optional
+        Sample at ``t0 + k / fps`` for k = 0, 1, ... up to the last key time.
+    times : array_like or str or os.PathLike, optional
+        Query times, or a file of one time per line.  For BVH they count from
+        the first frame and must be evenly spaced.  Give `fps` or `times`.
+    method, extrapolate : str
+        Passed to `quatarray.Track`.  `method` None is 'slerp',
+        except for glTF, where it keeps each sampler's own interpolation
+        (see `quatarray.formats.resample_gltf`).
+    scalar_last : bool
+        CSV input and output have components ``x, y, z, w``.
+    precision : int or "full", optional
+        Decimals of the values written to CSV or BVH.  By default those of the
+        input (for BVH, the most decimals among its frame values); ``"full"``
+        writes the shortest text that reads back exactly.  Times are always
+        written exactly.
+    force : bool
+        Allow `dst` to be `src` (replaced atomically), and a ``.gltf`` output's
+        ``.bin`` to replace a file of a glTF input.
+    scheduler, progress
+        Zarr stores only: see `quatarray.formats.resample_zarr`.
+
+    Returns
+    -------
+    tuple of int
+        ``(keys read, frames written)``.
+
+    Raises
+    ------
+    FormatError
+        An unknown extension, or an unreadable input or times file (the
+        message names the file and line), or `dst` is `src` (or a ``.gltf``
+        output's ``.bin`` a file of the input) without `force`.
+    ValueError
+        Query times outside the keys with ``extrapolate="raise"``, a single key,
+        an output of more than ``quatarray.formats.text.MAX_VALUES`` values.
+    OSError
+        A missing input or an unwritable output.
+
+    Examples
+    --------
+    >>> from quatarray.formats import example_path, resample_file
+    >>> import os, tempfile
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> resample_file(example_path("arm.csv"), os.path.join(tmp.name, "arm.npz"), fps=60, method="squad")
+    (11, 241)
+    """
+    kind_in, kind_out = format_of(src), format_of(dst)
+    family = FORMATS[kind_in].family
+    if family != FORMATS[kind_out].family:
+        raise FormatError(f"cannot write {kind_out} from {kind_in} input ({family} files convert into "
+                          f"{', '.join(e for e, f in FORMATS.items() if f.family == family)} only)", dst)
+    if (fps is None) == (times is None):
+        raise ValueError("give exactly one of fps and times")
+    if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
+        raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
+    if not force and _same_file(src, dst):
+        raise FormatError("is the input file; give --force (force=True) to replace it", dst)
+    if family != "Zarr":   # Zarr stores read their query times chunk by chunk (also from a .zarr store)
+        if times is not None and isinstance(times, (str, os.PathLike)):
+            times = read_times(times)
+        times = None if times is None else np.asarray(times, np.float64)
+    if method is None and family != "glTF":
+        method = "slerp"
+    request = Request(fps, times, method, extrapolate, scalar_last, precision, force, scheduler, progress)
+    return FORMATS[kind_in].resample(src, dst, kind_in, kind_out, request)
