@@ -129,6 +129,7 @@ def write_api_pages(docs_dir):
     api = os.path.join(docs_dir, "api")
     os.makedirs(api, exist_ok=True)
     objects = public_objects()
+    _remove_stale_pages(os.path.join(api, "generated"), [q for _, q, _ in objects])
     pages = []
     index = ["API reference", "=============", "",
              "One page per public class and function, generated from the docstrings, by topic:",
@@ -159,6 +160,17 @@ def write_api_pages(docs_dir):
         cli += ["   " + line if line else "" for line in text.rstrip().splitlines()] + [""]
     _write(os.path.join(api, "cli.rst"), "\n".join(cli))
     return pages
+
+
+def _remove_stale_pages(generated, names):
+    """Delete autosummary pages of objects that are no longer public (a renamed module's
+    functions): Sphinx would warn that they are in no toctree, and ``-W`` makes that an error."""
+    if not os.path.isdir(generated):
+        return
+    for file in os.listdir(generated):
+        stem = file[:-len(".rst")] if file.endswith(".rst") else None
+        if stem and not any(stem == q or stem.startswith(q + ".") for q in names):
+            os.remove(os.path.join(generated, file))
 
 
 def _write(path, text):
