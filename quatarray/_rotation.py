@@ -12,7 +12,6 @@ the batch shape (one per rotation).
 """
 
 import functools
-import math
 import warnings
 
 import numpy as np
@@ -224,9 +223,6 @@ class Rotation:
         (array([ 0.,  0.,  0., -1.]), array([0., 0., 0., 1.]), array([-1.,  0.,  0.,  0.]))
         """
         q = self._q
-        if q.ndim == 1:  # one rotation: Python floats
-            w, x, y, z = C.canonical_one(q.tolist()) if canonical else q.tolist()
-            return np.array([w, x, y, z] if scalar_first else [x, y, z, w], q.dtype)
         q = C.canonical(q) if canonical else q
         if scalar_first:
             return q if canonical else q.copy()
@@ -261,8 +257,7 @@ class Rotation:
                [ 1.,  0.,  0.],
                [ 0.,  0.,  1.]])
         """
-        q = self._q
-        return C.as_matrix_one(q, self._unit) if q.ndim == 1 else C.as_matrix(q, unit=self._unit)
+        return C.as_matrix(self._q, unit=self._unit)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -285,8 +280,7 @@ class Rotation:
         >>> Rotation.from_euler("x", 1e-9).as_rotvec()
         array([1.e-09, 0.e+00, 0.e+00])
         """
-        q = self._q
-        return C.as_rotvec_one(q, degrees) if q.ndim == 1 else C.as_rotvec(q, degrees=degrees)
+        return C.as_rotvec(self._q, degrees=degrees)
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -310,8 +304,7 @@ class Rotation:
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
         """
-        q = self._q
-        return C.as_mrp_one(q) if q.ndim == 1 else C.as_mrp(q)
+        return C.as_mrp(self._q)
 
     # --- Euler and Davenport angles -----------------------------------------------------
     @classmethod
@@ -352,10 +345,7 @@ class Rotation:
         array([30., 20., 10.])
         """
         _check_euler_seq(seq, 3)
-        q = self._q
-        if q.ndim == 1:
-            return E.as_euler_one(q, seq, degrees, suppress_warnings)
-        return E.as_euler(q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        return E.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -480,11 +470,10 @@ class Rotation:
         else:
             return NotImplemented
         p = self._q
-        if p.ndim == 1 and q.ndim == 1:  # two single rotations: from_quat normalises in Python floats
-            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True), unit=True)
         _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
                          f"{q.shape[:-1]} rotations in second object.")
-        return type(self)._wrap(K.normalize(K.multiply(p, q)), unit=True)
+        pq = K.multiply(p, q)
+        return type(self)._wrap(K.normalize(pq, out=pq), unit=True)
 
     def __rmul__(self, other):
         if _is_scipy_rotation(other):
@@ -526,10 +515,6 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
-        if q.ndim == 1 and type(n) in (int, float):  # one rotation, a Python number: Python floats
-            v = [n * c for c in C.rotvec_floats(q.tolist())]
-            if all(map(math.isfinite, v)):   # else from_rotvec's error
-                return type(self)._wrap(C.from_rotvec_floats(v, q.dtype))
         return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * n))
 
     def inv(self):
@@ -548,8 +533,8 @@ class Rotation:
         >>> Rotation.from_rotvec([[0, 0, 1], [0, 4, 0]]).magnitude()
         array([1.        , 2.28318531])
         """
-        q = self._q
-        return q.dtype.type(C.magnitude_one(q.tolist())) if q.ndim == 1 else C.magnitude(q)
+        m = C.magnitude(self._q)
+        return m[()] if m.ndim == 0 else m
 
     def approx_equal(self, other, atol=None, degrees=False):
         """Whether the angle between each pair of rotations is below `atol` (batch shapes broadcast).
@@ -573,13 +558,14 @@ class Rotation:
         >>> r.approx_equal(Rotation.from_rotvec([0, 0, 1 + 1e-10]))
         array([ True, False])
         """
-        if isinstance(other, Rotation):
-            q = other._q
-        elif _is_scipy_rotation(other):
-            q = Rotation.from_scipy(other)._q
-        else:
+        if _is_scipy_rotation(other):
+            other = Rotation.from_scipy(other)
+        elif not isinstance(other, Rotation):
             raise TypeError(f"expected other to be a Rotation, got {type(other).__name__}")
-        p = self._q
+        # quaternions held as given (`from_quatarray`) may have any magnitude: their
+        # product could overflow, so they are normalised first
+        p = self._q if self._unit else K.normalize(self._q)
+        q = other._q if other._unit else K.normalize(other._q)
         if atol is None:
             if degrees:
                 warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.",
@@ -590,9 +576,7 @@ class Rotation:
         if p.ndim > 1 or q.ndim > 1:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        elif isinstance(atol, (float, int)):  # two single rotations: Python floats
-            return np.array([C.angle_between_one(p.tolist(), q.tolist()) < atol])
-        res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
+        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
