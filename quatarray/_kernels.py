@@ -132,38 +132,38 @@ def _contig_last(a, dtype):
     return a
 
 
-def hamilton(a, b, c, d, o0=None, o1=None, t=None):
+def hamilton(a, b, c, d, o0, o1, t, u):
     """The Hamilton product p q, written once for every path.
 
     p = a + b j and q = c + d j as pairs of complex numbers (a = w + x i,
     b = y + z i): p q = (a c - b conj(d)) + (a d + b conj(c)) j.  Eight ufunc
-    passes; with outputs `o0`, `o1` and scratch `t` given (not overlapping
-    the inputs) nothing is allocated.  Complex arrays only: NumPy's complex
-    multiply on arrays gives the same bits for any length, stride or
-    broadcast, but its scalar (and Python's complex) multiply rounds
-    differently, so a single quaternion goes through arrays too.
+    passes into the outputs `o0`, `o1` with scratch `t`, `u`; none of the four
+    may overlap the inputs or each other.  Complex arrays only, and no
+    multiply writes over its own input: NumPy's complex array multiply gives
+    the same bits for every length, stride and broadcast, except a length-1
+    multiply in place and scalar (or Python complex) multiplies, which round
+    differently.
 
     >>> import numpy as np
     >>> from quatarray._kernels import hamilton
     >>> a, b, c, d = (np.array([x]) for x in (1j, 0j, 0j, 1 + 0j))
-    >>> o0, o1, t = np.empty(1, complex), np.empty(1, complex), np.empty(1, complex)
-    >>> hamilton(a, b, c, d, o0, o1, t)   # i j = k: (0 + 0i) + (0 + 1i) j
+    >>> o0, o1, t, u = np.empty((4, 1), complex)
+    >>> hamilton(a, b, c, d, o0, o1, t, u)   # i j = k: (0 + 0i) + (0 + 1i) j
     (array([0.+0.j]), array([0.+1.j]))
     """
-    r0 = np.multiply(a, c, o0)
-    u = np.multiply(b, np.conjugate(d, t), t)
-    r0 = np.subtract(r0, u, o0)
-    r1 = np.multiply(a, d, o1)
-    u = np.multiply(b, np.conjugate(c, t), t)
-    r1 = np.add(r1, u, o1)
-    return r0, r1
+    np.multiply(a, c, o0)
+    np.multiply(b, np.conjugate(d, t), u)
+    np.subtract(o0, u, o0)
+    np.multiply(a, d, o1)
+    np.multiply(b, np.conjugate(c, t), u)
+    np.add(o1, u, o1)
+    return o0, o1
 
 
 def _mul_views(P, Q, O):
     """O = P Q on complex views (..., 2) of one block."""
-    work = _blocks.scratch()
-    t = work.rows(1, O.shape[:-1], O.dtype)[0]
-    hamilton(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], t)
+    t, u = _blocks.scratch().rows(2, O.shape[:-1], O.dtype)
+    hamilton(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], t, u)
 
 
 def _out(out, shape, dtype, name="out"):
