@@ -442,6 +442,21 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
     nb = len(batch)
     if 0 in batch:
         return False
+    size = block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]), *[o.dtype for o in outs])
+    if prod(batch) <= size:   # one block: the same kernel call, without splitting or the pool
+        work = scratch()
+        top = work.top
+        try:
+            iv = []
+            for a in ins:   # contiguous components-first copies, broadcast to the batch
+                buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
+                np.copyto(buf, soa(a.reshape((1,) * (nb + 1 - a.ndim) + a.shape)), casting="unsafe")
+                iv.append(buf)
+            iv += [np.asarray(v).reshape((1,) * (nb - np.ndim(v)) + np.shape(v)) for v in views]
+            r = kernel(*iv, *[soa(o) for o in outs], **params)
+        finally:
+            work.top = top
+        return r is True or r is np.True_
 
     def block(idx):
         work = scratch()
@@ -459,5 +474,4 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
         ov = [soa(o[idx]) for o in outs]
         return kernel(*iv, *ov, **params)
 
-    size = block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]), *[o.dtype for o in outs])
     return any(r is True or r is np.True_ for r in run(block, split(batch, size), prod(batch)))
