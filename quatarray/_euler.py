@@ -10,7 +10,6 @@ Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
 
 import functools
 import math
-import re
 import warnings
 
 import numpy as np
@@ -47,18 +46,20 @@ def check_seq(seq, n=None):
 
 @functools.lru_cache(maxsize=128)
 def _check_str_seq(seq, n):
-    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs)."""
+    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs).
+    The messages are scipy's (its tests match them); each names what was expected and
+    what came."""
     if n is not None and len(seq) != n:
-        raise ValueError(f"expected seq of {n} axes, got {seq!r} ({len(seq)} axes)")
+        raise ValueError(f"Expected {n} axes, got {seq}.")
     if not 1 <= len(seq) <= 3:
-        raise ValueError(f"expected seq of 1 to 3 axes, got {seq!r} ({len(seq)} axes)")
-    intrinsic = re.fullmatch("[XYZ]+", seq) is not None
-    if not intrinsic and re.fullmatch("[xyz]+", seq) is None:
-        raise ValueError(f"expected seq of axes from 'xyz' (extrinsic) or from 'XYZ' "
-                         f"(intrinsic), not mixed, got {seq!r}")
+        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
+                         f"characters, got {seq}")
+    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
+        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
+                         f"['X', 'Y', 'Z'], got {seq}")
     if any(a == b for a, b in zip(seq, seq[1:])):
-        raise ValueError(f"expected consecutive axes of seq to be different, got {seq!r}")
-    return tuple("xyz".index(a) for a in seq.lower()), intrinsic
+        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
+    return tuple("xyz".index(a) for a in seq.lower()), seq.isupper()
 
 
 def _negate(x):
@@ -313,7 +314,8 @@ def check_order(order):
         return True
     if order in ("i", "intrinsic"):
         return False
-    raise ValueError(f"expected order 'e'/'extrinsic' or 'i'/'intrinsic', got {order!r}")
+    raise ValueError(f"order should be 'e'/'extrinsic' for extrinsic sequences or 'i'/'intrinsic' "
+                     f"for intrinsic sequences, got {order!r}")
 
 
 def _unit_axes(axes, n=None):

@@ -11,7 +11,6 @@ float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
 the batch shape (one per rotation).
 """
 
-import functools
 import warnings
 
 import numpy as np
@@ -325,7 +324,7 @@ class Rotation:
         array([[ 0.,  0., 90.],
                [ 0., 45.,  0.]])
         """
-        _check_euler_seq(seq)
+        E.check_seq(seq)
         a = float_array(angles, "angles")
         if a.ndim == 0:
             a = a.reshape(1)
@@ -344,7 +343,7 @@ class Rotation:
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
         array([30., 20., 10.])
         """
-        _check_euler_seq(seq, 3)
+        E.check_seq(seq, 3)
         return E.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
@@ -364,7 +363,7 @@ class Rotation:
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        extrinsic = _check_order(order)
+        extrinsic = E.check_order(order)
         ax = float_array(axes, "axes")
         if ax.ndim == 0 or ax.shape[-1] != 3:
             raise ValueError("Axes must be vectors of length 3.")
@@ -404,7 +403,7 @@ class Rotation:
         >>> np.round(r.as_davenport([ez, ex, ey], "e", degrees=True), 9)
         array([90., 30., 10.])
         """
-        _check_order(order)
+        E.check_order(order)
         ax = float_array(axes, "axes")
         if ax.ndim < 2 or ax.shape[-2] != 3:
             raise ValueError(f"Expected 3 axes, got {ax.shape}.")
@@ -951,37 +950,6 @@ def _coerce(r, name):
     if _is_scipy_rotation(r):
         return Rotation.from_scipy(r)._q
     raise TypeError(f"expected {name} to be a Rotation, got {type(r).__name__}")
-
-
-def _check_euler_seq(seq, n=None):
-    """scipy's checks and messages for an Euler sequence."""
-    if not isinstance(seq, str):
-        raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
-    _check_str_seq(seq, n)
-
-
-@functools.lru_cache(maxsize=128)
-def _check_str_seq(seq, n):
-    """`_check_euler_seq` for a str, remembered (it costs as much as one rotation's conversion)."""
-    if n is not None and len(seq) != n:
-        raise ValueError(f"Expected {n} axes, got {seq}.")
-    if not 1 <= len(seq) <= 3:
-        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
-                         f"characters, got {seq}")
-    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
-        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
-                         f"['X', 'Y', 'Z'], got {seq}")
-    if any(a == b for a, b in zip(seq, seq[1:])):
-        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
-
-
-def _check_order(order):
-    if order in ("e", "extrinsic"):
-        return True
-    if order in ("i", "intrinsic"):
-        return False
-    raise ValueError(f"order should be 'e'/'extrinsic' for extrinsic sequences or 'i'/'intrinsic' "
-                     f"for intrinsic sequences, got {order!r}")
 
 
 def _align(a, b, weights, return_sensitivity):
