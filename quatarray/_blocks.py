@@ -320,6 +320,7 @@ def scratch_bytes():
 # --------------------------------------------------------------------------- the pool
 
 _pool = None
+_pool_workers = 0            # threads of `_pool` (ThreadPoolExecutor does not say, publicly)
 _pool_lock = threading.Lock()
 
 
@@ -329,12 +330,13 @@ def _mark_worker():
 
 def _executor(workers):
     """The shared pool, with at least `workers` threads."""
-    global _pool
+    global _pool, _pool_workers
     with _pool_lock:
-        if _pool is None or _pool._max_workers < workers:
+        if _pool is None or _pool_workers < workers:
             from concurrent.futures import ThreadPoolExecutor
             old = _pool
             _pool = ThreadPoolExecutor(workers, thread_name_prefix="quatarray", initializer=_mark_worker)
+            _pool_workers = workers
             if old is not None:
                 old.shutdown(wait=False)
         return _pool
@@ -342,8 +344,8 @@ def _executor(workers):
 
 def _forget_pool():
     """After fork the pool's threads do not exist in the child: start afresh."""
-    global _pool, _pool_lock
-    _pool, _pool_lock = None, threading.Lock()
+    global _pool, _pool_workers, _pool_lock
+    _pool, _pool_workers, _pool_lock = None, 0, threading.Lock()
 
 
 if hasattr(os, "register_at_fork"):

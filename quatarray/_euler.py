@@ -64,7 +64,8 @@ def _check_str_seq(seq, n):
 
 def _negate(x):
     """-x in place.  Not ``np.negative(x, out=x)``: NumPy 2.4 reads the wrong elements for
-    float32 rows 16 bytes apart (the component rows of an (m, 4) output)."""
+    float32 rows 16 bytes apart (the component rows of an (m, 4) output); the minimal
+    reproducer is tests/test_euler.py::test_negate_works_where_numpys_inplace_negative_does_not."""
     return np.multiply(x, -1, out=x)
 
 

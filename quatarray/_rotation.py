@@ -875,8 +875,8 @@ def _random(num=None, rng=None, *, shape=None, legacy=False):
     size = _batch_shape(num, shape)
     try:
         if legacy:
-            if rng is None:
-                rng = np.random.mtrand._rand
+            if rng is None:   # NumPy's global RandomState, through its public module functions
+                rng = np.random
             elif isinstance(rng, (int, np.integer)):
                 rng = np.random.RandomState(rng)
             elif not isinstance(rng, (np.random.RandomState, np.random.Generator)):

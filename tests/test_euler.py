@@ -196,3 +196,18 @@ def test_davenport_gimbal_lock_warns():
 def test_davenport_bad_input(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_negate_works_where_numpys_inplace_negative_does_not():
+    """The reason for `_euler._negate`: on NumPy 2.4 (AVX-512 and AVX2 builds alike),
+    ``np.negative(x, out=x)`` on a float32 row with a 16-byte stride (a component row of
+    an (m, 4) array) reads contiguous elements instead of the row's.  The minimal
+    reproducer is the first block below; `_negate` must be right either way."""
+    a = np.arange(1, 13, dtype=np.float32).reshape(3, 4)
+    row = a.T[1]                                   # 2, 6, 10: 16 bytes apart
+    want = -row.copy()
+    numpy_row = a.copy().T[1]
+    np.negative(numpy_row, out=numpy_row)          # NumPy 2.4.6 gives -2, -3, -4
+    numpy_is_right = np.array_equal(numpy_row, want)
+    E._negate(row)
+    np.testing.assert_array_equal(row, want, err_msg=f"numpy's in-place negative right: {numpy_is_right}")
