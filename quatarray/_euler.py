@@ -15,11 +15,12 @@ import warnings
 import numpy as np
 
 from . import _blocks, _scale
-from ._convert import _blockwise, _half_angle
-from ._kernels import arctan2, multiply_rows
+from ._convert import _blockwise, _half_angle, from_rotvec
+from ._kernels import arctan2, multiply, multiply_rows
 from ._validate import finite, float_array, quat_array
 
-__all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport"]
+__all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport",
+           "from_davenport_batched", "as_davenport_batched"]
 
 _GIMBAL_EPS = 1e-7
 _GIMBAL_MESSAGE = ("Gimbal lock detected. Setting third angle to zero since it is not "
@@ -448,6 +449,39 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
                         lmat=lmat, extrinsic=extrinsic, lamb=lamb, flip=flip)
     _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
+
+
+def from_davenport_batched(unit, angles, extrinsic, degrees=False):
+    """`from_davenport` with a batch of axes: `unit` (..., n, 3) unit axes, consecutive ones
+    orthogonal, broadcasting with `angles` (..., n).  One elementary turn per axis
+    (`_convert.from_rotvec`), composed in order with `_kernels.multiply`."""
+    dtype = np.result_type(angles.dtype, unit.dtype)
+    angle = np.deg2rad(angles) if degrees else angles
+    q = None
+    for i in range(unit.shape[-2]):
+        qi = from_rotvec((angle[..., i, None] * unit[..., i, :]).astype(dtype))
+        q = qi if q is None else (multiply(qi, q) if extrinsic else multiply(q, qi))
+    return q
+
+
+def as_davenport_batched(q, axes, order, degrees=False, suppress_warnings=False):
+    """`as_davenport` with a set of axes per rotation: `axes` (..., 3, 3) broadcasting with
+    `q`'s batch; each distinct set of axes reads its rotations with `as_davenport`, and a
+    gimbal-lock warning is given once."""
+    batch = np.broadcast_shapes(axes.shape[:-2], q.shape[:-1])
+    qb = np.broadcast_to(q, batch + (4,)).reshape(-1, 4)
+    axb = np.broadcast_to(axes, batch + (3, 3)).reshape(-1, 3, 3)
+    uniq, inverse = np.unique(axb.reshape(-1, 9), axis=0, return_inverse=True)
+    out = np.empty((qb.shape[0], 3), q.dtype)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for k, u in enumerate(uniq):
+            sel = inverse.ravel() == k
+            out[sel] = as_davenport(qb[sel], u.reshape(3, 3), order, degrees=degrees,
+                                    suppress_warnings=suppress_warnings)
+    if caught:
+        warnings.warn(caught[0].message, caught[0].category, stacklevel=3)
+    return out.reshape(batch + (3,))
 
 
 @functools.lru_cache(maxsize=64)

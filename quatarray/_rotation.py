@@ -18,6 +18,7 @@ import numpy as np
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
+from . import _rotation_algorithms
 from ._array import QuatArray
 from ._rotation_groups import group_quats
 from ._validate import batch_shape, finite, float_array
@@ -384,14 +385,7 @@ class Rotation:
         unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
         if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
-        # axes with a batch shape: one elementary turn per axis, composed in order
-        dtype = np.result_type(a.dtype, ax2.dtype)
-        angle = np.deg2rad(a) if degrees else a
-        q = None
-        for i in range(n):
-            qi = C.from_rotvec((angle[..., i, None] * unit[..., i, :]).astype(dtype))
-            q = qi if q is None else (K.multiply(qi, q) if extrinsic else K.multiply(q, qi))
-        return cls._wrap(q)
+        return cls._wrap(E.from_davenport_batched(unit, a, extrinsic, degrees))
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the middle one orthogonal to the others), shape (..., 3).
@@ -420,21 +414,7 @@ class Rotation:
         unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
         if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
-        # one set of axes per rotation: each distinct set read by the raw function
-        batch = np.broadcast_shapes(ax.shape[:-2], self._q.shape[:-1])
-        qb = np.broadcast_to(self._q, batch + (4,)).reshape(-1, 4)
-        axb = np.broadcast_to(ax, batch + (3, 3)).reshape(-1, 3, 3)
-        uniq, inverse = np.unique(axb.reshape(-1, 9), axis=0, return_inverse=True)
-        out = np.empty((qb.shape[0], 3), self._q.dtype)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            for k, u in enumerate(uniq):
-                sel = inverse.ravel() == k
-                out[sel] = E.as_davenport(qb[sel], u.reshape(3, 3), order, degrees=degrees,
-                                          suppress_warnings=suppress_warnings)
-        if caught:
-            warnings.warn(caught[0].message, caught[0].category, stacklevel=2)
-        return out.reshape(batch + (3,))
+        return E.as_davenport_batched(self._q, ax, order, degrees, suppress_warnings)
 
     # --- acting on vectors, composing, inverting, measuring -------------------------------
     def apply(self, vectors, inverse=False):
@@ -616,11 +596,8 @@ class Rotation:
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")
-        # nan, inf and zero rows refused; rows of any magnitude normalised
-        q64 = C.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name="rotations to average")
-        if weights is None:
-            wq = q64
-        else:
+        w = None
+        if weights is not None:
             w = float_array(weights, "weights").astype(np.float64)
             if (w < 0).any():
                 raise ValueError("`weights` must be non-negative.")
@@ -629,15 +606,7 @@ class Rotation:
             if not _broadcastable(w.shape, batch) or np.broadcast_shapes(w.shape, batch) != batch:
                 raise ValueError(f"Expected `weights` to be broadcastable to rotation shape, got "
                                  f"shape {w.shape} for {batch} rotations.")
-            wq = q64 * w[..., None]
-        keep = tuple(a for a in range(nb) if a not in axes)
-        order = keep + axes + (nb,)
-        kshape = tuple(batch[a] for a in keep)
-        # components in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
-        qm = q64.transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
-        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
-        _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
-        return type(self)._wrap(C.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype))
+        return type(self)._wrap(_rotation_algorithms.mean(q, w, axes))
 
     def reduce(self, left=None, right=None, return_indices=False):
         """Reduce each rotation p to the smallest l · p · r over l in `left`, r in `right`.
@@ -664,29 +633,9 @@ class Rotation:
             reduced = type(self)._wrap(self._q.copy())
             return (reduced, None, None) if return_indices else reduced
         p = self._q
-        eye = np.array([[1.0, 0.0, 0.0, 0.0]], p.dtype)
-        ls = _coerce(left, "left").reshape(-1, 4) if left is not None else eye
-        rs = _coerce(right, "right").reshape(-1, 4) if right is not None else eye
-        pf = p.reshape(-1, 4)
-        if left is None or right is None:
-            # one side: |w| of c p (or p c) is |c · conj(p)|, a matrix product; the largest
-            # gives the smallest angle
-            score = np.abs((pf * np.array([1, -1, -1, -1], p.dtype)) @ (rs if left is None else ls).T)
-            best = score.argmax(axis=1)
-            zero = np.zeros_like(best)
-            li, ri = (zero, best) if left is None else (best, zero)
-        else:
-            # |w| of l p r = |(l p) · conj(r)|
-            lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
-            score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
-            best = score.reshape(score.shape[0], -1).argmax(axis=1)
-            li, ri = np.divmod(best, rs.shape[0])
-        if p.ndim == 1:   # one rotation: single products (Python floats)
-            reduced = p if left is None else K.multiply(ls[li[0]], p)
-            reduced = reduced if right is None else K.multiply(reduced, rs[ri[0]])
-        else:
-            reduced = pf if left is None else K.multiply(ls[li], pf)
-            reduced = (reduced if right is None else K.multiply(reduced, rs[ri])).reshape(p.shape)
+        ls = _coerce(left, "left").reshape(-1, 4) if left is not None else None
+        rs = _coerce(right, "right").reshape(-1, 4) if right is not None else None
+        reduced, li, ri = _rotation_algorithms.reduce(p, ls, rs)
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
@@ -809,7 +758,7 @@ class Rotation:
         >>> np.round(r.as_rotvec(degrees=True), 9) + 0.0, round(float(rssd), 9)
         (array([ 0.,  0., 90.]), 0.0)
         """
-        q, rssd, sens = _align(a, b, weights, return_sensitivity)
+        q, rssd, sens = _rotation_algorithms.align(a, b, weights, return_sensitivity)
         rot = cls._wrap(q)
         return (rot, rssd, sens) if return_sensitivity else (rot, rssd)
 
@@ -950,101 +899,3 @@ def _coerce(r, name):
     if _is_scipy_rotation(r):
         return Rotation.from_scipy(r)._q
     raise TypeError(f"expected {name} to be a Rotation, got {type(r).__name__}")
-
-
-def _align(a, b, weights, return_sensitivity):
-    """`align_vectors` on float64 arrays; returns (quat scalar-first, rssd, sensitivity or None)."""
-    a0 = float_array(a, "a")
-    b0 = float_array(b, "b")
-    dtype = np.result_type(a0.dtype, b0.dtype)
-    a2 = np.atleast_2d(a0).astype(np.float64)
-    b2 = np.atleast_2d(b0).astype(np.float64)
-    if a2.shape[-1] != 3:
-        raise ValueError(f"Expected input `a` to have shape (3,) or (N, 3), got {a0.shape}")
-    if b2.shape[-1] != 3:
-        raise ValueError(f"Expected input `b` to have shape (3,) or (N, 3), got {b0.shape}")
-    if a2.shape != b2.shape:
-        raise ValueError(f"Expected inputs `a` and `b` to have same shapes, got {a0.shape} and {b0.shape} respectively")
-    if a2.ndim > 2:
-        raise ValueError(f"Expected inputs `a` and `b` to have shape (3,) or (N, 3), got {a0.shape} "
-                         f"and {b0.shape} respectively")
-    n = a2.shape[0]
-    if n == 0:
-        raise ValueError("expected at least one pair of vectors in a and b, got 0")
-    if not (np.isfinite(a2).all() and np.isfinite(b2).all()):
-        raise ValueError("expected finite values in a and b, got nan or inf")
-    if weights is None:
-        w = np.ones(n)
-    else:
-        w = float_array(weights, "weights").astype(np.float64)
-        if w.ndim != 1:
-            raise ValueError(f"Expected `weights` to be 1 dimensional, got shape {w.shape}")
-        if n > 1 and w.shape[0] != n:
-            raise ValueError(f"Expected `weights` to have number of values equal to number of input "
-                             f"vectors, got {w.shape[0]} values and {n} vectors")
-        if np.isnan(w).any() or (w < 0).any():
-            raise ValueError("`weights` may not contain negative values: expected non-negative weights")
-    inf = np.array([True]) if n == 1 else np.isposinf(w)
-    n_inf = int(inf.sum())
-    if n_inf > 1:
-        raise ValueError("Only one infinite weight is allowed")
-    if n_inf == 1:
-        if return_sensitivity:
-            raise ValueError("Cannot return sensitivity matrix with an infinite weight or one vector pair")
-        q, rssd = _align_primary(a2, b2, w, inf)
-        return q.astype(dtype), rssd, None
-    big = (w[:, None] * a2).T @ b2
-    u, s, vt = np.linalg.svd(big)
-    if np.linalg.det(u @ vt) < 0:
-        s[-1] = -s[-1]
-        u[:, -1] = -u[:, -1]
-    rot = u @ vt
-    if s[1] + s[2] < 1e-16 * s[0]:
-        warnings.warn("Optimal rotation is not uniquely or poorly defined for the given sets of vectors.",
-                      UserWarning, stacklevel=3)
-    rssd = np.sqrt(max(np.sum(w * np.sum(b2 ** 2 + a2 ** 2, axis=1)) - 2 * np.sum(s), 0.0))
-    sens = None
-    if return_sensitivity:
-        zeta = (s[0] + s[1]) * (s[1] + s[2]) * (s[2] + s[0])
-        kappa = s[0] * s[1] + s[1] * s[2] + s[2] * s[0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sens = np.mean(w) / zeta * (kappa * np.eye(3) + big @ big.T)
-    q = C.from_matrix(rot, assume_valid=True)
-    return q.astype(dtype), rssd, sens
-
-
-def _align_primary(a, b, w, inf):
-    """The infinite-weight (or single-pair) case: align the primary pair exactly,
-    then turn about it to fit the others best (scipy's algorithm)."""
-    a_pri, b_pri = a[inf][0], b[inf][0]
-    na, nb = np.linalg.norm(a_pri), np.linalg.norm(b_pri)
-    if na == 0 or nb == 0:
-        raise ValueError("Cannot align zero length primary vectors")
-    a_pri, b_pri = a_pri / na, b_pri / nb
-    # shortest-arc rotation taking b_pri to a_pri (antiparallel: π about any orthogonal axis)
-    cross = np.cross(b_pri, a_pri)
-    theta = np.arctan2(np.linalg.norm(cross), a_pri @ b_pri)
-    if np.linalg.norm(cross) == 0 and theta > np.pi / 2:
-        i = int(np.argmin(np.abs(a_pri)))
-        axis = np.zeros(3)
-        axis[i - 1], axis[i - 2] = a_pri[i - 2], -a_pri[i - 1]
-        axis /= np.linalg.norm(axis)
-    else:
-        norm = np.linalg.norm(cross)
-        axis = cross / norm if norm > 0 else np.array([1.0, 0, 0])
-    q_pri = C.from_rotvec(axis * theta)
-    q = q_pri
-    if a.shape[0] > 1:
-        sec = ~inf
-        a_sec, b_sec, w_sec = a[sec], b[sec], w[sec]
-        c_sec = K.rotate(q_pri, b_sec)
-        sin_term = np.einsum("ij,j->i", np.cross(c_sec, a_sec), a_pri)
-        cos_term = np.einsum("ij,ij->i", c_sec, a_sec) - (c_sec @ a_pri) * (a_sec @ a_pri)
-        phi = np.arctan2(np.sum(w_sec * sin_term), np.sum(w_sec * cos_term))
-        q = K.multiply(C.from_rotvec(phi * a_pri), q_pri)
-    w_zero = w.copy()
-    if a.shape[0] > 1 or np.isposinf(w[0]):
-        w_zero[inf] = 0
-    est = K.rotate(q, b)
-    rssd = np.sqrt(np.sum(w_zero @ (a - est) ** 2))
-    return q, rssd
