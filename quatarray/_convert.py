@@ -36,7 +36,7 @@ from ._validate import finite, float_array, quat_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
-    "as_mrp", "from_mrp", "canonical", "magnitude",
+    "as_mrp", "from_mrp", "canonical", "magnitude", "to_scalar_first", "to_scalar_last",
 ]
 
 _POLAR_MAXITER = 60
@@ -90,7 +90,7 @@ def from_quat(quat, scalar_first=False, name="quat"):
     if scalar_first:
         src = q if q.flags.c_contiguous else np.ascontiguousarray(q)
     else:
-        src = q[..., [3, 0, 1, 2]]   # a new C-contiguous array, normalised in place
+        src = to_scalar_first(q)   # a new C-contiguous array, normalised in place
     try:
         with np.errstate(over="ignore", under="ignore"):
             return _kernels.normalize(src, out=None if src is q else src)
@@ -104,6 +104,45 @@ def from_quat(quat, scalar_first=False, name="quat"):
     first = int(np.argmin(np.abs(flat).max(axis=1) > 0))
     raise ValueError(f"Found zero norm quaternions in `{name}`: expected non-zero quaternions, "
                      f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
+
+
+def to_scalar_first(q):
+    """``(x, y, z, w)`` -> a new C-contiguous ``(w, x, y, z)`` array (see `to_scalar_last`).
+
+    >>> import numpy as np
+    >>> from quatarray._convert import to_scalar_first
+    >>> to_scalar_first(np.array([1.0, 2, 3, 4]))
+    array([4., 1., 2., 3.])
+    """
+    out = np.empty(q.shape, q.dtype)
+    if q.flags.c_contiguous and q.size:
+        out.reshape(-1)[1:] = q.reshape(-1)[:-1]
+    else:
+        out[..., 1:] = q[..., :3]
+    out[..., 0] = q[..., 3]
+    return out
+
+
+def to_scalar_last(q):
+    """``(w, x, y, z)`` -> a new C-contiguous ``(x, y, z, w)`` array.
+
+    For C-contiguous input, one contiguous copy shifted by one element (x, y, z land in
+    place, each w slot gets the next quaternion's w) and one strided copy of the w's:
+    a memcpy and N elements, where two strided copies (or fancy indexing, whose result
+    is not even C-contiguous) cost several times as much.
+
+    >>> import numpy as np
+    >>> from quatarray._convert import to_scalar_last
+    >>> to_scalar_last(np.array([[4.0, 1, 2, 3]]))
+    array([[1., 2., 3., 4.]])
+    """
+    out = np.empty(q.shape, q.dtype)
+    if q.flags.c_contiguous and q.size:
+        out.reshape(-1)[:-1] = q.reshape(-1)[1:]
+    else:
+        out[..., :3] = q[..., 1:]
+    out[..., 3] = q[..., 0]
+    return out
 
 
 def _index(flat_index, batch):

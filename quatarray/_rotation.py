@@ -31,29 +31,6 @@ def _is_scipy_rotation(x):
     return t.__name__ == "Rotation" and t.__module__.startswith("scipy.spatial.transform")
 
 
-def _scalar_last(q):
-    """(..., 4) scalar-first -> a new scalar-last array.
-
-    For C-contiguous input, one contiguous copy shifted by one element (x, y, z land in
-    place; each w slot gets the next quaternion's w) and one strided copy of the w's:
-    a memcpy and N elements, where two strided copies cost about three times as much."""
-    out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size:
-        out.reshape(-1)[:-1] = q.reshape(-1)[1:]
-    else:
-        out[..., :3] = q[..., 1:]
-    out[..., 3] = q[..., 0]
-    return out
-    src, dst = q.reshape(-1, 4), out.reshape(-1, 4)
-    flat_src, flat_dst = src.reshape(-1), dst.reshape(-1)
-    step = _blocks.BLOCK   # rows per piece: the strided w pass finds the piece still in cache
-    for start in range(0, len(src), step):
-        stop = min(start + step, len(src))
-        flat_dst[4 * start:4 * stop - 1] = flat_src[4 * start + 1:4 * stop]
-        dst[start:stop, 3] = src[start:stop, 0]
-    return out
-
-
 def _broadcast(p, q, message):
     try:
         return np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
@@ -125,7 +102,7 @@ class Rotation:
         if normalize:
             q = C.from_quat(q, scalar_first=scalar_first)
         elif not scalar_first:
-            q = q[..., [3, 0, 1, 2]]
+            q = C.to_scalar_first(q)
         elif copy and (q is quat or isinstance(quat, np.ndarray) and np.may_share_memory(q, quat)):
             q = q.copy()
         self._q = q
@@ -241,7 +218,7 @@ class Rotation:
         q = C.canonical(q) if canonical else q
         if scalar_first:
             return q if canonical else q.copy()
-        return _scalar_last(q)
+        return C.to_scalar_last(q)
 
     # --- matrices, rotation vectors, MRPs ------------------------------------------------
     @classmethod
