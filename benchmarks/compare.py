@@ -3,9 +3,10 @@
 Usage::
 
     python -m benchmarks.compare            # full table (several minutes)
-    python -m benchmarks.compare --quick    # the rows the targets need (under a minute)
+    python -m benchmarks.compare --quick    # the rows the targets need (about 70 s on 2 cores)
     python -m benchmarks.compare --targets  # only the targets, PASS / FAIL
     python -m benchmarks.compare --json results.json
+    python -m benchmarks.compare --sweep    # every Rotation method etc. at every batch size
 
 Each row runs one asv benchmark (same class, same seeded data) for every
 installed library.  The libraries are timed **interleaved**: repeat r times
@@ -278,7 +279,7 @@ RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigi
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
-#: Rotation methods timed on one rotation (N = 1) against scipy's (benchmarks.single)
+#: Rotation methods timed on one rotation (shape ()) against scipy's (benchmarks.sweep, size 'single')
 SINGLE_METHODS = ("from_quat", "as_quat", "from_matrix", "as_matrix", "from_rotvec", "as_rotvec",
                   "from_mrp", "as_mrp", "from_euler", "as_euler", "from_davenport", "as_davenport",
                   "apply", "mul", "pow", "inv", "magnitude", "approx_equal", "mean", "reduce",
@@ -292,7 +293,7 @@ def _rows(full):
     from .pairwise import Pairwise
     from .resample import Resample
     from .rotate import RotateVectors
-    from .single import SingleRotation
+    from .sweep import SizeSweep
     from .tracks import OneQuery, Tracks
 
     qa, sp, nq, qn = "quatarray", "scipy", "numpy-quaternion", "quaternionic"
@@ -325,7 +326,7 @@ def _rows(full):
         add("nlerp", Pairwise, "time_nlerp", sizes, dtypes, LIBS)
     rows.append(Row("Slerp(t), one query", OneQuery, "time_slerp_call", ("float64",), libs=(qa, sp), n=1))
     for method in SINGLE_METHODS:   # N = 1: one rotation, where the per-call cost decides
-        rows.append(Row(f"Rotation {method}", SingleRotation, f"time_{method}", (), libs=(qa, sp), n=1))
+        rows.append(Row(f"Rotation {method}", SizeSweep, "time_op", (method, "single"), libs=(qa, sp), n=1))
     tracks = [(10_000, BIG)] + ([(10, 10), (10, BIG), (10_000, 10)] if full else [])
     for k, m in tracks:
         for method, libs in (("slerp", (qa, sp)), ("squad", (qa, nq, qn))) + ((("bezier", (qa, sp)),) if full else ()):
@@ -508,13 +509,59 @@ def scratch_kept():
     return _blocks.scratch_bytes()
 
 
+def _sweep_label(n):
+    return "single" if n is None else f"{n:,}".replace(",", " ")
+
+
+def sweep(repeat=5, min_time=0.02, sizes=None, ops=None, log=print):
+    """The size sweep (`benchmarks.sweep`): for each operation and size, scipy's time ÷
+    quatarray's, the median over `repeat` interleaved pairs (each the best of a few
+    calls lasting at least `min_time`).  Returns {op: {size: ratio}} (None where skipped)."""
+    from . import sweep as sw
+    sizes = sw.SIZES if sizes is None else sizes
+    table = {}
+    for name in (ops or sw.OPS):
+        table[name] = {}
+        for n in sizes:
+            try:
+                calls = [sw.make(lib, name, n) for lib in ("quatarray", "scipy")]
+            except NotImplementedError:
+                table[name][n] = None
+                continue
+            calls[0]()   # warm both (caches, first-call imports)
+            calls[1]()
+            ratios = []
+            for _ in range(repeat):
+                best = measure({0: calls[0], 1: calls[1]}, 3, min_time, budget=1.0)
+                ratios.append(best[1] / best[0])
+            table[name][n] = float(np.median(ratios))
+            del calls
+        log(f"| {name} | " + " | ".join("-" if table[name][n] is None else f"{table[name][n]:.2f}"
+                                         for n in sizes) + " |")
+    return table
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.compare", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sweep", action="store_true", help="the size sweep table only (scipy ÷ quatarray)")
     parser.add_argument("--quick", action="store_true", help="only the rows the targets need, fewer repeats")
     parser.add_argument("--targets", action="store_true", help="print only the targets table")
     parser.add_argument("--json", metavar="FILE", help="also write the results as JSON")
     parser.add_argument("--repeat", type=int, help="interleaved repeats (default 7, quick 3)")
     args = parser.parse_args(argv)
+    if args.sweep:
+        from .sweep import SIZES
+        mach = machine()
+        print(f"# size sweep, {datetime.date.today().isoformat()}: {mach['cpu']}, NumPy SIMD {mach['simd']}, "
+              f"{mach['threads']} threads; scipy's time ÷ quatarray's, median of {args.repeat or 5} interleaved pairs")
+        print("| method | " + " | ".join(_sweep_label(n) for n in SIZES) + " |")
+        print("|---|" + "--:|" * len(SIZES))
+        table = sweep(args.repeat or 5)
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump({"machine": mach, "sweep": {op: {_sweep_label(n): r for n, r in row.items()}
+                                                      for op, row in table.items()}}, f, indent=1)
+        return 0
     repeat = args.repeat or (3 if args.quick or args.targets else 7)
     min_time = 0.01 if args.quick or args.targets else 0.05
     full = not (args.quick or args.targets)

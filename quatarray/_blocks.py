@@ -320,6 +320,7 @@ def scratch_bytes():
 # --------------------------------------------------------------------------- the pool
 
 _pool = None
+_pool_workers = 0            # threads of `_pool` (ThreadPoolExecutor does not say, publicly)
 _pool_lock = threading.Lock()
 
 
@@ -329,12 +330,13 @@ def _mark_worker():
 
 def _executor(workers):
     """The shared pool, with at least `workers` threads."""
-    global _pool
+    global _pool, _pool_workers
     with _pool_lock:
-        if _pool is None or _pool._max_workers < workers:
+        if _pool is None or _pool_workers < workers:
             from concurrent.futures import ThreadPoolExecutor
             old = _pool
             _pool = ThreadPoolExecutor(workers, thread_name_prefix="quatarray", initializer=_mark_worker)
+            _pool_workers = workers
             if old is not None:
                 old.shutdown(wait=False)
         return _pool
@@ -342,8 +344,8 @@ def _executor(workers):
 
 def _forget_pool():
     """After fork the pool's threads do not exist in the child: start afresh."""
-    global _pool, _pool_lock
-    _pool, _pool_lock = None, threading.Lock()
+    global _pool, _pool_workers, _pool_lock
+    _pool, _pool_workers, _pool_lock = None, 0, threading.Lock()
 
 
 if hasattr(os, "register_at_fork"):
@@ -442,6 +444,21 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
     nb = len(batch)
     if 0 in batch:
         return False
+    size = block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]), *[o.dtype for o in outs])
+    if prod(batch) <= size:   # one block: the same kernel call, without splitting or the pool
+        work = scratch()
+        top = work.top
+        try:
+            iv = []
+            for a in ins:   # contiguous components-first copies, broadcast to the batch
+                buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
+                np.copyto(buf, soa(a.reshape((1,) * (nb + 1 - a.ndim) + a.shape)), casting="unsafe")
+                iv.append(buf)
+            iv += [np.asarray(v).reshape((1,) * (nb - np.ndim(v)) + np.shape(v)) for v in views]
+            r = kernel(*iv, *[soa(o) for o in outs], **params)
+        finally:
+            work.top = top
+        return r is True or r is np.True_
 
     def block(idx):
         work = scratch()
@@ -459,5 +476,4 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
         ov = [soa(o[idx]) for o in outs]
         return kernel(*iv, *ov, **params)
 
-    size = block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]), *[o.dtype for o in outs])
     return any(r is True or r is np.True_ for r in run(block, split(batch, size), prod(batch)))

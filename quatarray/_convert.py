@@ -26,23 +26,17 @@ arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
 costs behind these choices are in benchmarks/README.md.
 """
 
-import math
-
 import numpy as np
 
-from . import _blocks, _scale
-from ._kernels import ANGLE_FLOOR, _matrix_one, arctan2, multiply_one
+from . import _blocks, _kernels, _scale
+from ._kernels import ANGLE_FLOOR, arctan2
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
-from ._scale import ONE_HIGH, ONE_LOW
-from ._trig import tan_one
 from ._validate import finite, float_array, quat_array
 
 __all__ = [
     "from_quat", "as_matrix", "from_matrix", "as_rotvec", "from_rotvec",
-    "as_mrp", "from_mrp", "canonical", "magnitude",
-    "as_matrix_one", "as_rotvec_one", "as_mrp_one", "magnitude_one", "canonical_one",
-    "angle_between_one", "rotvec_floats", "from_rotvec_floats",
+    "as_mrp", "from_mrp", "canonical", "magnitude", "to_scalar_first", "to_scalar_last",
 ]
 
 _POLAR_MAXITER = 60
@@ -64,15 +58,6 @@ def _vec3(v, name):
 
 # --- quaternions ---------------------------------------------------------------------
 
-def _k_from_quat(q, o, order):
-    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    bad = not ((n > 0) & (n < np.inf)).all()
-    np.divide(1.0, n, out=n)
-    for dst, src in enumerate(order):
-        np.multiply(q[src], n, out=o[dst])
-    return bad
-
-
 def from_quat(quat, scalar_first=False, name="quat"):
     """Unit scalar-first quaternions from quaternions in either order (scipy's `from_quat`).
 
@@ -87,7 +72,8 @@ def from_quat(quat, scalar_first=False, name="quat"):
     Returns
     -------
     ndarray, shape (..., 4)
-        ``quat / |quat|``, scalar-first (a new array).
+        ``quat / |quat|``, scalar-first (a new array): `_kernels.normalize`,
+        the one normalisation kernel, so the bits are `QuatArray.normalized`'s.
 
     Raises
     ------
@@ -101,31 +87,61 @@ def from_quat(quat, scalar_first=False, name="quat"):
     array([0.8, 0. , 0. , 0.6])
     """
     q = quat_array(quat, "quat")
-    order = (0, 1, 2, 3) if scalar_first else (3, 0, 1, 2)
-    if q.ndim == 1:  # one quaternion: Python floats (no block run)
-        c = q.tolist()
-        n = math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2] + c[3] * c[3])
-        if 0 < n < math.inf:
-            return np.array([c[i] / n for i in order], q.dtype)
-    out = np.empty(q.shape, q.dtype)
-    flat, oflat = q.reshape(-1, 4), out.reshape(-1, 4)
-    if _blockwise(_k_from_quat, [flat], [oflat], order=order):
-        finite = np.isfinite(flat).all(axis=1)
-        if not finite.all():
-            first = int(np.argmin(finite))
-            raise ValueError(f"expected finite {name}, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
-        scale = np.abs(flat).max(axis=1)
-        if not (scale > 0).all():
-            first = int(np.argmin(scale > 0))
-            raise ValueError(f"Found zero norm quaternions in `{name}`: expected non-zero quaternions, "
-                             f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
-        # norms that over- or underflow: normalise after scaling by the largest component
+    if scalar_first:
+        src = q if q.flags.c_contiguous else np.ascontiguousarray(q)
+    else:
+        src = to_scalar_first(q)   # a new C-contiguous array, normalised in place
+    try:
         with np.errstate(over="ignore", under="ignore"):
-            n2 = np.einsum("ij,ij->i", flat, flat)
-        redo = ~((n2 > 0) & (n2 < np.inf))
-        scaled = flat[redo] / scale[redo, None]
-        scaled /= np.linalg.norm(scaled, axis=1, keepdims=True)
-        oflat[redo] = scaled[:, list(order)]
+            return _kernels.normalize(src, out=None if src is q else src)
+    except ValueError:
+        pass
+    flat = q.reshape(-1, 4)
+    finite = np.isfinite(flat).all(axis=1)
+    if not finite.all():
+        first = int(np.argmin(finite))
+        raise ValueError(f"expected finite {name}, got nan or inf in quaternion {_index(first, q.shape[:-1])}")
+    first = int(np.argmin(np.abs(flat).max(axis=1) > 0))
+    raise ValueError(f"Found zero norm quaternions in `{name}`: expected non-zero quaternions, "
+                     f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
+
+
+def to_scalar_first(q):
+    """``(x, y, z, w)`` -> a new C-contiguous ``(w, x, y, z)`` array (see `to_scalar_last`).
+
+    >>> import numpy as np
+    >>> from quatarray._convert import to_scalar_first
+    >>> to_scalar_first(np.array([1.0, 2, 3, 4]))
+    array([4., 1., 2., 3.])
+    """
+    out = np.empty(q.shape, q.dtype)
+    if q.flags.c_contiguous and q.size:
+        out.reshape(-1)[1:] = q.reshape(-1)[:-1]
+    else:
+        out[..., 1:] = q[..., :3]
+    out[..., 0] = q[..., 3]
+    return out
+
+
+def to_scalar_last(q):
+    """``(w, x, y, z)`` -> a new C-contiguous ``(x, y, z, w)`` array.
+
+    For C-contiguous input, one contiguous copy shifted by one element (x, y, z land in
+    place, each w slot gets the next quaternion's w) and one strided copy of the w's:
+    a memcpy and N elements, where two strided copies (or fancy indexing, whose result
+    is not even C-contiguous) cost several times as much.
+
+    >>> import numpy as np
+    >>> from quatarray._convert import to_scalar_last
+    >>> to_scalar_last(np.array([[4.0, 1, 2, 3]]))
+    array([[1., 2., 3., 4.]])
+    """
+    out = np.empty(q.shape, q.dtype)
+    if q.flags.c_contiguous and q.size:
+        out.reshape(-1)[:-1] = q.reshape(-1)[1:]
+    else:
+        out[..., :3] = q[..., 1:]
+    out[..., 3] = q[..., 0]
     return out
 
 
@@ -204,28 +220,9 @@ def as_matrix(q, unit=False):
            [ 0.,  0.,  1.]])
     """
     q = quat_array(q, "quat")
-    if q.shape == (4,):  # one rotation: Python floats (no block run)
-        return as_matrix_one(q, unit)
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
     return out
-
-
-def as_matrix_one(q, unit=False):
-    """`as_matrix` of one quaternion, in Python floats (no block run, no checks).
-
-    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude
-    (unless `unit`, as in `as_matrix`): the one-rotation path of `as_matrix`,
-    for callers that hold such an array already (`Rotation`).
-
-    >>> import numpy as np
-    >>> from quatarray._convert import as_matrix_one
-    >>> as_matrix_one(np.array([0.0, 1.0, 0.0, 0.0]))  # 180° about x
-    array([[ 1.,  0.,  0.],
-           [ 0., -1.,  0.],
-           [ 0.,  0., -1.]])
-    """
-    return _matrix_one(q, q.dtype, unit)
 
 
 def _shepperd(mat, q):
@@ -266,37 +263,6 @@ def _shepperd(mat, q):
     index = choice * (4 * m) + (np.arange(4)[:, None] * m + np.arange(m))
     np.take(k.reshape(-1), index, out=q)
     q /= np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-
-
-def _shepperd_one(m00, m01, m02, m10, m11, m12, m20, m21, m22):
-    """`_shepperd` for one matrix of Python floats: the unit quaternion (w, x, y, z)."""
-    tr = m00 + m11 + m22
-    choice, best = 1, m00
-    for col, value in ((2, m11), (3, m22), (0, tr)):
-        if value > best:
-            choice, best = col, value
-    q = ((1.0 + tr, m21 - m12, m02 - m20, m10 - m01),
-         (m21 - m12, 1.0 - tr + 2 * m00, m10 + m01, m20 + m02),
-         (m02 - m20, m10 + m01, 1.0 - tr + 2 * m11, m21 + m12),
-         (m10 - m01, m20 + m02, m21 + m12, 1.0 - tr + 2 * m22))[choice]
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    return [c / n for c in q]
-
-
-def _from_matrix_one(m, assume_valid, tol_diag, tol_off):
-    """One matrix in Python floats, or None when it needs the array path (not a
-    rotation within the tolerances: projection or an error message)."""
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = m.reshape(9).tolist()
-    if not assume_valid:
-        det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
-               + m02 * (m10 * m21 - m11 * m20))
-        diag = max(abs(m00 * m00 + m01 * m01 + m02 * m02 - 1.0), abs(m10 * m10 + m11 * m11 + m12 * m12 - 1.0),
-                   abs(m20 * m20 + m21 * m21 + m22 * m22 - 1.0))
-        off = max(abs(m00 * m10 + m01 * m11 + m02 * m12), abs(m00 * m20 + m01 * m21 + m02 * m22),
-                  abs(m10 * m20 + m11 * m21 + m12 * m22))
-        if not (0 < det < math.inf and diag <= tol_diag and off <= tol_off):
-            return None
-    return np.array(_shepperd_one(m00, m01, m02, m10, m11, m12, m20, m21, m22), m.dtype)
 
 
 def _k_from_matrix(mat, q, status, tol_diag, tol_off):
@@ -415,10 +381,6 @@ def from_matrix(matrix, assume_valid=False):
         raise ValueError(f"expected matrix of shape (..., 3, 3), got {m.shape}")
     eps = np.finfo(m.dtype).eps
     tol_off = 1e-12 if m.dtype == np.float64 else 64 * eps
-    if m.shape == (3, 3):  # one matrix: Python floats, unless it is not a rotation
-        one = _from_matrix_one(m, assume_valid, 1e-5 + tol_off, tol_off)
-        if one is not None:
-            return one
     batch = m.shape[:-2]
     flat = m.reshape(-1, 9)
     n = flat.shape[0]
@@ -484,13 +446,6 @@ def _vector_norm(q):
     return np.sqrt(v2, out=v2)
 
 
-def _flip_one(w, x, y, z):
-    """`_flip_mask` for one quaternion of Python floats."""
-    if w != 0:
-        return w < 0
-    return (x < 0) or (x == 0 and ((y < 0) or (y == 0 and z < 0)))
-
-
 def _k_as_rotvec(q, o, factor):
     nv = _vector_norm(q)
     w, x, y, z = q
@@ -530,8 +485,6 @@ def as_rotvec(q, degrees=False):
     array([ 0.,  0., 90.])
     """
     q = quat_array(q, "quat")
-    if q.shape == (4,):  # one rotation: Python floats (a few µs instead of a block run)
-        return as_rotvec_one(q, degrees)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=_ROTVEC_FACTOR[degrees])
     return out
@@ -539,37 +492,6 @@ def as_rotvec(q, degrees=False):
 
 _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 """Rotation vector over half-angle times unit axis, radians and degrees."""
-
-
-def as_rotvec_one(q, degrees=False):
-    """`as_rotvec` of one quaternion, in Python floats (no block run, no checks).
-
-    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude.
-
-    >>> import numpy as np
-    >>> from quatarray._convert import as_rotvec_one
-    >>> as_rotvec_one(np.array([-1.0, 0.0, 0.0, -1.0]), degrees=True) + 0.0  # canonical: +90° about z
-    array([ 0.,  0., 90.])
-    """
-    return np.array(rotvec_floats(q.tolist(), degrees), q.dtype)
-
-
-def rotvec_floats(c, degrees=False):
-    """The rotation vector of one quaternion given as four Python floats, as three.
-
-    >>> from quatarray._convert import rotvec_floats
-    >>> rotvec_floats([0.0, 0.0, 0.0, 5.0], degrees=True)
-    [0.0, 0.0, 180.0]
-    """
-    w, x, y, z = c
-    v2 = x * x + y * y + z * z
-    if not ONE_LOW <= w * w + v2 <= ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
-        (w, x, y, z), _ = _scale.guard_one(c)
-        v2 = x * x + y * y + z * z
-    nv = math.sqrt(v2)
-    scale = math.atan2(nv, abs(w)) / (nv if nv > 0 else 1.0) * _ROTVEC_FACTOR[degrees]
-    scale = -scale if _flip_one(w, x, y, z) else scale
-    return [x * scale, y * scale, z * scale]
 
 
 def _k_from_rotvec(r, q, factor):
@@ -625,29 +547,9 @@ def from_rotvec(rotvec, degrees=False):
     """
     v = finite(_vec3(rotvec, "rotvec"), "rotvec")
     factor = np.pi / 180.0 if degrees else 1.0
-    if v.shape == (3,):  # one rotation: Python floats, the same half-angle tangent
-        return from_rotvec_floats(v.tolist(), v.dtype, factor)
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
     return out
-
-
-def from_rotvec_floats(v, dtype, factor=1.0):
-    """`from_rotvec` of one finite rotation vector given as three Python floats (no checks).
-
-    `factor` converts the vector's units to radians; the result has `dtype`.
-
-    >>> import numpy as np
-    >>> from quatarray._convert import from_rotvec_floats
-    >>> from_rotvec_floats([0.0, 0.0, 180.0], np.dtype(np.float64), np.pi / 180) + 0.0
-    array([0., 0., 0., 1.])
-    """
-    x, y, z = v
-    theta = max(math.hypot(x, y, z) * factor, float(ANGLE_FLOOR[dtype]))
-    t = tan_one(theta * 0.25)
-    d = 1.0 / (1.0 + t * t)
-    scale = 2.0 * t * d / theta * factor
-    return np.array([(1.0 - t) * (1.0 + t) * d, x * scale, y * scale, z * scale], dtype)
 
 
 def _k_magnitude(q, o):
@@ -675,39 +577,8 @@ def magnitude(q):
     """
     q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1], q.dtype)
-    if q.shape == (4,):  # one rotation: Python floats
-        out[()] = magnitude_one(q.tolist())
-        return out
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
     return out
-
-
-def magnitude_one(c):
-    """`magnitude` of one quaternion given as four Python floats, as a Python float (no checks).
-
-    `c` is ``q.tolist()`` of any magnitude; the angle is computed in float64
-    (`magnitude` rounds it to ``q.dtype``).
-
-    >>> from quatarray._convert import magnitude_one
-    >>> magnitude_one([0.0, 0.0, 3.0, 0.0])  # a half turn
-    3.141592653589793
-    """
-    (w, x, y, z), _ = _scale.guard_one(c)
-    return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
-
-
-def angle_between_one(p, q):
-    """The angle of ``q p*`` (the turn from p to q) for two quaternions given as Python floats.
-
-    Each of `p`, `q` (``.tolist()`` of a (4,) array) may have any magnitude:
-    both are brought into range before their product (`_scale.guard_one`).
-
-    >>> from quatarray._convert import angle_between_one
-    >>> round(angle_between_one([1.0, 0.0, 0.0, 0.0], [1e300, 0.0, 0.0, 1e300]), 12)  # 90°
-    1.570796326795
-    """
-    (w, x, y, z), _ = _scale.guard_one(p)
-    return magnitude_one(multiply_one(_scale.guard_one(q)[0], [w, -x, -y, -z]))
 
 
 def _k_as_mrp(q, o):
@@ -740,32 +611,9 @@ def as_mrp(q):
     array([0., 0., 1.])
     """
     q = quat_array(q, "quat")
-    if q.shape == (4,):  # one rotation: Python floats
-        return as_mrp_one(q)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
-
-
-def as_mrp_one(q):
-    """`as_mrp` of one quaternion, in Python floats (no block run, no checks).
-
-    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude.
-
-    >>> import numpy as np
-    >>> from quatarray._convert import as_mrp_one
-    >>> as_mrp_one(np.array([-2.0, 0.0, 0.0, 2.0]))  # 90° about -z
-    array([-0.        , -0.        , -0.41421356])
-    """
-    w, x, y, z = c = q.tolist()
-    n2 = w * w + x * x + y * y + z * z
-    if not ONE_LOW <= n2 <= ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
-        (w, x, y, z), _ = _scale.guard_one(c)
-        n2 = w * w + x * x + y * y + z * z
-    d = math.sqrt(n2) + abs(w)
-    k = 1.0 / d if d else math.inf   # zero quaternion: nan out, as the block path gives
-    k = -k if w < 0 else k
-    return np.array([x * k, y * k, z * k], q.dtype)
 
 
 def _k_from_mrp(p, q):
@@ -788,7 +636,7 @@ def _k_from_huge_mrp(p, q):
     q = ((s - 1), 2 p s) / (1 + s), the same value as ((1 - |p|²), 2 p) / (1 + |p|²);
     taken where |p| > 1 only, the usual form elsewhere."""
     big = np.max(np.abs(p), axis=0) > 1
-    e = _scale.rescale(p)                       # p 2**-e, exact
+    e = _scale.rescale(p, big)                  # p 2**-e where |p| > 1, exact
     n = _scale.sum_squares(p, np.empty(p.shape[1:], p.dtype))
     with np.errstate(over="ignore", under="ignore"):
         s = np.ldexp(1.0 / n, -2 * e)           # 1/|p|², may underflow to 0 (harmless)
@@ -820,13 +668,6 @@ def from_mrp(mrp):
     array([0., 0., 0., 1.])
     """
     p = finite(_vec3(mrp, "mrp"), "mrp")
-    if p.shape == (3,):  # one rotation: Python floats
-        x, y, z = p.tolist()
-        n = x * x + y * y + z * z
-        if n > _scale.HIGH[p.dtype]:   # |p|² overflows: the block kernel's rescaled form
-            return from_mrp(p[None])[0]
-        d = 1.0 / (1.0 + n)
-        return np.array([(1.0 - n) * d, 2.0 * x * d, 2.0 * y * d, 2.0 * z * d], p.dtype)
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
     return out
@@ -857,16 +698,3 @@ def canonical(q):
     q = quat_array(q, "quat")
     flip = _flip_mask(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     return np.where(flip[..., None], -q, q)
-
-
-def canonical_one(c):
-    """`canonical` of one quaternion given as a list of four Python floats, as such a list.
-
-    >>> from quatarray._convert import canonical_one
-    >>> canonical_one([0.0, 0.0, -1.0, 1.0])
-    [-0.0, -0.0, 1.0, -1.0]
-    """
-    w, x, y, z = c
-    return [-w, -x, -y, -z] if _flip_one(w, x, y, z) else c
-
-

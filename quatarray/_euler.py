@@ -10,18 +10,17 @@ Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
 
 import functools
 import math
-import re
 import warnings
 
 import numpy as np
 
 from . import _blocks, _scale
-from ._convert import _blockwise, _half_angle
-from ._kernels import arctan2, hamilton, multiply_rows
-from ._trig import tan_one
+from ._convert import _blockwise, _half_angle, from_rotvec
+from ._kernels import arctan2, multiply, multiply_rows
 from ._validate import finite, float_array, quat_array
 
-__all__ = ["check_seq", "from_euler", "as_euler", "as_euler_one", "check_order", "from_davenport", "as_davenport"]
+__all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport",
+           "from_davenport_batched", "as_davenport_batched"]
 
 _GIMBAL_EPS = 1e-7
 _GIMBAL_MESSAGE = ("Gimbal lock detected. Setting third angle to zero since it is not "
@@ -48,23 +47,26 @@ def check_seq(seq, n=None):
 
 @functools.lru_cache(maxsize=128)
 def _check_str_seq(seq, n):
-    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs)."""
+    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs).
+    The messages are scipy's (its tests match them); each names what was expected and
+    what came."""
     if n is not None and len(seq) != n:
-        raise ValueError(f"expected seq of {n} axes, got {seq!r} ({len(seq)} axes)")
+        raise ValueError(f"Expected {n} axes, got {seq}.")
     if not 1 <= len(seq) <= 3:
-        raise ValueError(f"expected seq of 1 to 3 axes, got {seq!r} ({len(seq)} axes)")
-    intrinsic = re.fullmatch("[XYZ]+", seq) is not None
-    if not intrinsic and re.fullmatch("[xyz]+", seq) is None:
-        raise ValueError(f"expected seq of axes from 'xyz' (extrinsic) or from 'XYZ' "
-                         f"(intrinsic), not mixed, got {seq!r}")
+        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
+                         f"characters, got {seq}")
+    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
+        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
+                         f"['X', 'Y', 'Z'], got {seq}")
     if any(a == b for a, b in zip(seq, seq[1:])):
-        raise ValueError(f"expected consecutive axes of seq to be different, got {seq!r}")
-    return tuple("xyz".index(a) for a in seq.lower()), intrinsic
+        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
+    return tuple("xyz".index(a) for a in seq.lower()), seq.isupper()
 
 
 def _negate(x):
     """-x in place.  Not ``np.negative(x, out=x)``: NumPy 2.4 reads the wrong elements for
-    float32 rows 16 bytes apart (the component rows of an (m, 4) output)."""
+    float32 rows 16 bytes apart (the component rows of an (m, 4) output); the minimal
+    reproducer is tests/test_euler.py::test_negate_works_where_numpys_inplace_negative_does_not."""
     return np.multiply(x, -1, out=x)
 
 
@@ -153,16 +155,6 @@ def from_euler(seq, angles, degrees=False):
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
-    if a.shape == (len(axes),):  # one rotation: Python floats, elementary turns composed
-        q = None
-        for axis, angle in zip(axes, a.tolist()):
-            t = tan_one(angle * scale)
-            d = 1.0 / (1.0 + t * t)
-            e = [(1.0 - t) * (1.0 + t) * d, 0.0, 0.0, 0.0]
-            e[axis + 1] = 2.0 * t * d
-            e = (complex(e[0], e[1]), complex(e[2], e[3]))  # (w + x i) + (y + z i) j
-            q = e if q is None else (hamilton(*q, *e) if intrinsic else hamilton(*e, *q))
-        return np.array([q[0].real, q[0].imag, q[1].real, q[1].imag], a.dtype)
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
@@ -198,7 +190,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
                 break
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)
-            _scale.rescale(abcd)             # by powers of two: the angles are unchanged
+            _scale.rescale(abcd, _scale.outside(mid))   # by powers of two: the angles are unchanged
         np.sqrt(r, out=r)                    # |(c, d)|
         np.sqrt(u, out=u)                    # |(a, b)|
         arctan2(r, u, out=mid, x_nonneg=True)
@@ -234,29 +226,6 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
         else:
             np.copyto(o[third], rows[third])
     return gimbal
-
-
-def _angles_one(a, b, c, d, extrinsic, symmetric, sign, lamb):
-    """`_angles` for one rotation in Python floats: ([first, middle, third], gimbal)."""
-    first, third = (0, 2) if extrinsic else (2, 0)
-    half_sum, half_diff = math.atan2(b, a), math.atan2(d, c)
-    o = [0.0, 2.0 * math.atan2(math.sqrt(c * c + d * d), math.sqrt(a * a + b * b)), 0.0]
-    o[first], o[third] = half_sum - half_diff, half_sum + half_diff
-    case1 = o[1] <= _GIMBAL_EPS
-    gimbal = case1 or abs(o[1] - math.pi) <= _GIMBAL_EPS
-    if gimbal:
-        o[2] = 0.0
-        o[0] = 2 * half_sum if case1 else (-2 if extrinsic else 2) * half_diff
-    if not symmetric:
-        if sign < 0:
-            o[third] = -o[third]
-        o[1] -= lamb
-    for n in (0, 2):
-        if o[n] < -math.pi:
-            o[n] += 2 * math.pi
-        elif o[n] > math.pi:
-            o[n] -= 2 * math.pi
-    return o, gimbal
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
@@ -326,44 +295,12 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     """
     check_seq(seq, 3)
     q = quat_array(q, "quat")
-    if q.shape == (4,):  # one rotation: Python floats
-        return as_euler_one(q, seq, degrees, suppress_warnings, stacklevel=5)
     i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
                         symmetric=symmetric, sign=sign, extrinsic=extrinsic)
     _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
-
-
-_RAD2DEG = 180.0 / math.pi
-"""`np.rad2deg`'s factor: float64 products with it equal `np.rad2deg`'s bits."""
-
-
-def as_euler_one(q, seq, degrees=False, suppress_warnings=False, stacklevel=4):
-    """`as_euler` of one quaternion, in Python floats (no block run, no checks of `q`).
-
-    `q` is a float32 or float64 ndarray of shape (4,), of any magnitude;
-    `seq` is checked as in `as_euler`.  The gimbal-lock warning is issued
-    `stacklevel` frames up from the warning call (4: the caller's caller,
-    i.e. the user of a method that calls this).
-
-    >>> import numpy as np
-    >>> from quatarray._euler import as_euler_one
-    >>> as_euler_one(np.array([0.0, 0.0, 0.0, 1.0]), "xyz", degrees=True)  # 180° about z
-    array([  0.,   0., 180.])
-    """
-    if not isinstance(seq, str):
-        check_seq(seq, 3)   # raises the TypeError
-    i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
-    c, _ = _scale.guard_one(q.tolist())
-    w, qi, qj, qk = c[0], c[i + 1], c[j + 1], c[k + 1] * sign
-    abcd = (w, qi, qj, qk) if symmetric else (w - qj, qi + qk, qj + w, qk - qi)
-    angles, gimbal = _angles_one(*abcd, extrinsic, symmetric, sign, math.pi / 2)
-    _warn_gimbal(gimbal, suppress_warnings, stacklevel)
-    if degrees:
-        angles = [a * _RAD2DEG for a in angles]
-    return np.array(angles, q.dtype)
 
 
 # --- Davenport angles ---------------------------------------------------------------------------
@@ -379,7 +316,8 @@ def check_order(order):
         return True
     if order in ("i", "intrinsic"):
         return False
-    raise ValueError(f"expected order 'e'/'extrinsic' or 'i'/'intrinsic', got {order!r}")
+    raise ValueError(f"order should be 'e'/'extrinsic' for extrinsic sequences or 'i'/'intrinsic' "
+                     f"for intrinsic sequences, got {order!r}")
 
 
 def _unit_axes(axes, n=None):
@@ -450,23 +388,22 @@ def from_davenport(axes, order, angles, degrees=False):
         raise ValueError(f"Expected `angles` to match number of axes: expected angles of shape "
                          f"(..., {ax.shape[0]}), got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
-    if a.ndim == 1:  # one rotation: Python floats, the turns composed with `hamilton`
-        q = None
-        for (x, y, z), angle in zip(ax.tolist(), a.tolist()):
-            t = tan_one(angle * scale)
-            d = 1.0 / (1.0 + t * t)
-            s = 2.0 * t * d
-            e = (complex((1.0 - t) * (1.0 + t) * d, s * x), complex(s * y, s * z))
-            q = e if q is None else (hamilton(*e, *q) if extrinsic else hamilton(*q, *e))
-        return np.array([q[0].real, q[0].imag, q[1].real, q[1].imag], a.dtype)
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
                axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale)
     return out
 
 
-def _k_davenport_angles(abcd, o, extrinsic, lamb, flip):
-    gimbal = _angles(abcd, o, extrinsic, False, 1, lamb)
+def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
+    with _blocks.scratch().frame() as work:
+        abcd = work.rows(4, q.shape[1:], q.dtype)
+        t = work.rows(1, q.shape[1:], q.dtype)[0]
+        for row, coef in zip(abcd, lmat):    # (a, b, c, d) = L q, summed in one order for every row
+            np.multiply(q[0], coef[0], out=row)
+            for k in (1, 2, 3):
+                np.multiply(q[k], coef[k], out=t)
+                row += t
+        gimbal = _angles(abcd, o, extrinsic, False, 1, lamb)
     if flip:
         _negate(o[1])
     return gimbal
@@ -507,22 +444,44 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     q = quat_array(q, "quat")
     key = float_array(axes, "axes").astype(np.float64, copy=False)
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
-    if q.shape == (4,):  # one rotation: Python floats
-        c, _ = _scale.guard_one(q.tolist())
-        abcd = [sum(row[i] * c[i] for i in range(4)) for row in lmat]
-        angles, gimbal = _angles_one(*abcd, extrinsic, False, 1, lamb)
-        if flip:
-            angles[1] = -angles[1]
-        _warn_gimbal(gimbal, suppress_warnings)
-        out = np.array(angles, q.dtype)
-        return np.rad2deg(out, out=out) if degrees else out
-    with np.errstate(invalid="ignore", over="ignore"):   # nan, inf and overflow: the kernel's guard
-        abcd = q.reshape(-1, 4) @ np.array(lmat, q.dtype).T
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    gimbal = _blockwise(_k_davenport_angles, [abcd], [out.reshape(-1, 3)],
-                        extrinsic=extrinsic, lamb=lamb, flip=flip)
+    gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)],
+                        lmat=lmat, extrinsic=extrinsic, lamb=lamb, flip=flip)
     _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
+
+
+def from_davenport_batched(unit, angles, extrinsic, degrees=False):
+    """`from_davenport` with a batch of axes: `unit` (..., n, 3) unit axes, consecutive ones
+    orthogonal, broadcasting with `angles` (..., n).  One elementary turn per axis
+    (`_convert.from_rotvec`), composed in order with `_kernels.multiply`."""
+    dtype = np.result_type(angles.dtype, unit.dtype)
+    angle = np.deg2rad(angles) if degrees else angles
+    q = None
+    for i in range(unit.shape[-2]):
+        qi = from_rotvec((angle[..., i, None] * unit[..., i, :]).astype(dtype))
+        q = qi if q is None else (multiply(qi, q) if extrinsic else multiply(q, qi))
+    return q
+
+
+def as_davenport_batched(q, axes, order, degrees=False, suppress_warnings=False):
+    """`as_davenport` with a set of axes per rotation: `axes` (..., 3, 3) broadcasting with
+    `q`'s batch; each distinct set of axes reads its rotations with `as_davenport`, and a
+    gimbal-lock warning is given once."""
+    batch = np.broadcast_shapes(axes.shape[:-2], q.shape[:-1])
+    qb = np.broadcast_to(q, batch + (4,)).reshape(-1, 4)
+    axb = np.broadcast_to(axes, batch + (3, 3)).reshape(-1, 3, 3)
+    uniq, inverse = np.unique(axb.reshape(-1, 9), axis=0, return_inverse=True)
+    out = np.empty((qb.shape[0], 3), q.dtype)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for k, u in enumerate(uniq):
+            sel = inverse.ravel() == k
+            out[sel] = as_davenport(qb[sel], u.reshape(3, 3), order, degrees=degrees,
+                                    suppress_warnings=suppress_warnings)
+    if caught:
+        warnings.warn(caught[0].message, caught[0].category, stacklevel=3)
+    return out.reshape(batch + (3,))
 
 
 @functools.lru_cache(maxsize=64)

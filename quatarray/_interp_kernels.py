@@ -27,7 +27,6 @@ sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
 every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
-import math
 from math import prod
 
 import numpy as np
@@ -35,7 +34,7 @@ import numpy as np
 from . import _blocks
 from ._blocks import soa
 from ._kernels import result_dtype
-from ._trig import atan_unit32, tan, tan_one
+from ._trig import atan_unit32, tan
 from ._validate import all_finite
 
 __all__ = [
@@ -422,32 +421,6 @@ def _pairwise(kernel, quats, t, dtype, flagged=False, **params):
     return (out, flag) if flagged else out
 
 
-#: Up to this many quaternions the pairwise functions use direct (..., 4)
-#: expressions: fewer NumPy calls than the blocked kernels, whose per-call
-#: overhead dominates below ~10³ quaternions.  Same formulas; the last bit may
-#: differ from the blocked path.
-SMALL = 512
-
-_VECDOT = getattr(np, "vecdot", None)
-
-
-def _small(quats, t):
-    """The broadcast batch size when it is small enough for the direct path, else None."""
-    shape = t.shape
-    if any(q.shape[:-1] != shape for q in quats):
-        shape = np.broadcast_shapes(*(q.shape[:-1] for q in quats), shape)
-    size = prod(shape)
-    return size if size <= SMALL else None
-
-
-def _dot_last(x, y):
-    return _VECDOT(x, y) if _VECDOT is not None else np.einsum("...i,...i->...", x, y)
-
-
-def _sq_last(x):
-    return _dot_last(x, x)
-
-
 def slerp(q0, q1, t, shortest=True, check=False):
     """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`).
 
@@ -456,52 +429,10 @@ def slerp(q0, q1, t, shortest=True, check=False):
     (it reaches |B ∓ A|² or the angle), so callers check the inputs only then.
     """
     dtype = result_dtype(q0, q1)
-    out = None
-    if q0.shape == q1.shape == (4,) and t.ndim == 0:   # one pair: Python floats
-        res = slerp_one(q0.tolist(), q1.tolist(), float(t), shortest)
-        out = None if res is None else np.array(res, dtype)
-    if out is None and _small((q0, q1), t) is not None:
-        out = _slerp_small(q0, q1, t, shortest, dtype)
-    if out is not None:
-        return (out, all_finite(out)) if check else out
     if not check:
         return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
     out, bad = _pairwise(_slerp_checked, (q0, q1), t, dtype, flagged=True, shortest=shortest)
     return out, not bad
-
-
-def slerp_one(p, q, h, shortest=True):
-    """`slerp_core` for one pair of quaternions (lists of four floats) at a float `h`, with
-    Python floats: the float64 formulas of `slerp_weights` in the same order.  None where
-    the array path is needed: non-finite input (it raises there) and wide arcs followed as
-    given (`wide_arcs`).
-
-    >>> from quatarray._interp_kernels import slerp_one
-    >>> [round(c, 12) for c in slerp_one([1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], 0.5)]
-    [0.707106781187, 0.0, 0.0, 0.707106781187]
-    """
-    if not (math.isfinite(h) and math.isfinite(sum(p) + sum(q))):
-        return None
-    d = [y - x for x, y in zip(p, q)]
-    e = [y + x for x, y in zip(p, q)]
-    a2 = ((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2]) + d[3] * d[3]
-    b2 = ((e[0] * e[0] + e[1] * e[1]) + e[2] * e[2]) + e[3] * e[3]
-    flip = 1.0
-    if shortest:
-        flip = math.copysign(1.0, b2 - a2)   # +0 keeps B
-        a2, b2 = min(a2, b2), max(a2, b2)
-    elif b2 < a2:
-        return None
-    tiny, floor = _TINY[np.dtype(np.float64)]
-    r2 = a2 / max(b2, floor)
-    rho = max(math.sqrt(r2), tiny)
-    tau = tan_one(math.atan(rho) * h)
-    t2 = tau * tau
-    v = tau / rho
-    g = 1.0 / (t2 + 1.0)
-    w0 = (1.0 - (t2 + (1.0 - r2) * v)) * g
-    w1 = (r2 + 1.0) * v * g * flip
-    return [w0 * x + w1 * y for x, y in zip(p, q)]
 
 
 def _slerp_checked(A, B, h, O, shortest):
@@ -510,30 +441,9 @@ def _slerp_checked(A, B, h, O, shortest):
     return not all_finite(O)
 
 
-def _slerp_small(q0, q1, t, shortest, dtype):
-    """`slerp_core` on components-first views of (n, 4) arrays: no blocks, no copies
-    into scratch (small batches, one pair)."""
-    batch = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], t.shape)
-    A = np.broadcast_to(q0, batch + (4,)).reshape(-1, 4).astype(dtype, copy=False)
-    B = np.broadcast_to(q1, batch + (4,)).reshape(-1, 4).astype(dtype, copy=False)
-    h = np.broadcast_to(t, batch).reshape(-1)
-    out = np.empty(A.shape, dtype)
-    slerp_core(A.T, B.T, h, out.T, shortest)
-    return out.reshape(batch + (4,))
-
-
 def lerp(q0, q1, t):
     """(1 - t) q0 + t q1, broadcasting (raw arrays)."""
-    dtype = result_dtype(q0, q1)
-    if q0.shape == q1.shape == (4,) and t.ndim == 0:
-        h = float(t)
-        return np.array([(1 - h) * x + h * y for x, y in zip(q0.tolist(), q1.tolist())], dtype)
-
-    if _small((q0, q1), t) is not None:
-        h = t.astype(dtype, copy=False)[..., None]
-        return ((1 - h) * q0 + h * q1).astype(dtype, copy=False)
-
-    return _pairwise(_lerp_block, (q0, q1), t, dtype)
+    return _pairwise(_lerp_block, (q0, q1), t, result_dtype(q0, q1))
 
 
 def _lerp_block(A, B, h, O):
@@ -555,31 +465,7 @@ def nlerp(q0, q1, t, shortest=True):
 
     Raises ValueError where the blend is the zero quaternion (only possible
     for q1 = -q0 followed as given, or zero input)."""
-    dtype = result_dtype(q0, q1)
-    if q0.shape == q1.shape == (4,) and t.ndim == 0:
-        a, b, h = q0.tolist(), q1.tolist(), float(t)
-        w1 = -h if shortest and sum(x * y for x, y in zip(a, b)) < 0 else h
-        n = [(1 - h) * x + w1 * y for x, y in zip(a, b)]
-        norm = sum(x * x for x in n) ** 0.5
-        if not norm > 0:
-            raise ValueError(_ZERO_BLEND)
-        return np.array([x / norm for x in n], dtype)
-
-    if _small((q0, q1), t) is not None:
-        A = q0.astype(dtype, copy=False)
-        B = q1.astype(dtype, copy=False)
-        h = t.astype(dtype, copy=False)
-        w1 = h
-        if shortest:
-            w1 = np.where(_dot_last(A, B) < 0, -h, h)
-        n = (1 - h)[..., None] * A + w1[..., None].astype(dtype, copy=False) * B
-        norm = np.sqrt(_sq_last(n))
-        if not (norm > 0).all():
-            raise ValueError(_ZERO_BLEND)
-        n /= norm[..., None]
-        return n.astype(dtype, copy=False)
-
-    return _pairwise(_nlerp_block, (q0, q1), t, dtype, shortest=shortest)
+    return _pairwise(_nlerp_block, (q0, q1), t, result_dtype(q0, q1), shortest=shortest)
 
 
 def _nlerp_block(A, B, h, O, shortest):

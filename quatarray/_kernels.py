@@ -6,21 +6,18 @@ Long inputs are processed in cache-sized blocks by the block engine
 (`_blocks`) into a preallocated output.
 """
 
-import math
 from math import prod
 
 import numpy as np
 
 from . import _blocks, _scale, _trig
 from ._blocks import soa
-from ._scale import ONE_HIGH, ONE_LOW
 from ._validate import all_finite
 
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
     "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
-    "normalize", "inverse", "dot", "exp", "log", "power", "rotate", "matrix_entries", "matrix_entries_unit",
-    "multiply_one",
+    "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
 ]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
@@ -135,53 +132,38 @@ def _contig_last(a, dtype):
     return a
 
 
-def hamilton(a, b, c, d, o0=None, o1=None, t=None):
+def hamilton(a, b, c, d, o0, o1, t, u):
     """The Hamilton product p q, written once for every path.
 
     p = a + b j and q = c + d j as pairs of complex numbers (a = w + x i,
     b = y + z i): p q = (a c - b conj(d)) + (a d + b conj(c)) j.  Eight ufunc
-    passes; with outputs `o0`, `o1` and scratch `t` given (not overlapping
-    the inputs) nothing is allocated.  Works on complex arrays and scalars.
+    passes into the outputs `o0`, `o1` with scratch `t`, `u`; none of the four
+    may overlap the inputs or each other.  Complex arrays only, and no
+    multiply writes over its own input: NumPy's complex array multiply gives
+    the same bits for every length, stride and broadcast, except a length-1
+    multiply in place and scalar (or Python complex) multiplies, which round
+    differently.
 
+    >>> import numpy as np
     >>> from quatarray._kernels import hamilton
-    >>> hamilton(1j, 0, 0, 1)   # i j = k: (0 + 0i) + (0 + 1i) j
-    (0j, 1j)
+    >>> a, b, c, d = (np.array([x]) for x in (1j, 0j, 0j, 1 + 0j))
+    >>> o0, o1, t, u = np.empty((4, 1), complex)
+    >>> hamilton(a, b, c, d, o0, o1, t, u)   # i j = k: (0 + 0i) + (0 + 1i) j
+    (array([0.+0.j]), array([0.+1.j]))
     """
-    given = o0 is not None
-    if not given:  # operators: the same passes on arrays, and no ufunc call overhead on scalars
-        return a * c - b * d.conjugate(), a * d + b * c.conjugate()
-    r0 = np.multiply(a, c, o0)
-    u = np.multiply(b, np.conjugate(d, t), t)
-    r0 = np.subtract(r0, u, o0 if given else None)
-    r1 = np.multiply(a, d, o1)
-    u = np.multiply(b, np.conjugate(c, t), t)
-    r1 = np.add(r1, u, o1 if given else None)
-    return r0, r1
+    np.multiply(a, c, o0)
+    np.multiply(b, np.conjugate(d, t), u)
+    np.subtract(o0, u, o0)
+    np.multiply(a, d, o1)
+    np.multiply(b, np.conjugate(c, t), u)
+    np.add(o1, u, o1)
+    return o0, o1
 
 
 def _mul_views(P, Q, O):
     """O = P Q on complex views (..., 2) of one block."""
-    work = _blocks.scratch()
-    t = work.rows(1, O.shape[:-1], O.dtype)[0]
-    hamilton(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], t)
-
-
-def multiply_one(p, q):
-    """The product ``p q`` of two quaternions given as lists of four Python floats, as such a list.
-
-    >>> from quatarray._kernels import multiply_one
-    >>> multiply_one([0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0])  # i j = k
-    [0.0, 0.0, 0.0, 1.0]
-    """
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    r0, r1 = hamilton(complex(w1, x1), complex(y1, z1), complex(w2, x2), complex(y2, z2))
-    return [r0.real, r0.imag, r1.real, r1.imag]
-
-
-def _mul_scalar(p, q, dtype):
-    """Product of two single quaternions (no blocks, no scratch)."""
-    return np.array(multiply_one(p.tolist(), q.tolist()), dtype)
+    t, u = _blocks.scratch().rows(2, O.shape[:-1], O.dtype)
+    hamilton(P[..., 0], P[..., 1], Q[..., 0], Q[..., 1], O[..., 0], O[..., 1], t, u)
 
 
 def _out(out, shape, dtype, name="out"):
@@ -219,8 +201,6 @@ def multiply(p, q, out=None, check=False):
     if (out is None and p.shape == q.shape and p.dtype == q.dtype and p.dtype in _COMPLEX
             and p.flags.c_contiguous and q.flags.c_contiguous):
         # fast path for the common case: same shape, same float dtype, C order
-        if p.shape == (4,):
-            return _checked(_mul_scalar(p, q, p.dtype), check)
         res = np.empty(p.shape, p.dtype)
         ok = _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
         return (res, ok) if check else res
@@ -232,7 +212,9 @@ def multiply(p, q, out=None, check=False):
     target = np.empty(shape, dtype) if overlap or not res.flags.c_contiguous else res
     p = _contig_last(p, dtype)
     q = _contig_last(q, dtype)
-    if p.shape == q.shape == shape and p.flags.c_contiguous and q.flags.c_contiguous:
+    if not batch:   # one quaternion: the flat kernel on a batch of one
+        p, q = np.ascontiguousarray(p.reshape(1, 4)), np.ascontiguousarray(q.reshape(1, 4))
+    if p.size == q.size == target.size and p.flags.c_contiguous and q.flags.c_contiguous:
         _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), target.reshape(-1, 4))
     elif batch:
         ct = _COMPLEX[dtype]
@@ -243,8 +225,6 @@ def multiply(p, q, out=None, check=False):
             _mul_views(_blocks.part(P, idx, nb), _blocks.part(Q, idx, nb), O[idx])
 
         _blocks.run(block, _blocks.split(batch, _blocks.block_size(dtype)), prod(batch))
-    else:
-        target[...] = _mul_scalar(p.reshape(4), q.reshape(4), dtype)
     if target is not res:
         res[...] = target
     return _checked(res, check)
@@ -353,9 +333,6 @@ def norm(q):
     """
     q = np.asarray(q)
     dtype = result_dtype(q)
-    if q.shape == (4,):
-        c, e = _scale.guard_one(q.tolist())
-        return dtype.type(math.ldexp(math.sqrt(sum(x * x for x in c)), e))
     out = np.empty(q.shape[:-1] + (1,), dtype)
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
         _blocks.blockwise(_k_norm, [q], [out], dtype=dtype)
@@ -393,10 +370,9 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
-    if out is None and q.shape == (4,) and q.dtype in _COMPLEX:   # one quaternion: Python floats
-        return np.array(_normalize_one(q.tolist()), q.dtype)
     res = _out(out, q.shape, result_dtype(q))
-    if res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype and not np.may_share_memory(q, res):
+    if (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype
+            and (res is q or not np.may_share_memory(q, res))):   # in place is safe: row by row
         with np.errstate(over="ignore"):   # squares that overflow are rescaled
             _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
         return res
@@ -405,16 +381,6 @@ def normalize(q, out=None):
         _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
-
-
-def _normalize_one(c):
-    """`normalize` of one quaternion given as four Python floats (the block path's operations
-    in the same order; float32 input is computed in float64, then rounded)."""
-    (w, x, y, z), _ = _scale.guard_one(c)   # rescaled by a power of two if extreme: same direction
-    n = math.sqrt(((w * w + x * x) + y * y) + z * z)
-    if not n > 0:
-        raise ValueError(_ZERO_NORMALIZE)
-    return [w / n, x / n, y / n, z / n]
 
 
 def _normalize_flat(q, out):
@@ -497,12 +463,6 @@ def exp(q):
     True
     """
     q = np.asarray(q)
-    if q.shape == (4,) and q.dtype in _COMPLEX and q[0] < 709.0:   # one quaternion: Python floats
-        w, x, y, z = q.tolist()
-        vn = math.hypot(x, y, z)
-        ew = math.exp(w)
-        s = ew * (math.sin(vn) / vn if vn else 1.0)
-        return np.array([ew * math.cos(vn), x * s, y * s, z * s], q.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(invalid="ignore", divide="ignore"):
         _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)
@@ -577,32 +537,10 @@ def log(q):
     True
     """
     q = np.asarray(q)
-    if q.shape == (4,) and q.dtype in _COMPLEX:   # one quaternion: Python floats
-        ln, e, theta, vn, scale, (w, x, y, z) = _log_parts_one(q.tolist())
-        if e:   # ln|q| = ln|q 2**-e| + e ln 2
-            ln += e * math.log(2.0)
-        return np.array([ln, math.pi if not vn and w < 0 else x * scale, y * scale, z * scale], q.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
     return res
-
-
-def _log_parts_one(c):
-    """`_log_parts` of one quaternion given as four Python floats: (ln|q 2**-e|, e, θ, |v|,
-    θ/|v|, the components q 2**-e), e from `_scale.guard_one` (0 in range).  ``math.log1p``
-    for log1p; a zero quaternion gives ln = -inf."""
-    (w, x, y, z), e = _scale.guard_one(c)
-    vv = x * x + y * y + z * z
-    n2 = w * w + vv
-    if n2 < 0.5:
-        ln = 0.5 * math.log(n2) if n2 > 0 else -math.inf
-    else:
-        ln = 0.5 * math.log1p((w - 1.0) * (w + 1.0) + vv)
-    vn = math.sqrt(vv)
-    theta = math.atan2(vn, w)
-    scale = theta / vn if vn else (1.0 / w if w > 0 else 0.0)
-    return ln, e, theta, vn, scale, (w, x, y, z)
 
 
 def _k_power(q, t, o):
@@ -638,29 +576,6 @@ def _k_power(q, t, o):
         np.copyto(o[1], mag * sn, where=neg_real)
 
 
-def _power_one(c, t):
-    """`_k_power` for one quaternion (four Python floats) and a float exponent, or None
-    when |q|^t leaves the float range (the block kernel then gives inf or 0 as NumPy does)."""
-    ln, e, theta, vn, scale, (w, x, y, z) = _log_parts_one(c)
-    zero = not vn and w == 0
-    if zero:
-        mag = 0.0 if t > 0 else (1.0 if t == 0 else math.inf)
-    else:
-        try:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
-            mag = math.exp(t * ln) * (2.0 ** (t * e) if e else 1.0)
-        except OverflowError:
-            return None
-        if math.isinf(mag):
-            return None
-    ang = t * theta
-    cos_a, sin_a = math.cos(ang), math.sin(ang)
-    factor = 0.0 if zero else mag * (sin_a / vn if vn else t * scale)
-    out = [mag * cos_a, x * factor, y * factor, z * factor]
-    if not vn and w < 0:
-        out[1] = mag * sin_a
-    return out
-
-
 def power(q, t):
     """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped).
 
@@ -675,10 +590,6 @@ def power(q, t):
     q = np.asarray(q)
     t = np.asarray(t)
     dtype = result_dtype(q)
-    if q.shape == (4,) and t.shape == () and dtype in _COMPLEX:   # one quaternion: Python floats
-        one = _power_one(q.tolist(), float(t))
-        if one is not None:
-            return np.array(one, dtype)
     batch = np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -691,9 +602,9 @@ def rotate(q, v, inverse=False):
 
     Uses the expanded form u' = u + w t + vec × t with t = 2 vec × u / |q|²,
     which is the game-developer formula u + 2w(v×u) + 2 v×(v×u) for unit q.
-    One quaternion and many vectors use its 3x3 matrix and one matrix product
-    (the result is then F-ordered).  With `inverse`, rotate by conj(q).
-    Zero quaternions give nan.
+    Every pair (one quaternion with many vectors too) runs this one formula,
+    so a vector gets the same bits whatever else is rotated with it.  With
+    `inverse`, rotate by conj(q).  Zero quaternions give nan.
 
     >>> import numpy as np
     >>> from quatarray._kernels import rotate
@@ -704,85 +615,11 @@ def rotate(q, v, inverse=False):
     True
     """
     dtype = result_dtype(q, v)
-    if q.shape == (4,) and v.shape == (3,):
-        return _rotate_scalar(q, v, dtype, inverse)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
-    if q.size == 4 and v.size > 3:
-        m = _matrix_one(q, dtype)
-        res = np.matmul(m.T if inverse else m, v.astype(dtype, copy=False), axes=[(-2, -1), (-1, -2), (-1, -2)])
-        return res.reshape(batch + (3,))
     res = np.empty(batch + (3,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         _blocks.blockwise(_rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
-
-
-def matrix_entries(c):
-    """The rotation matrix of one quaternion q/|q|, row by row, as nine Python floats.
-
-    `c` is the quaternion as four Python floats (``q.tolist()``), scalar-first
-    and of any magnitude (`_scale.guard_one`); zero gives nan.  The one-rotation
-    path of `_convert.as_matrix` and of rigid transforms' matrices.
-
-    >>> from quatarray._kernels import matrix_entries
-    >>> matrix_entries([0.0, 0.0, 0.0, 2.0])  # 180° about z
-    [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]
-    """
-    w, x, y, z = c
-    n2 = w * w + x * x + y * y + z * z
-    if not ONE_LOW <= n2 <= ONE_HIGH:  # `_scale.guard_one`'s test, without its call on the common path
-        (w, x, y, z), _ = _scale.guard_one(c)
-        n2 = w * w + x * x + y * y + z * z
-    s = 2.0 / n2 if n2 else math.nan
-    # the operations of `_convert`'s block kernel, in its order (the same bits in float64)
-    xs, ys, zs = x * s, y * s, z * s
-    xx, yy, zz = x * xs, y * ys, z * zs
-    xy, xz, yz, wx, wy, wz = x * ys, x * zs, y * zs, w * xs, w * ys, w * zs
-    return [1.0 - (yy + zz), xy - wz, xz + wy,
-            xy + wz, 1.0 - (xx + zz), yz - wx,
-            xz - wy, yz + wx, 1.0 - (xx + yy)]
-
-
-def matrix_entries_unit(c):
-    """`matrix_entries` of a quaternion known to be unit (`Rotation`'s storage): |q|² taken
-    as 1, and the operations of `_convert`'s block kernel with ``unit=True``, in its order
-    (the same bits in float64: scipy's diagonal w² ± x² ± y² ± z²).
-
-    >>> from quatarray._kernels import matrix_entries_unit
-    >>> matrix_entries_unit([0.0, 0.0, 0.0, 1.0])  # 180° about z
-    [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0]
-    """
-    w, x, y, z = c
-    xs, ys, zs = x + x, y + y, z + z
-    ww, xx, yy, zz = w * w, x * x, y * y, z * z
-    a, b = ww - zz, xx - yy
-    xy, wz, xz, wy, yz, wx = x * ys, w * zs, x * zs, w * ys, y * zs, w * xs
-    return [a + b, xy - wz, xz + wy,
-            xy + wz, a - b, yz - wx,
-            xz - wy, yz + wx, (ww + zz) - (xx + yy)]
-
-
-def _matrix_one(q, dtype, unit=False):
-    """The 3x3 rotation matrix of one quaternion q/|q| (nan for zero); `unit`: q is
-    known to be unit (`matrix_entries_unit`)."""
-    c = q.tolist() if q.ndim == 1 else q.reshape(4).tolist()
-    # a flat list (half the cost of nested ones), shaped in place (cheaper than reshape's new view)
-    m = np.array(matrix_entries_unit(c) if unit else matrix_entries(c), dtype)
-    m.shape = (3, 3)
-    return m
-
-
-def _rotate_scalar(q, u, dtype, inverse=False):
-    """`rotate` for one quaternion and one vector, with Python floats (no block run)."""
-    (w, x, y, z), _ = _scale.guard_one(q.tolist())
-    if inverse:
-        w = -w  # conj(q) = (w, -vec): t -> -t, and vec × t keeps its sign
-    ux, uy, uz = u.tolist()
-    n2 = w * w + x * x + y * y + z * z
-    s = 2.0 / n2 if n2 else float("nan")  # zero quaternions give nan, as the array path
-    tx, ty, tz = (y * uz - z * uy) * s, (z * ux - x * uz) * s, (x * uy - y * ux) * s
-    return np.array([ux + w * tx + (y * tz - z * ty), uy + w * ty + (z * tx - x * tz),
-                     uz + w * tz + (x * ty - y * tx)], dtype)
 
 
 def _rotate_block(q, u, o, wsign):

@@ -256,23 +256,17 @@ class RigidTransform:
         if self._m is not None:
             return self._m.copy()
         q, t = self._q, self._t
-        if q.ndim == 1:
-            # one transform: Python floats (the rotation's entries from `_kernels`), kept, as
-            # scipy keeps its matrix (a single transform cannot change: no item assignment,
-            # and `rotation` and `translation` are copies), so that later calls copy it
-            m = self._matrix_of_one
-            if m is None:
-                r = Kn.matrix_entries(q.tolist())
-                tx, ty, tz = t.tolist()
-                m = np.array([r[0], r[1], r[2], tx, r[3], r[4], r[5], ty, r[6], r[7], r[8], tz,
-                              0.0, 0.0, 0.0, 1.0], q.dtype)
-                m.shape = (4, 4)
-                self._matrix_of_one = m
-            return m.copy()
+        if q.ndim == 1 and self._matrix_of_one is not None:
+            # one transform's matrix is kept, as scipy keeps it (a single transform cannot
+            # change: no item assignment, and `rotation` and `translation` are copies)
+            return self._matrix_of_one.copy()
         m = np.zeros(q.shape[:-1] + (4, 4), q.dtype)
         m[..., :3, :3] = C.as_matrix(q)
         m[..., :3, 3] = t
         m[..., 3, 3] = 1
+        if q.ndim == 1:
+            self._matrix_of_one = m
+            return m.copy()
         return m
 
     def as_components(self):

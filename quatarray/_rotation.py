@@ -11,8 +11,6 @@ float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
 the batch shape (one per rotation).
 """
 
-import functools
-import math
 import warnings
 
 import numpy as np
@@ -20,6 +18,7 @@ import numpy as np
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
+from . import _rotation_algorithms
 from ._array import QuatArray
 from ._rotation_groups import group_quats
 from ._validate import batch_shape, finite, float_array
@@ -30,14 +29,6 @@ __all__ = ["Rotation"]
 def _is_scipy_rotation(x):
     t = type(x)
     return t.__name__ == "Rotation" and t.__module__.startswith("scipy.spatial.transform")
-
-
-def _scalar_last(q):
-    """(..., 4) scalar-first -> a new scalar-last array."""
-    out = np.empty(q.shape, q.dtype)
-    out[..., 3] = q[..., 0]
-    out[..., :3] = q[..., 1:]
-    return out
 
 
 def _broadcast(p, q, message):
@@ -111,7 +102,7 @@ class Rotation:
         if normalize:
             q = C.from_quat(q, scalar_first=scalar_first)
         elif not scalar_first:
-            q = q[..., [3, 0, 1, 2]]
+            q = C.to_scalar_first(q)
         elif copy and (q is quat or isinstance(quat, np.ndarray) and np.may_share_memory(q, quat)):
             q = q.copy()
         self._q = q
@@ -224,13 +215,10 @@ class Rotation:
         (array([ 0.,  0.,  0., -1.]), array([0., 0., 0., 1.]), array([-1.,  0.,  0.,  0.]))
         """
         q = self._q
-        if q.ndim == 1:  # one rotation: Python floats
-            w, x, y, z = C.canonical_one(q.tolist()) if canonical else q.tolist()
-            return np.array([w, x, y, z] if scalar_first else [x, y, z, w], q.dtype)
         q = C.canonical(q) if canonical else q
         if scalar_first:
             return q if canonical else q.copy()
-        return _scalar_last(q)
+        return C.to_scalar_last(q)
 
     # --- matrices, rotation vectors, MRPs ------------------------------------------------
     @classmethod
@@ -261,8 +249,7 @@ class Rotation:
                [ 1.,  0.,  0.],
                [ 0.,  0.,  1.]])
         """
-        q = self._q
-        return C.as_matrix_one(q, self._unit) if q.ndim == 1 else C.as_matrix(q, unit=self._unit)
+        return C.as_matrix(self._q, unit=self._unit)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -285,8 +272,7 @@ class Rotation:
         >>> Rotation.from_euler("x", 1e-9).as_rotvec()
         array([1.e-09, 0.e+00, 0.e+00])
         """
-        q = self._q
-        return C.as_rotvec_one(q, degrees) if q.ndim == 1 else C.as_rotvec(q, degrees=degrees)
+        return C.as_rotvec(self._q, degrees=degrees)
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -310,8 +296,7 @@ class Rotation:
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
         """
-        q = self._q
-        return C.as_mrp_one(q) if q.ndim == 1 else C.as_mrp(q)
+        return C.as_mrp(self._q)
 
     # --- Euler and Davenport angles -----------------------------------------------------
     @classmethod
@@ -332,7 +317,7 @@ class Rotation:
         array([[ 0.,  0., 90.],
                [ 0., 45.,  0.]])
         """
-        _check_euler_seq(seq)
+        E.check_seq(seq)
         a = float_array(angles, "angles")
         if a.ndim == 0:
             a = a.reshape(1)
@@ -351,11 +336,8 @@ class Rotation:
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
         array([30., 20., 10.])
         """
-        _check_euler_seq(seq, 3)
-        q = self._q
-        if q.ndim == 1:
-            return E.as_euler_one(q, seq, degrees, suppress_warnings)
-        return E.as_euler(q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        E.check_seq(seq, 3)
+        return E.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -374,7 +356,7 @@ class Rotation:
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        extrinsic = _check_order(order)
+        extrinsic = E.check_order(order)
         ax = float_array(axes, "axes")
         if ax.ndim == 0 or ax.shape[-1] != 3:
             raise ValueError("Axes must be vectors of length 3.")
@@ -395,14 +377,7 @@ class Rotation:
         unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
         if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
-        # axes with a batch shape: one elementary turn per axis, composed in order
-        dtype = np.result_type(a.dtype, ax2.dtype)
-        angle = np.deg2rad(a) if degrees else a
-        q = None
-        for i in range(n):
-            qi = C.from_rotvec((angle[..., i, None] * unit[..., i, :]).astype(dtype))
-            q = qi if q is None else (K.multiply(qi, q) if extrinsic else K.multiply(q, qi))
-        return cls._wrap(q)
+        return cls._wrap(E.from_davenport_batched(unit, a, extrinsic, degrees))
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the middle one orthogonal to the others), shape (..., 3).
@@ -414,7 +389,7 @@ class Rotation:
         >>> np.round(r.as_davenport([ez, ex, ey], "e", degrees=True), 9)
         array([90., 30., 10.])
         """
-        _check_order(order)
+        E.check_order(order)
         ax = float_array(axes, "axes")
         if ax.ndim < 2 or ax.shape[-2] != 3:
             raise ValueError(f"Expected 3 axes, got {ax.shape}.")
@@ -431,21 +406,7 @@ class Rotation:
         unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
         if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
-        # one set of axes per rotation: each distinct set read by the raw function
-        batch = np.broadcast_shapes(ax.shape[:-2], self._q.shape[:-1])
-        qb = np.broadcast_to(self._q, batch + (4,)).reshape(-1, 4)
-        axb = np.broadcast_to(ax, batch + (3, 3)).reshape(-1, 3, 3)
-        uniq, inverse = np.unique(axb.reshape(-1, 9), axis=0, return_inverse=True)
-        out = np.empty((qb.shape[0], 3), self._q.dtype)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            for k, u in enumerate(uniq):
-                sel = inverse.ravel() == k
-                out[sel] = E.as_davenport(qb[sel], u.reshape(3, 3), order, degrees=degrees,
-                                          suppress_warnings=suppress_warnings)
-        if caught:
-            warnings.warn(caught[0].message, caught[0].category, stacklevel=2)
-        return out.reshape(batch + (3,))
+        return E.as_davenport_batched(self._q, ax, order, degrees, suppress_warnings)
 
     # --- acting on vectors, composing, inverting, measuring -------------------------------
     def apply(self, vectors, inverse=False):
@@ -480,11 +441,10 @@ class Rotation:
         else:
             return NotImplemented
         p = self._q
-        if p.ndim == 1 and q.ndim == 1:  # two single rotations: from_quat normalises in Python floats
-            return type(self)._wrap(C.from_quat(K.multiply(p, q), scalar_first=True), unit=True)
         _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
                          f"{q.shape[:-1]} rotations in second object.")
-        return type(self)._wrap(K.normalize(K.multiply(p, q)), unit=True)
+        pq = K.multiply(p, q)
+        return type(self)._wrap(K.normalize(pq, out=pq), unit=True)
 
     def __rmul__(self, other):
         if _is_scipy_rotation(other):
@@ -526,10 +486,6 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
-        if q.ndim == 1 and type(n) in (int, float):  # one rotation, a Python number: Python floats
-            v = [n * c for c in C.rotvec_floats(q.tolist())]
-            if all(map(math.isfinite, v)):   # else from_rotvec's error
-                return type(self)._wrap(C.from_rotvec_floats(v, q.dtype))
         return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * n))
 
     def inv(self):
@@ -548,8 +504,8 @@ class Rotation:
         >>> Rotation.from_rotvec([[0, 0, 1], [0, 4, 0]]).magnitude()
         array([1.        , 2.28318531])
         """
-        q = self._q
-        return q.dtype.type(C.magnitude_one(q.tolist())) if q.ndim == 1 else C.magnitude(q)
+        m = C.magnitude(self._q)
+        return m[()] if m.ndim == 0 else m
 
     def approx_equal(self, other, atol=None, degrees=False):
         """Whether the angle between each pair of rotations is below `atol` (batch shapes broadcast).
@@ -573,13 +529,14 @@ class Rotation:
         >>> r.approx_equal(Rotation.from_rotvec([0, 0, 1 + 1e-10]))
         array([ True, False])
         """
-        if isinstance(other, Rotation):
-            q = other._q
-        elif _is_scipy_rotation(other):
-            q = Rotation.from_scipy(other)._q
-        else:
+        if _is_scipy_rotation(other):
+            other = Rotation.from_scipy(other)
+        elif not isinstance(other, Rotation):
             raise TypeError(f"expected other to be a Rotation, got {type(other).__name__}")
-        p = self._q
+        # quaternions held as given (`from_quatarray`) may have any magnitude: their
+        # product could overflow, so they are normalised first
+        p = self._q if self._unit else K.normalize(self._q)
+        q = other._q if other._unit else K.normalize(other._q)
         if atol is None:
             if degrees:
                 warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.",
@@ -590,9 +547,7 @@ class Rotation:
         if p.ndim > 1 or q.ndim > 1:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        elif isinstance(atol, (float, int)):  # two single rotations: Python floats
-            return np.array([C.angle_between_one(p.tolist(), q.tolist()) < atol])
-        res = C.magnitude(K.multiply(q, self.inv()._q if p.ndim == 1 else K.conjugate(p))) < atol
+        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
@@ -633,11 +588,8 @@ class Rotation:
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")
-        # nan, inf and zero rows refused; rows of any magnitude normalised
-        q64 = C.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name="rotations to average")
-        if weights is None:
-            wq = q64
-        else:
+        w = None
+        if weights is not None:
             w = float_array(weights, "weights").astype(np.float64)
             if (w < 0).any():
                 raise ValueError("`weights` must be non-negative.")
@@ -646,15 +598,7 @@ class Rotation:
             if not _broadcastable(w.shape, batch) or np.broadcast_shapes(w.shape, batch) != batch:
                 raise ValueError(f"Expected `weights` to be broadcastable to rotation shape, got "
                                  f"shape {w.shape} for {batch} rotations.")
-            wq = q64 * w[..., None]
-        keep = tuple(a for a in range(nb) if a not in axes)
-        order = keep + axes + (nb,)
-        kshape = tuple(batch[a] for a in keep)
-        # components in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
-        qm = q64.transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
-        wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
-        _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
-        return type(self)._wrap(C.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype))
+        return type(self)._wrap(_rotation_algorithms.mean(q, w, axes))
 
     def reduce(self, left=None, right=None, return_indices=False):
         """Reduce each rotation p to the smallest l · p · r over l in `left`, r in `right`.
@@ -681,29 +625,9 @@ class Rotation:
             reduced = type(self)._wrap(self._q.copy())
             return (reduced, None, None) if return_indices else reduced
         p = self._q
-        eye = np.array([[1.0, 0.0, 0.0, 0.0]], p.dtype)
-        ls = _coerce(left, "left").reshape(-1, 4) if left is not None else eye
-        rs = _coerce(right, "right").reshape(-1, 4) if right is not None else eye
-        pf = p.reshape(-1, 4)
-        if left is None or right is None:
-            # one side: |w| of c p (or p c) is |c · conj(p)|, a matrix product; the largest
-            # gives the smallest angle
-            score = np.abs((pf * np.array([1, -1, -1, -1], p.dtype)) @ (rs if left is None else ls).T)
-            best = score.argmax(axis=1)
-            zero = np.zeros_like(best)
-            li, ri = (zero, best) if left is None else (best, zero)
-        else:
-            # |w| of l p r = |(l p) · conj(r)|
-            lp = K.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
-            score = np.abs(np.einsum("lni,ri->nlr", lp, K.conjugate(rs)))
-            best = score.reshape(score.shape[0], -1).argmax(axis=1)
-            li, ri = np.divmod(best, rs.shape[0])
-        if p.ndim == 1:   # one rotation: single products (Python floats)
-            reduced = p if left is None else K.multiply(ls[li[0]], p)
-            reduced = reduced if right is None else K.multiply(reduced, rs[ri[0]])
-        else:
-            reduced = pf if left is None else K.multiply(ls[li], pf)
-            reduced = (reduced if right is None else K.multiply(reduced, rs[ri])).reshape(p.shape)
+        ls = _coerce(left, "left").reshape(-1, 4) if left is not None else None
+        rs = _coerce(right, "right").reshape(-1, 4) if right is not None else None
+        reduced, li, ri = _rotation_algorithms.reduce(p, ls, rs)
         rot = type(self)._wrap(reduced)
         if not return_indices:
             return rot
@@ -826,7 +750,7 @@ class Rotation:
         >>> np.round(r.as_rotvec(degrees=True), 9) + 0.0, round(float(rssd), 9)
         (array([ 0.,  0., 90.]), 0.0)
         """
-        q, rssd, sens = _align(a, b, weights, return_sensitivity)
+        q, rssd, sens = _rotation_algorithms.align(a, b, weights, return_sensitivity)
         rot = cls._wrap(q)
         return (rot, rssd, sens) if return_sensitivity else (rot, rssd)
 
@@ -892,8 +816,8 @@ def _random(num=None, rng=None, *, shape=None, legacy=False):
     size = _batch_shape(num, shape)
     try:
         if legacy:
-            if rng is None:
-                rng = np.random.mtrand._rand
+            if rng is None:   # NumPy's global RandomState, through its public module functions
+                rng = np.random
             elif isinstance(rng, (int, np.integer)):
                 rng = np.random.RandomState(rng)
             elif not isinstance(rng, (np.random.RandomState, np.random.Generator)):
@@ -967,132 +891,3 @@ def _coerce(r, name):
     if _is_scipy_rotation(r):
         return Rotation.from_scipy(r)._q
     raise TypeError(f"expected {name} to be a Rotation, got {type(r).__name__}")
-
-
-def _check_euler_seq(seq, n=None):
-    """scipy's checks and messages for an Euler sequence."""
-    if not isinstance(seq, str):
-        raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
-    _check_str_seq(seq, n)
-
-
-@functools.lru_cache(maxsize=128)
-def _check_str_seq(seq, n):
-    """`_check_euler_seq` for a str, remembered (it costs as much as one rotation's conversion)."""
-    if n is not None and len(seq) != n:
-        raise ValueError(f"Expected {n} axes, got {seq}.")
-    if not 1 <= len(seq) <= 3:
-        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
-                         f"characters, got {seq}")
-    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
-        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
-                         f"['X', 'Y', 'Z'], got {seq}")
-    if any(a == b for a, b in zip(seq, seq[1:])):
-        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
-
-
-def _check_order(order):
-    if order in ("e", "extrinsic"):
-        return True
-    if order in ("i", "intrinsic"):
-        return False
-    raise ValueError(f"order should be 'e'/'extrinsic' for extrinsic sequences or 'i'/'intrinsic' "
-                     f"for intrinsic sequences, got {order!r}")
-
-
-def _align(a, b, weights, return_sensitivity):
-    """`align_vectors` on float64 arrays; returns (quat scalar-first, rssd, sensitivity or None)."""
-    a0 = float_array(a, "a")
-    b0 = float_array(b, "b")
-    dtype = np.result_type(a0.dtype, b0.dtype)
-    a2 = np.atleast_2d(a0).astype(np.float64)
-    b2 = np.atleast_2d(b0).astype(np.float64)
-    if a2.shape[-1] != 3:
-        raise ValueError(f"Expected input `a` to have shape (3,) or (N, 3), got {a0.shape}")
-    if b2.shape[-1] != 3:
-        raise ValueError(f"Expected input `b` to have shape (3,) or (N, 3), got {b0.shape}")
-    if a2.shape != b2.shape:
-        raise ValueError(f"Expected inputs `a` and `b` to have same shapes, got {a0.shape} and {b0.shape} respectively")
-    if a2.ndim > 2:
-        raise ValueError(f"Expected inputs `a` and `b` to have shape (3,) or (N, 3), got {a0.shape} "
-                         f"and {b0.shape} respectively")
-    n = a2.shape[0]
-    if n == 0:
-        raise ValueError("expected at least one pair of vectors in a and b, got 0")
-    if not (np.isfinite(a2).all() and np.isfinite(b2).all()):
-        raise ValueError("expected finite values in a and b, got nan or inf")
-    if weights is None:
-        w = np.ones(n)
-    else:
-        w = float_array(weights, "weights").astype(np.float64)
-        if w.ndim != 1:
-            raise ValueError(f"Expected `weights` to be 1 dimensional, got shape {w.shape}")
-        if n > 1 and w.shape[0] != n:
-            raise ValueError(f"Expected `weights` to have number of values equal to number of input "
-                             f"vectors, got {w.shape[0]} values and {n} vectors")
-        if np.isnan(w).any() or (w < 0).any():
-            raise ValueError("`weights` may not contain negative values: expected non-negative weights")
-    inf = np.array([True]) if n == 1 else np.isposinf(w)
-    n_inf = int(inf.sum())
-    if n_inf > 1:
-        raise ValueError("Only one infinite weight is allowed")
-    if n_inf == 1:
-        if return_sensitivity:
-            raise ValueError("Cannot return sensitivity matrix with an infinite weight or one vector pair")
-        q, rssd = _align_primary(a2, b2, w, inf)
-        return q.astype(dtype), rssd, None
-    big = (w[:, None] * a2).T @ b2
-    u, s, vt = np.linalg.svd(big)
-    if np.linalg.det(u @ vt) < 0:
-        s[-1] = -s[-1]
-        u[:, -1] = -u[:, -1]
-    rot = u @ vt
-    if s[1] + s[2] < 1e-16 * s[0]:
-        warnings.warn("Optimal rotation is not uniquely or poorly defined for the given sets of vectors.",
-                      UserWarning, stacklevel=3)
-    rssd = np.sqrt(max(np.sum(w * np.sum(b2 ** 2 + a2 ** 2, axis=1)) - 2 * np.sum(s), 0.0))
-    sens = None
-    if return_sensitivity:
-        zeta = (s[0] + s[1]) * (s[1] + s[2]) * (s[2] + s[0])
-        kappa = s[0] * s[1] + s[1] * s[2] + s[2] * s[0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sens = np.mean(w) / zeta * (kappa * np.eye(3) + big @ big.T)
-    q = C.from_matrix(rot, assume_valid=True)
-    return q.astype(dtype), rssd, sens
-
-
-def _align_primary(a, b, w, inf):
-    """The infinite-weight (or single-pair) case: align the primary pair exactly,
-    then turn about it to fit the others best (scipy's algorithm)."""
-    a_pri, b_pri = a[inf][0], b[inf][0]
-    na, nb = np.linalg.norm(a_pri), np.linalg.norm(b_pri)
-    if na == 0 or nb == 0:
-        raise ValueError("Cannot align zero length primary vectors")
-    a_pri, b_pri = a_pri / na, b_pri / nb
-    # shortest-arc rotation taking b_pri to a_pri (antiparallel: π about any orthogonal axis)
-    cross = np.cross(b_pri, a_pri)
-    theta = np.arctan2(np.linalg.norm(cross), a_pri @ b_pri)
-    if np.linalg.norm(cross) == 0 and theta > np.pi / 2:
-        i = int(np.argmin(np.abs(a_pri)))
-        axis = np.zeros(3)
-        axis[i - 1], axis[i - 2] = a_pri[i - 2], -a_pri[i - 1]
-        axis /= np.linalg.norm(axis)
-    else:
-        norm = np.linalg.norm(cross)
-        axis = cross / norm if norm > 0 else np.array([1.0, 0, 0])
-    q_pri = C.from_rotvec(axis * theta)
-    q = q_pri
-    if a.shape[0] > 1:
-        sec = ~inf
-        a_sec, b_sec, w_sec = a[sec], b[sec], w[sec]
-        c_sec = K.rotate(q_pri, b_sec)
-        sin_term = np.einsum("ij,j->i", np.cross(c_sec, a_sec), a_pri)
-        cos_term = np.einsum("ij,ij->i", c_sec, a_sec) - (c_sec @ a_pri) * (a_sec @ a_pri)
-        phi = np.arctan2(np.sum(w_sec * sin_term), np.sum(w_sec * cos_term))
-        q = K.multiply(C.from_rotvec(phi * a_pri), q_pri)
-    w_zero = w.copy()
-    if a.shape[0] > 1 or np.isposinf(w[0]):
-        w_zero[inf] = 0
-    est = K.rotate(q, b)
-    rssd = np.sqrt(np.sum(w_zero @ (a - est) ** 2))
-    return q, rssd

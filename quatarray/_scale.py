@@ -15,18 +15,16 @@ the block's largest squared norm NaN or infinite, so `fits` fails and
 `guard` looks at the components exactly.
 
 Everything here works on components-first blocks ``(k, *s)`` (the block
-engine's scratch copies, which kernels may overwrite) or, for single
-quaternions, on lists of Python floats.
+engine's scratch copies, which kernels may overwrite).  Only the rows
+that need it are rescaled, so a row's bits never depend on its block.
 """
-
-import math
 
 import numpy as np
 
 from . import _blocks
 
-__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "guard_one",
-           "ONE_LOW", "ONE_HIGH", "unscale", "true_norm"]
+__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "outside",
+           "unscale", "true_norm"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 
@@ -42,10 +40,6 @@ LOW = {d: r[0] for d, r in _RANGE.items()}
 
 HIGH = {d: r[1] for d, r in _RANGE.items()}
 """Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
-
-ONE_LOW, ONE_HIGH = _RANGE[np.dtype(np.float64)]
-"""`guard_one`'s test as two floats: single-quaternion paths that need the squared norm
-anyway compare it with these and call `guard_one` only when it is out of range."""
 
 
 def fits(n2):
@@ -76,12 +70,26 @@ def sum_squares(q, out, start=0):
     return out
 
 
-def rescale(q):
+def outside(n2):
+    """Where squared norms are not in [LOW, HIGH] (NaN included): the rows to rescale.
+
+    >>> import numpy as np
+    >>> from quatarray._scale import outside
+    >>> outside(np.array([1.0, 1e-320, np.inf, np.nan])).tolist()
+    [False, True, True, True]
+    """
+    lo, hi = _RANGE[n2.dtype]
+    return ~((n2 >= lo) & (n2 <= hi))
+
+
+def rescale(q, only=None):
     """Multiply each quaternion of a components-first block by 2**-e, in place,
     with e the exponent of its largest |component| (so that it lies in [1/2, 1)).
 
-    Zero and non-finite quaternions are left as they are (e = 0).  Returns e
-    (batch shape, int32).
+    Zero and non-finite quaternions are left as they are (e = 0), and so are the
+    rows where the batch-shaped mask `only` is False: what happens to a row
+    then depends on that row alone, never on the rest of its block (the same
+    bits for any batch around it).  Returns e (batch shape, int32).
 
     >>> import numpy as np
     >>> from quatarray._scale import rescale
@@ -91,6 +99,8 @@ def rescale(q):
     """
     m = np.max(np.abs(q), axis=0)
     _, e = np.frexp(m)
+    if only is not None:
+        e *= only
     np.ldexp(q, -e, out=q)
     return e
 
@@ -109,7 +119,7 @@ def guard(q, n2, start=0):
         return None
     if not np.isfinite(q).all():
         raise ValueError(NONFINITE)
-    e = rescale(q)
+    e = rescale(q, outside(n2))
     sum_squares(q, n2, start)
     return e
 
@@ -124,7 +134,7 @@ def true_norm(v, out):
         sum_squares(v, out)
     e = None
     if out.size and not out.max() <= HIGH[out.dtype]:
-        e = rescale(v)
+        e = rescale(v, ~(out <= HIGH[out.dtype]))
         sum_squares(v, out)
     np.sqrt(out, out=out)
     if e is not None:
@@ -138,28 +148,6 @@ def guarded_sqnorm(q):
     n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
     guard(q, n2)
     return n2
-
-
-def guard_one(c):
-    """`guard` for one quaternion given as a list of four Python floats.
-
-    Returns ``(c, e)``: the components scaled by 2**-e and e (0 for the
-    ordinary case: `c` itself).
-
-    >>> from quatarray._scale import guard_one
-    >>> guard_one([3e-300, 4e-300, 0.0, 0.0])[1]
-    -994
-    """
-    w, x, y, z = c
-    if ONE_LOW <= w * w + x * x + y * y + z * z <= ONE_HIGH:
-        return c, 0
-    if not (math.isfinite(w) and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise ValueError(NONFINITE)
-    m = max(abs(w), abs(x), abs(y), abs(z))
-    if m == 0:
-        return c, 0
-    e = math.frexp(m)[1]
-    return [math.ldexp(x, -e) for x in c], e
 
 
 def unscale(x, e, power=1):

@@ -17,9 +17,6 @@ infinities go to `np.tan`.  Each element takes the same operations whatever
 the rest of its block holds, so its result does not depend on the block.
 On CPUs where NumPy's tangent is a SIMD loop, `tan` is `np.tan`.
 
-`tan_one` is the same rule for one Python float, operation for operation:
-one-rotation paths give the bits of the batch paths.
-
 `atan_unit32` is float32's arctangent on [0, 1] (SLERP's half angles): NumPy's
 float32 ``arctan`` and ``arcsin`` are scalar loops on AVX2 too (8-14 ns per
 element), Cephes' polynomial after one reduction by π/4 costs 2.4 ns.
@@ -29,7 +26,7 @@ import math
 
 import numpy as np
 
-__all__ = ["SIMD_TAN", "QUARTER_PI", "TAN_QUARTER_PI", "REDUCE_LIMIT", "tan", "tan_one", "rational", "reduced",
+__all__ = ["SIMD_TAN", "QUARTER_PI", "TAN_QUARTER_PI", "REDUCE_LIMIT", "tan", "rational", "reduced",
            "atan_unit32"]
 
 # Cephes, tan.c: P with the highest degree first; Q monic (leading 1 implied)
@@ -57,15 +54,16 @@ _DP1, _DP2, _DP3 = 7.853981554508209228515625e-1, 7.94662735614792836714e-9, 3.0
 
 
 def _numpy_tan_is_simd():
-    """True when NumPy runs its float64 tangent as a SIMD loop (AVX-512 builds with SVML)."""
+    """True when NumPy runs its float64 tangent as a SIMD loop (AVX-512 builds with SVML).
+
+    Read from NumPy's public build and runtime report, ``numpy.show_config(mode="dicts")``
+    (the CPU features NumPy found, as ``numpy.show_runtime`` prints them); False where
+    that report has no such entry (NumPy before 1.26)."""
     try:
-        from numpy._core._multiarray_umath import __cpu_features__ as features
-    except ImportError:  # NumPy 1.x
-        try:
-            from numpy.core._multiarray_umath import __cpu_features__ as features
-        except ImportError:
-            return False
-    return bool(features.get("AVX512_SKX") or features.get("X86_V4"))
+        found = np.show_config(mode="dicts")["SIMD Extensions"]["found"]
+    except (TypeError, KeyError, AttributeError):
+        return False
+    return "AVX512_SKX" in found or "X86_V4" in found
 
 
 #: NumPy's float64 tangent is a SIMD loop on this CPU: `tan` is `np.tan`.
@@ -179,36 +177,6 @@ def tan(x, out=None, rows=None):
         out[wide] = np.tan(big)
     out[quarter] = signs * TAN_QUARTER_PI
     return out
-
-
-def tan_one(x):
-    """`tan` of one Python float: the same operations as the array path, in the same order.
-
-    >>> from quatarray._trig import tan_one
-    >>> import math
-    >>> abs(tan_one(0.5) - math.tan(0.5)) <= 2 ** -53 * math.tan(0.5)
-    True
-    """
-    if SIMD_TAN or not -REDUCE_LIMIT <= x <= REDUCE_LIMIT:
-        return math.tan(x)
-    if -QUARTER_PI < x < QUARTER_PI:
-        return _rational_one(x)
-    if x == QUARTER_PI or x == -QUARTER_PI:
-        return math.copysign(TAN_QUARTER_PI, x)
-    k = float(round(x * _TWO_OVER_PI))           # round half to even, as np.rint
-    y = k + k
-    z = ((x - y * _DP1) - y * _DP2) - y * _DP3
-    o = abs(k - 2.0 * round(k * 0.5))
-    t = _rational_one(z)
-    e = 1.0 - o
-    return (t * e - o) / (t * o + e)
-
-
-def _rational_one(x):
-    z = x * x
-    p = ((z * _P0 + _P1) * z + _P2) * z
-    q = (((z + _Q0) * z + _Q1) * z + _Q2) * z + _Q3
-    return x + (p / q) * x
 
 
 # Cephes, atanf.c: atan x = x + x z (((A0 z + A1) z + A2) z + A3), z = x², |x| <= tan(π/8)

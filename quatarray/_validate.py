@@ -82,7 +82,7 @@ def quat_array(x, name):
     A plain float32 / float64 ndarray of that shape is returned at once (what
     `float_array` would return, without its checks: they cost more than the
     maths of one rotation).  Finiteness and magnitude are the callers' kernels'
-    business (`_scale.guard`, `_scale.guard_one`).
+    business (`_scale.guard`).
     """
     if type(x) is np.ndarray and x.dtype in _FLOATS and x.shape[-1:] == (4,):
         return x

@@ -15,7 +15,7 @@ import pytest
 
 from benchmarks import _common
 
-MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid", "chunked", "single"]
+MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid", "chunked", "sweep"]
 
 
 def _classes():
@@ -27,8 +27,10 @@ def _classes():
 
 
 def _smallest(cls):
-    """Every parameter combination with the smallest numeric sizes."""
-    axes = [[min(p)] if all(isinstance(v, int) for v in p) else p for p in cls.params]
+    """Every parameter combination with the smallest numeric sizes (named sizes: the
+    class's `smoke_params`)."""
+    axes = [[min(p)] if all(isinstance(v, int) for v in p) else p
+            for p in getattr(cls, "smoke_params", cls.params)]
     return list(itertools.product(*axes))
 
 
@@ -102,3 +104,12 @@ def test_no_accidental_benchmarks():
         for fname, obj in vars(mod).items():
             if inspect.isfunction(obj) and obj.__module__ == mod.__name__:
                 assert not fname.startswith(prefixes), f"benchmarks.{name}.{fname} looks like an asv benchmark"
+
+
+def test_size_sweep_reports_a_ratio_per_operation_and_size():
+    from benchmarks import compare, sweep
+    table = compare.sweep(repeat=1, min_time=1e-4, sizes=[None, 3], ops=["as_matrix", "Slerp call"], log=lambda s: None)
+    assert set(table) == {"as_matrix", "Slerp call"}
+    for row in table.values():
+        assert set(row) == {None, 3} and all(r is None or r > 0 for r in row.values())
+    assert set(sweep.TRANSCENDENTAL + sweep.COPIES) <= set(sweep.OPS)

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation as SciRotation
 from scipy.spatial.transform import Slerp as SciSlerp
 
 from quatarray import QuatArray, Rotation
+from quatarray import _blocks
 from quatarray import _interp_kernels as IK
 from quatarray._blocks import BLOCK
 from quatarray._interp_lookup import SegmentIndex
@@ -189,12 +190,12 @@ def rotation_angle(q):
 # pairwise slerp
 # ---------------------------------------------------------------------------
 
-@pytest.fixture(params=["direct", "blocked"])
+@pytest.fixture(params=["one block", "many blocks"])
 def path(request, monkeypatch):
-    """Run a pairwise test on both code paths: direct (..., 4) expressions for
-    small batches, and the blocked components-first kernels (forced here)."""
-    if request.param == "blocked":
-        monkeypatch.setattr(IK, "SMALL", 0)
+    """Run a pairwise test with the batch in one block and split into blocks of 3
+    quaternions (the block engine's splitting, forced here)."""
+    if request.param == "many blocks":
+        monkeypatch.setattr(_blocks, "BLOCK", 3)
     return request.param
 
 
@@ -1038,11 +1039,9 @@ def test_extend_is_finite_and_unit_up_to_its_limit(method, dtype, rng):
 
 @pytest.mark.parametrize("shortest", [True, False])
 def test_one_pair_slerp_equals_the_batch_path(rng, dtype, shortest):
-    """One pair at a scalar t takes Python floats (math.atan, math.tan): within a few eps of
-    the block path (libm's and NumPy's tan and arctan may differ in the last bit; the block
-    path's float32 weights are sines); near-equal, equal and opposite pairs and
-    extrapolation included."""
-    n = 2 * IK.SMALL    # the batch goes through the blocks
+    """One pair at a scalar t runs the batch's kernel: the same bits; near-equal, equal
+    and opposite pairs and extrapolation included."""
+    n = 1024
     a = random_quats(rng, (n,), np.float64)
     b = random_quats(rng, (n,), np.float64)
     b[:50] = a[:50] + 1e-9 * rng.standard_normal((50, 4))
@@ -1052,4 +1051,4 @@ def test_one_pair_slerp_equals_the_batch_path(rng, dtype, shortest):
     batch = IK.slerp(a, b, t, shortest)
     one = np.array([IK.slerp(x, y, np.array(h), shortest) for x, y, h in zip(a, b, t)])
     assert one.dtype == dtype
-    np.testing.assert_allclose(one, batch, rtol=0, atol=4 * np.finfo(dtype).eps)
+    np.testing.assert_array_equal(one, batch)

@@ -875,3 +875,15 @@ def test_as_matrix_of_rotations_known_unit_and_held_as_given(rng, dtype):
     target = Rotation.from_quat(q, scalar_first=True)
     target[:10] = Rotation.from_quatarray((7 * q[:10]).view(QuatArray))
     np.testing.assert_allclose(target.as_matrix(), general, rtol=0, atol=8 * eps)
+
+
+@pytest.mark.parametrize("make", [lambda q: Rotation.from_quat(q), lambda q: Rotation.from_quat(q, scalar_first=True),
+                                  lambda q: Rotation(q, normalize=False), lambda q: Rotation.from_quat(q[::2])],
+                         ids=["from_quat", "scalar_first", "normalize=False", "strided input"])
+def test_stored_quaternions_are_c_contiguous(make, rng):
+    """Every kernel's fast path wants C order: a reordered copy made by fancy indexing on
+    the last axis is not C-contiguous, and made every later call several times slower."""
+    q = random_quats(rng, (10, 4))
+    r = make(q)
+    assert r.as_quatarray().flags.c_contiguous
+    np.testing.assert_array_equal(r.as_quat(), r.as_quat(scalar_first=True)[..., [1, 2, 3, 0]])

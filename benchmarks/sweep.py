@@ -1,0 +1,224 @@
+"""Every `Rotation` method, Slerp, RotationSpline and RigidTransform, quatarray against scipy,
+at every batch size: a single rotation (shape ()), a batch of one, 10, 100, 10³ ... 10⁶.
+
+`SizeSweep` is the asv class (asv times quatarray at `ASV_SIZES` only, to keep the
+whole quick suite under five minutes; ``benchmarks.compare`` also uses it for its
+single-rotation rows); ``python -m benchmarks.compare --sweep`` times
+every size in `SIZES` side by side in one process and prints the ratio table
+(scipy's time ÷ quatarray's: above 1, quatarray is faster).
+
+Each operation is a function ``make(R, mod, n) -> zero-argument call`` that builds its
+seeded data for batch size `n` (None: a single rotation) with the library's own classes
+(`R` its ``Rotation``, `mod` its ``scipy.spatial.transform``-like module), so both
+libraries run the same calls on the same numbers.
+"""
+
+import importlib
+
+import numpy as np
+
+from ._common import SEED
+
+__all__ = ["SIZES", "ASV_SIZES", "OPS", "TRANSCENDENTAL", "COPIES", "make", "SizeSweep"]
+
+#: Batch sizes of the sweep; None is a single rotation (shape ()).
+SIZES = [None, 1, 10, 100, 1_000, 10_000, 100_000, 1_000_000]
+#: The sizes asv times (its quick run times each once; the whole quick suite must stay
+#: under five minutes).
+ASV_SIZES = ["single", "100", "1000000"]
+_MODULES = {"quatarray": "quatarray", "scipy": "scipy.spatial.transform"}
+
+
+def _data(n, salt=0):
+    rng = np.random.default_rng(SEED + salt)
+    shape = () if n is None else (n,)
+    q = rng.standard_normal(shape + (4,))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return rng, shape, q
+
+
+def _rot(R, n, salt=0):
+    return R.from_quat(_data(n, salt)[2])
+
+
+def _keys(n):
+    """At least two keys (Slerp and RotationSpline need them), n for a batch."""
+    return 2 if n is None or n < 2 else n
+
+
+_AXES = np.eye(3)[[2, 0, 2]]
+
+
+def _ops():
+    ops = {}
+
+    def op(name):
+        def register(f):
+            ops[name] = f
+            return f
+        return register
+
+    @op("from_quat")
+    def _(R, mod, n):
+        q = _data(n)[2]
+        return lambda: R.from_quat(q)
+
+    for name in ("as_quat", "as_matrix", "as_rotvec", "as_mrp", "inv", "magnitude"):
+        ops[name] = (lambda name: lambda R, mod, n: getattr(_rot(R, n), name))(name)
+
+    @op("as_euler")
+    def _(R, mod, n):
+        r = _rot(R, n)
+        return lambda: r.as_euler("xyz")
+
+    @op("as_davenport")
+    def _(R, mod, n):
+        r = _rot(R, n)
+        return lambda: r.as_davenport(_AXES, "e")
+
+    for name, conv in (("from_matrix", "as_matrix"), ("from_rotvec", "as_rotvec"), ("from_mrp", "as_mrp")):
+        ops[name] = (lambda name, conv: lambda R, mod, n: (
+            lambda x=getattr(_rot(R, n), conv)(): lambda: getattr(R, name)(x))())(name, conv)
+
+    @op("from_euler")
+    def _(R, mod, n):
+        e = _rot(R, n).as_euler("xyz")
+        return lambda: R.from_euler("xyz", e)
+
+    @op("from_davenport")
+    def _(R, mod, n):
+        e = _rot(R, n).as_davenport(_AXES, "e")
+        return lambda: R.from_davenport(_AXES, "e", e)
+
+    @op("identity")
+    def _(R, mod, n):
+        return lambda: R.identity(n)
+
+    @op("random")
+    def _(R, mod, n):
+        return lambda: R.random(n, rng=0)
+
+    @op("apply")
+    def _(R, mod, n):
+        rng, shape, q = _data(n)
+        r, v = R.from_quat(q), rng.standard_normal(shape + (3,))
+        return lambda: r.apply(v)
+
+    @op("mul")
+    def _(R, mod, n):
+        r, s = _rot(R, n), _rot(R, n, 1)
+        return lambda: r * s
+
+    @op("pow")
+    def _(R, mod, n):
+        r = _rot(R, n)
+        return lambda: r ** 0.3
+
+    @op("approx_equal")
+    def _(R, mod, n):
+        r, s = _rot(R, n), _rot(R, n, 1)
+        return lambda: r.approx_equal(s)
+
+    @op("mean")
+    def _(R, mod, n):
+        r = _rot(R, n)
+        return lambda: r.mean()
+
+    @op("reduce")
+    def _(R, mod, n):
+        r, g = _rot(R, n), R.create_group("O")
+        return lambda: r.reduce(g)
+
+    @op("align_vectors")
+    def _(R, mod, n):
+        rng = np.random.default_rng(SEED)
+        m = 2 if n is None or n < 2 else n
+        a, b = rng.standard_normal((2, m, 3))
+        return lambda: R.align_vectors(a, b)
+
+    @op("Slerp build")
+    def _(R, mod, n):
+        k = _keys(n)
+        r, times = _rot(R, k), np.arange(k, dtype=float)
+        return lambda: mod.Slerp(times, r)
+
+    @op("Slerp call")
+    def _(R, mod, n):
+        s = mod.Slerp(np.arange(10.0), _rot(R, 10))
+        t = np.random.default_rng(SEED).uniform(0, 9, () if n is None else (n,))
+        return lambda: s(t)
+
+    @op("RotationSpline build")
+    def _(R, mod, n):
+        k = _keys(n)
+        r, times = _rot(R, k), np.arange(k, dtype=float)
+        return lambda: mod.RotationSpline(times, r)
+
+    @op("RotationSpline call")
+    def _(R, mod, n):
+        s = mod.RotationSpline(np.arange(10.0), _rot(R, 10))
+        t = np.random.default_rng(SEED).uniform(0, 9, () if n is None else (n,))
+        return lambda: s(t)
+
+    def rigid(mod, n, salt=0):
+        rng, shape, q = _data(n, salt)
+        return mod.RigidTransform.from_components(rng.standard_normal(shape + (3,)), mod.Rotation.from_quat(q))
+
+    @op("RigidTransform apply")
+    def _(R, mod, n):
+        tf, v = rigid(mod, n), np.random.default_rng(SEED + 5).standard_normal((() if n is None else (n,)) + (3,))
+        return lambda: tf.apply(v)
+
+    @op("RigidTransform compose")
+    def _(R, mod, n):
+        a, b = rigid(mod, n), rigid(mod, n, 1)
+        return lambda: a * b
+
+    @op("RigidTransform inv")
+    def _(R, mod, n):
+        tf = rigid(mod, n)
+        return lambda: tf.inv()
+
+    return ops
+
+
+#: name -> make(R, mod, n)
+OPS = _ops()
+
+#: Methods that evaluate a transcendental function (target at N >= 10³: at least 1).
+TRANSCENDENTAL = ("as_euler", "from_euler", "as_rotvec", "from_rotvec", "as_mrp", "from_mrp", "magnitude",
+                  "pow", "mean", "as_davenport", "from_davenport", "approx_equal", "Slerp build", "Slerp call",
+                  "RotationSpline build", "RotationSpline call")
+#: Copies and products (target at N >= 10³: at least 0.5).
+COPIES = ("from_quat", "as_quat", "as_matrix", "from_matrix", "inv", "apply", "mul",
+          "RigidTransform apply", "RigidTransform compose", "RigidTransform inv")
+
+
+def make(lib, name, n):
+    """The zero-argument call of operation `name` at size `n` (None: single) for `lib`."""
+    mod = importlib.import_module(_MODULES[lib])
+    if lib == "scipy" and name.startswith("RigidTransform") and not hasattr(mod, "RigidTransform"):
+        raise NotImplementedError("this scipy has no RigidTransform")
+    return OPS[name](mod.Rotation, mod, n)
+
+
+class SizeSweep:
+    """Each operation at a few sizes: a single rotation, 100 and 10⁶ (float64).
+
+    asv times quatarray only (its history is what asv tracks); ``benchmarks.compare``
+    runs this class for scipy too (``lib='scipy'``), side by side."""
+
+    params = (list(OPS), ASV_SIZES, ["quatarray"])
+    param_names = ["op", "size", "lib"]
+    smoke_params = (list(OPS), ["single", "1"], list(_MODULES))   # tests/test_benchmarks.py, both libraries
+    timeout = 120
+
+    def setup(self, op, size, lib):
+        try:
+            self.call = make(lib, op, None if size == "single" else int(size))
+        except ImportError as exc:
+            raise NotImplementedError(f"{lib} is not installed ({exc})") from None
+
+    def time_op(self, op, size, lib):
+        """The operation `op` on a batch of `size` rotations."""
+        self.call()

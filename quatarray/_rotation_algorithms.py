@@ -1,0 +1,159 @@
+"""Algorithms on raw rotation arrays behind `Rotation`: the chordal mean, the reduction by
+symmetry groups, and `align_vectors` (Kabsch's SVD, and scipy's primary-pair method).
+
+The façade (`_rotation`) validates and wraps; the work is done here, on scalar-first
+quaternion arrays ``(..., 4)``, as scipy keeps these in its ``_rotation_xp.py`` backend.
+Conversions and products come from `_convert` and `_kernels`; nothing here imports the class.
+"""
+
+import warnings
+
+import numpy as np
+
+from . import _convert, _kernels
+from ._validate import float_array
+
+__all__ = ["mean", "reduce", "align"]
+
+
+def mean(q, weights, axes):
+    """Chordal L2 mean of rotations `q` (..., 4) over batch `axes` (sorted, non-negative),
+    with optional non-negative `weights` of the batch shape: the dominant eigenvector of
+    Σ wᵢ qᵢ qᵢᵀ, canonical, in `q`'s dtype (computed in float64)."""
+    batch = q.shape[:-1]
+    nb = len(batch)
+    # nan, inf and zero rows refused; rows of any magnitude normalised
+    q64 = _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name="rotations to average")
+    wq = q64 if weights is None else q64 * weights[..., None]
+    keep = tuple(a for a in range(nb) if a not in axes)
+    order = keep + axes + (nb,)
+    kshape = tuple(batch[a] for a in keep)
+    # components in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
+    qm = q64.transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
+    wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
+    _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
+    return _convert.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype)
+
+
+def reduce(p, left, right):
+    """Each rotation of `p` (..., 4) reduced to the smallest ``l p r`` over the rows l of
+    `left` (L, 4) and r of `right` (R, 4) (None: the identity only); returns the reduced
+    quaternions and the chosen indices (flat, one per rotation) into `left` and `right`."""
+    eye = np.array([[1.0, 0.0, 0.0, 0.0]], p.dtype)
+    ls = eye if left is None else left
+    rs = eye if right is None else right
+    pf = p.reshape(-1, 4)
+    if left is None or right is None:
+        # one side: |w| of c p (or p c) is |c · conj(p)|, a matrix product; the largest
+        # gives the smallest angle
+        score = np.abs((pf * np.array([1, -1, -1, -1], p.dtype)) @ (rs if left is None else ls).T)
+        best = score.argmax(axis=1)
+        zero = np.zeros_like(best)
+        li, ri = (zero, best) if left is None else (best, zero)
+    else:
+        # |w| of l p r = |(l p) · conj(r)|
+        lp = _kernels.multiply(ls[:, None], pf[None])                                 # (L, N, 4)
+        score = np.abs(np.einsum("lni,ri->nlr", lp, _kernels.conjugate(rs)))
+        best = score.reshape(score.shape[0], -1).argmax(axis=1)
+        li, ri = np.divmod(best, rs.shape[0])
+    reduced = pf if left is None else _kernels.multiply(ls[li], pf)
+    reduced = (reduced if right is None else _kernels.multiply(reduced, rs[ri])).reshape(p.shape)
+    return reduced, li, ri
+
+
+def align(a, b, weights, return_sensitivity):
+    """`align_vectors` on float64 arrays; returns (quat scalar-first, rssd, sensitivity or None)."""
+    a0 = float_array(a, "a")
+    b0 = float_array(b, "b")
+    dtype = np.result_type(a0.dtype, b0.dtype)
+    a2 = np.atleast_2d(a0).astype(np.float64)
+    b2 = np.atleast_2d(b0).astype(np.float64)
+    if a2.shape[-1] != 3:
+        raise ValueError(f"Expected input `a` to have shape (3,) or (N, 3), got {a0.shape}")
+    if b2.shape[-1] != 3:
+        raise ValueError(f"Expected input `b` to have shape (3,) or (N, 3), got {b0.shape}")
+    if a2.shape != b2.shape:
+        raise ValueError(f"Expected inputs `a` and `b` to have same shapes, got {a0.shape} and {b0.shape} respectively")
+    if a2.ndim > 2:
+        raise ValueError(f"Expected inputs `a` and `b` to have shape (3,) or (N, 3), got {a0.shape} "
+                         f"and {b0.shape} respectively")
+    n = a2.shape[0]
+    if n == 0:
+        raise ValueError("expected at least one pair of vectors in a and b, got 0")
+    if not (np.isfinite(a2).all() and np.isfinite(b2).all()):
+        raise ValueError("expected finite values in a and b, got nan or inf")
+    if weights is None:
+        w = np.ones(n)
+    else:
+        w = float_array(weights, "weights").astype(np.float64)
+        if w.ndim != 1:
+            raise ValueError(f"Expected `weights` to be 1 dimensional, got shape {w.shape}")
+        if n > 1 and w.shape[0] != n:
+            raise ValueError(f"Expected `weights` to have number of values equal to number of input "
+                             f"vectors, got {w.shape[0]} values and {n} vectors")
+        if np.isnan(w).any() or (w < 0).any():
+            raise ValueError("`weights` may not contain negative values: expected non-negative weights")
+    inf = np.array([True]) if n == 1 else np.isposinf(w)
+    n_inf = int(inf.sum())
+    if n_inf > 1:
+        raise ValueError("Only one infinite weight is allowed")
+    if n_inf == 1:
+        if return_sensitivity:
+            raise ValueError("Cannot return sensitivity matrix with an infinite weight or one vector pair")
+        q, rssd = _align_primary(a2, b2, w, inf)
+        return q.astype(dtype), rssd, None
+    big = (w[:, None] * a2).T @ b2
+    u, s, vt = np.linalg.svd(big)
+    if np.linalg.det(u @ vt) < 0:
+        s[-1] = -s[-1]
+        u[:, -1] = -u[:, -1]
+    rot = u @ vt
+    if s[1] + s[2] < 1e-16 * s[0]:
+        warnings.warn("Optimal rotation is not uniquely or poorly defined for the given sets of vectors.",
+                      UserWarning, stacklevel=3)
+    rssd = np.sqrt(max(np.sum(w * np.sum(b2 ** 2 + a2 ** 2, axis=1)) - 2 * np.sum(s), 0.0))
+    sens = None
+    if return_sensitivity:
+        zeta = (s[0] + s[1]) * (s[1] + s[2]) * (s[2] + s[0])
+        kappa = s[0] * s[1] + s[1] * s[2] + s[2] * s[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sens = np.mean(w) / zeta * (kappa * np.eye(3) + big @ big.T)
+    q = _convert.from_matrix(rot, assume_valid=True)
+    return q.astype(dtype), rssd, sens
+
+
+def _align_primary(a, b, w, inf):
+    """The infinite-weight (or single-pair) case: align the primary pair exactly,
+    then turn about it to fit the others best (scipy's algorithm)."""
+    a_pri, b_pri = a[inf][0], b[inf][0]
+    na, nb = np.linalg.norm(a_pri), np.linalg.norm(b_pri)
+    if na == 0 or nb == 0:
+        raise ValueError("Cannot align zero length primary vectors")
+    a_pri, b_pri = a_pri / na, b_pri / nb
+    # shortest-arc rotation taking b_pri to a_pri (antiparallel: π about any orthogonal axis)
+    cross = np.cross(b_pri, a_pri)
+    theta = np.arctan2(np.linalg.norm(cross), a_pri @ b_pri)
+    if np.linalg.norm(cross) == 0 and theta > np.pi / 2:
+        i = int(np.argmin(np.abs(a_pri)))
+        axis = np.zeros(3)
+        axis[i - 1], axis[i - 2] = a_pri[i - 2], -a_pri[i - 1]
+        axis /= np.linalg.norm(axis)
+    else:
+        norm = np.linalg.norm(cross)
+        axis = cross / norm if norm > 0 else np.array([1.0, 0, 0])
+    q_pri = _convert.from_rotvec(axis * theta)
+    q = q_pri
+    if a.shape[0] > 1:
+        sec = ~inf
+        a_sec, b_sec, w_sec = a[sec], b[sec], w[sec]
+        c_sec = _kernels.rotate(q_pri, b_sec)
+        sin_term = np.einsum("ij,j->i", np.cross(c_sec, a_sec), a_pri)
+        cos_term = np.einsum("ij,ij->i", c_sec, a_sec) - (c_sec @ a_pri) * (a_sec @ a_pri)
+        phi = np.arctan2(np.sum(w_sec * sin_term), np.sum(w_sec * cos_term))
+        q = _kernels.multiply(_convert.from_rotvec(phi * a_pri), q_pri)
+    w_zero = w.copy()
+    if a.shape[0] > 1 or np.isposinf(w[0]):
+        w_zero[inf] = 0
+    est = _kernels.rotate(q, b)
+    rssd = np.sqrt(np.sum(w_zero @ (a - est) ** 2))
+    return q, rssd

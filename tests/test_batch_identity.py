@@ -1,0 +1,253 @@
+"""The same element gives the same bits whatever the batch around it.
+
+For every method of `QuatArray`, `Rotation`, `Slerp`, `RotationSpline`, `RigidTransform`,
+the interpolation functions and `Track`, in float32 and float64: element i of a batch
+equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
+inside the batch split into blocks of two elements run on two threads.  The batches mix
+random rotations with near-identity, near-half-turn and gimbal-lock rotations, and (where
+the method accepts any magnitude) quaternions scaled by extreme powers of two.  There is no
+Python-float path for single rotations: a single rotation runs the batch's kernels.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import quatarray
+from quatarray import (QuatArray, RigidTransform, Rotation, RotationSpline, Slerp, Track, _blocks, bezier, lerp,
+                       nlerp, slerp, squad)
+
+KINDS = ("random", "identity", "half turn", "gimbal xyz", "gimbal zyz")
+
+
+def _rows(seed, kinds, dtype, scale):
+    """Quaternions (n, 4), one per kind; with `scale`, each multiplied by a random power of two
+    (up to 2**±900 in float64, 2**±50 in float32)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for kind in kinds:
+        q = rng.standard_normal(4)
+        if kind == "identity":
+            q = np.array([1.0, *(rng.standard_normal(3) * 10.0 ** rng.uniform(-17, -4))])
+        elif kind == "half turn":
+            q[0] = rng.standard_normal() * 10.0 ** rng.uniform(-17, -4)
+        elif kind.startswith("gimbal"):
+            seq = "xyz" if kind.endswith("xyz") else "ZYZ"
+            mid = (np.pi / 2 if seq == "xyz" else 0.0) * rng.choice([-1, 1]) + rng.standard_normal() * 1e-9
+            q = Rotation.from_euler(seq, [rng.uniform(-3, 3), mid, rng.uniform(-3, 3)]).as_quat(scalar_first=True)
+        q = q / np.linalg.norm(q)
+        if scale:
+            q = np.ldexp(q, int(rng.integers(-900, 900) if dtype == np.float64 else rng.integers(-50, 50)))
+        out.append(q)
+    return np.array(out).astype(dtype)
+
+
+def batches():
+    """(q, i): a batch of 1 to 12 quaternions of mixed kinds and an index into it."""
+    return st.tuples(st.integers(0, 2**32 - 1), st.lists(st.sampled_from(KINDS), min_size=1, max_size=12),
+                     st.booleans()).flatmap(
+        lambda a: st.tuples(st.just(a), st.integers(0, len(a[1]) - 1)))
+
+
+def _same(got, want, name):
+    got, want = np.asarray(got), np.asarray(want)
+    assert got.dtype == want.dtype, name
+    assert got.shape == want.shape, name
+    np.testing.assert_array_equal(got, want, err_msg=name, strict=True)
+
+
+def _split(f):
+    """`f()` with blocks of two elements, run on two threads."""
+    saved = _blocks.BLOCK, _blocks.PARALLEL_MIN
+    _blocks.BLOCK, _blocks.PARALLEL_MIN = 2, 1
+    try:
+        with quatarray.num_threads(2):
+            return f()
+    finally:
+        _blocks.BLOCK, _blocks.PARALLEL_MIN = saved
+
+
+def check(ops, args, i):
+    """For each (name, f): f(*args) at element i equals f on element i alone, as a batch
+    of one, and in the split batch.  `args` are arrays whose first axis is the batch."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")   # gimbal lock, overflow
+        for name, f in ops:
+            whole = _raw(f(*args))
+            _same(_raw(f(*(a[i:i + 1] for a in args)))[0], whole[i], f"{name}: batch of one")
+            alone = _raw(f(*(a[i] for a in args)))
+            if name == "approx_equal":   # scipy's shape (1,) for two single rotations
+                alone = alone.reshape(())
+            _same(alone, whole[i], f"{name}: alone")
+            _same(_raw(_split(lambda: f(*args))), whole, f"{name}: blocks of 2 on 2 threads")
+
+
+def _raw(x):
+    if isinstance(x, Rotation):
+        return x.as_quat(scalar_first=True)
+    if isinstance(x, RigidTransform):
+        return x.as_matrix()
+    return np.asarray(x.view(np.ndarray) if isinstance(x, QuatArray) else x)
+
+
+DTYPE = pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+
+
+@DTYPE
+@given(b=batches())
+def test_quatarray_methods(dtype, b):
+    (seed, kinds, scale), i = b
+    q = _rows(seed, kinds, dtype, scale)
+    p = np.roll(_rows(seed + 1, kinds, dtype, False), 1, axis=0)
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(-2, 2, len(q)).astype(dtype)
+    v = rng.standard_normal((len(q), 3)).astype(dtype)
+    axes = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
+    Q = QuatArray
+    check([("conj", lambda q: Q(q).conj()), ("norm", lambda q: Q(q).norm()),
+           ("normalized", lambda q: Q(q).normalized()), ("inverse", lambda q: Q(q).inverse()),
+           ("exp", lambda q: Q(q).exp()), ("log", lambda q: Q(q).log()), ("power 0.3", lambda q: Q(q).power(0.3)),
+           ("as_matrix", lambda q: Q(q).as_matrix()), ("as_rotvec", lambda q: Q(q).as_rotvec()),
+           ("as_mrp", lambda q: Q(q).as_mrp()), ("as_euler xyz", lambda q: Q(q).as_euler("xyz")),
+           ("as_euler ZYZ", lambda q: Q(q).as_euler("ZYZ", degrees=True)),
+           ("as_davenport", lambda q: Q(q).as_davenport(axes, "e"))], (q,), i)
+    check([("power t", lambda q, t: Q(q).power(t))], (q, t), i)
+    check([("dot", lambda q, p: Q(q).dot(Q(p))), ("product", lambda q, p: Q(q) * Q(p))], (q, p), i)
+    check([("rotate", lambda q, v: Q(q).rotate(v))], (q, v), i)
+    m, rv, mrp = Q(q).as_matrix(), Q(q).as_rotvec(), Q(q).as_mrp()
+    eu = Q(q).as_euler("xyz", suppress_warnings=True)
+    check([("from_matrix", lambda m: Q.from_matrix(m)), ], (m,), i)
+    check([("from_rotvec", lambda r: Q.from_rotvec(r))], (rv,), i)
+    check([("from_mrp", lambda r: Q.from_mrp(r))], (mrp,), i)
+    check([("from_euler", lambda e: Q.from_euler("xyz", e)),
+           ("from_davenport", lambda e: Q.from_davenport(axes, "e", e))], (eu,), i)
+
+
+@DTYPE
+@given(b=batches())
+def test_rotation_methods(dtype, b):
+    (seed, kinds, scale), i = b
+    q = _rows(seed, kinds, dtype, scale)
+    p = _rows(seed + 1, kinds, dtype, False)
+    rng = np.random.default_rng(seed)
+    v = rng.standard_normal((len(q), 3)).astype(dtype)
+    n = rng.uniform(-3, 3, len(q)).astype(dtype)
+    axes = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
+    R = Rotation
+    ops = [("from_quat", lambda q: R.from_quat(q)), ("from_quat scalar_first", lambda q: R.from_quat(q, scalar_first=True)),
+           ("as_quat", lambda q: R.from_quat(q).as_quat()),
+           ("as_quat canonical", lambda q: R.from_quat(q).as_quat(canonical=True)),
+           ("as_matrix", lambda q: R.from_quat(q).as_matrix()), ("as_rotvec", lambda q: R.from_quat(q).as_rotvec()),
+           ("as_rotvec degrees", lambda q: R.from_quat(q).as_rotvec(degrees=True)),
+           ("as_mrp", lambda q: R.from_quat(q).as_mrp()), ("inv", lambda q: R.from_quat(q).inv()),
+           ("magnitude", lambda q: R.from_quat(q).magnitude()), ("pow 0.3", lambda q: R.from_quat(q) ** 0.3),
+           ("pow -2", lambda q: R.from_quat(q) ** -2)]
+    ops += [(f"as_euler {seq}", lambda q, seq=seq: R.from_quat(q).as_euler(seq)) for seq in ("xyz", "ZYZ", "zxy")]
+    ops.append(("as_davenport", lambda q: R.from_quat(q).as_davenport(axes, "i")))
+    check(ops, (q,), i)
+    check([("mul", lambda q, p: R.from_quat(q) * R.from_quat(p)),
+           ("approx_equal", lambda q, p: R.from_quat(q).approx_equal(R.from_quat(p), atol=1.0))], (q, p), i)
+    check([("apply", lambda q, v: R.from_quat(q).apply(v)),
+           ("apply inverse", lambda q, v: R.from_quat(q).apply(v, inverse=True))], (q, v), i)
+    check([("pow array", lambda q, n: R.from_quat(q) ** n)], (q, n), i)
+    r = R.from_quat(q)
+    check([("from_matrix", lambda m: R.from_matrix(m))], (r.as_matrix(),), i)
+    check([("from_rotvec", lambda x: R.from_rotvec(x))], (r.as_rotvec(),), i)
+    check([("from_mrp", lambda x: R.from_mrp(x))], (r.as_mrp(),), i)
+    check([("from_euler", lambda x: R.from_euler("xyz", x)),
+           ("from_euler degrees", lambda x: R.from_euler("ZYZ", x, degrees=True)),
+           ("from_davenport", lambda x: R.from_davenport(axes, "e", x))], (r.as_euler("xyz", suppress_warnings=True),), i)
+
+
+@DTYPE
+@given(b=batches())
+def test_interpolation(dtype, b):
+    (seed, kinds, _), i = b
+    q0 = _rows(seed, kinds, dtype, False)
+    q1 = _rows(seed + 1, kinds, dtype, False)
+    a = _rows(seed + 2, kinds, dtype, False)
+    c = _rows(seed + 3, kinds, dtype, False)
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(-0.25, 1.25, len(q0)).astype(dtype)
+    t[::3] = rng.choice([0.0, 0.5, 1.0])
+    check([("lerp", lerp), ("nlerp", nlerp), ("slerp", slerp),
+           ("slerp long way", lambda p, q, t: slerp(p, q, t, shortest=False))], (q0, q1, t), i)
+    check([("squad", squad), ("bezier", bezier)], (q0, a, c, q1, t), i)
+    keys = _rows(seed + 4, ["random", "identity", "half turn", "random", "gimbal xyz"], dtype, False)
+    times = np.array([0.0, 0.5, 1.5, 2.0, 4.0], dtype)
+    at = rng.uniform(0, 4, len(q0)).astype(dtype)
+    at[::4] = times[rng.integers(0, 5)]
+    ops = [("Slerp", lambda x: Slerp(times, Rotation.from_quat(keys, scalar_first=True))(x)),
+           ("RotationSpline", lambda x: RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))(x)),
+           ("RotationSpline rate", lambda x: RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))(x, 1))]
+    ops += [(f"Track {m}", lambda x, m=m: Track(times, keys, method=m)(x))
+            for m in ("linear", "slerp", "squad", "bezier", "spline")]
+    check(ops, (at,), i)
+
+
+@DTYPE
+@given(b=batches())
+def test_rigid_transforms(dtype, b):
+    (seed, kinds, _), i = b
+    q = _rows(seed, kinds, dtype, False)
+    p = _rows(seed + 1, kinds, dtype, False)
+    rng = np.random.default_rng(seed)
+    tr = (rng.standard_normal((len(q), 3)) * 10.0 ** rng.uniform(-3, 3)).astype(dtype)
+    v = rng.standard_normal((len(q), 3)).astype(dtype)
+
+    def tf(q, tr):
+        return RigidTransform.from_components(tr, Rotation.from_quat(q, scalar_first=True))
+
+    check([("as_matrix", tf), ("inv", lambda q, tr: tf(q, tr).inv()),
+           ("as_exp_coords", lambda q, tr: tf(q, tr).as_exp_coords()),
+           ("as_dual_quat", lambda q, tr: tf(q, tr).as_dual_quat())], (q, tr), i)
+    check([("apply", lambda q, tr, v: tf(q, tr).apply(v)),
+           ("apply inverse", lambda q, tr, v: tf(q, tr).apply(v, inverse=True))], (q, tr, v), i)
+    check([("compose", lambda q, tr, p: tf(q, tr) * tf(p, 2 * tr))], (q, tr, p), i)
+    m = tf(q, tr).as_matrix()
+    check([("from_matrix", lambda m: RigidTransform.from_matrix(m))], (m,), i)
+
+
+@DTYPE
+def test_long_batches_across_real_blocks(dtype):
+    """Batches longer than one block (at the engine's own block size, on the default
+    threads): the rows at either side of each block boundary, alone, give the batch's bits."""
+    n = _blocks.block_size(dtype) + 5
+    rng = np.random.default_rng(7)
+    q = rng.standard_normal((n, 4)).astype(dtype)
+    p = rng.standard_normal((n, 4)).astype(dtype)
+    v = rng.standard_normal((n, 3)).astype(dtype)
+    t = rng.uniform(0, 1, n).astype(dtype)
+    Q, R = QuatArray, Rotation
+    cases = [("product", lambda q, p: Q(q) * Q(p), (q, p)), ("normalized", lambda q: Q(q).normalized(), (q,)),
+             ("log", lambda q: Q(q).log(), (q,)), ("as_matrix", lambda q: R.from_quat(q).as_matrix(), (q,)),
+             ("as_euler", lambda q: R.from_quat(q).as_euler("zyx"), (q,)),
+             ("apply", lambda q, v: R.from_quat(q).apply(v), (q, v)), ("slerp", slerp, (q, p, t)),
+             ("rigid apply", lambda q, v: RigidTransform.from_components(v, R.from_quat(q)).apply(v), (q, v))]
+    edge = _blocks.block_size(dtype)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, f, args in cases:
+            whole = _raw(f(*args))
+            for i in (0, edge - 1, edge, n - 1):
+                _same(_raw(f(*(a[i] for a in args))), whole[i], f"{name} at {i}")
+
+
+@DTYPE
+def test_dask_chunks_give_the_memory_bits(dtype):
+    """Chunked (Dask) evaluation runs the same kernels on each chunk: the in-memory bits."""
+    da = pytest.importorskip("dask.array")
+    from quatarray import dask as qd
+    rng = np.random.default_rng(3)
+    q = rng.standard_normal((50, 4)).astype(dtype)
+    Q = da.from_array(q, chunks=(7, 4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, lazy, memory in (("as_euler", qd.as_euler(Q, "xyz"), QuatArray(q).as_euler("xyz")),
+                                   ("as_matrix", qd.as_matrix(Q), QuatArray(q).as_matrix()),
+                                   ("log", qd.log(Q), QuatArray(q).log()),
+                                   ("product", qd.multiply(Q, Q[::-1]), QuatArray(q) * QuatArray(q[::-1]))):
+            _same(lazy.compute(scheduler="synchronous"), _raw(memory), name)
