@@ -124,7 +124,10 @@ def write_csv(path, keyframes, *, scalar_last=False):
     without ``names`` they are called ``q`` (no batch) or ``q0, q1, ...``
     (flattened batch index).  Values are written in ``keyframes.style``
     (decimals, line endings, separator), by default with the digits that read
-    back to the same value; times always read back to the same value.
+    back to the same value; times always read back to the same value.  When
+    ``keyframes.copied`` marks the rows copied from a file (as
+    `resample_keyframes` does), only those keep the style's decimals: the
+    others are written with the digits that read back to the same value.
 
     Examples
     --------
@@ -158,5 +161,6 @@ def write_csv(path, keyframes, *, scalar_last=False):
     with atomic_write(path, newline=style.newline) as f:
         f.write(header.getvalue() + "\n")
         write_rows(f, flat.reshape(len(flat), 4 * len(names)).astype(dtype, copy=False), style,
-                   first=times.astype(dtype, copy=False))
+                   first=times.astype(dtype, copy=False),
+                   exact=None if keyframes.copied is None else ~np.asarray(keyframes.copied, bool))
 

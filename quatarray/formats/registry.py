@@ -33,9 +33,10 @@ class Request:
     scheduler: str = None
     progress: bool = None
 
-    def grid(self, t0, t1, per_frame):
-        """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first)."""
-        return fps_times(t0, t1, self.fps, per_frame) if self.times is None else self.times
+    def grid(self, t0, t1, per_frame, onto=None):
+        """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first; a time
+        within a millionth of a frame of a key time in `onto` is that key time)."""
+        return fps_times(t0, t1, self.fps, per_frame, onto) if self.times is None else self.times
 
     def style(self, style):
         """`style` (the input's, or None) with the decimals `precision` asks for."""
@@ -49,7 +50,9 @@ def _read_csv(path, request):
 
 
 def _write_csv(path, data, request):
-    csv.write_csv(path, dataclasses.replace(data, style=request.style(data.style)), scalar_last=request.scalar_last)
+    if request.precision is not None:   # every value as asked, interpolated or copied
+        data = dataclasses.replace(data, style=request.style(data.style), copied=None)
+    csv.write_csv(path, data, scalar_last=request.scalar_last)
 
 
 def _read_npz(path, request):
@@ -62,7 +65,7 @@ def _write_npz(path, data, request):
 
 def _resample_keyframes(src, dst, kind_in, kind_out, request):
     data = FORMATS[kind_in].read(src, request)
-    t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size)
+    t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size, onto=data.times)
     out = resample_keyframes(data, t, method=request.method, extrapolate=request.extrapolate)
     FORMATS[kind_out].write(dst, out, request)
     return len(data.times), len(t)

@@ -176,7 +176,7 @@ def _digits(ranges):
     return top, low != top
 
 
-def write_rows(f, rows, style=None, sep=None, first=None):
+def write_rows(f, rows, style=None, sep=None, first=None, exact=None):
     """Write a 2-D float array as text, one line per row.
 
     Without ``style.decimals``, float64 is written as ``repr`` writes it (the
@@ -184,11 +184,21 @@ def write_rows(f, rows, style=None, sep=None, first=None):
     significant digits.  With it, values are written with that many decimals
     (trailing zeros dropped when ``style.trim``), and a value that rounds to
     zero without being zero is written as plain zero, not ``-0.000``.
+    `exact`, a boolean mask of rows, writes those rows as without
+    ``style.decimals`` (an interpolated value among keys copied from a file).
     `first`, a column written before `rows` (CSV times), is written with
     ``style.time_decimals`` where that reads back to the same number, else
     exactly.
     """
     style = style or TextStyle()
+    if exact is not None and style.decimals is not None and np.any(exact):
+        exact = np.asarray(exact, bool)
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(exact)) + 1, [len(rows)]])
+        plain = dataclasses.replace(style, decimals=None, trim=False)
+        for start, stop in zip(bounds[:-1], bounds[1:]):   # runs of rows in one style
+            write_rows(f, rows[start:stop], plain if exact[start] else style, sep,
+                       None if first is None else first[start:stop])
+        return
     sep = style.delimiter if sep is None else sep
     fmt = ("%r" if rows.dtype == np.float64 else "%.9g") if style.decimals is None else f"%.{style.decimals}f"
     line = sep.join([fmt] * rows.shape[1]) + "\n"
