@@ -412,7 +412,7 @@ def test_size_is_checked_before_allocating():
 
 def test_extrapolation_error_names_the_option(rng):
     kf = Keyframes(np.array([0.0, 1.0]), smooth_keys(rng, 2))
-    with pytest.raises(ValueError, match=r"--extrapolate clamp or extend \(extrapolate='clamp'"):
+    with pytest.raises(ValueError, match=r"extrapolate with extrapolate='clamp' or 'extend'$"):
         resample_keyframes(kf, np.array([2.0]))
 
 

@@ -7,12 +7,16 @@
   looking at lines one by one only once that parse has failed, to name the bad
   one;
 - `check_numbers`, `check_query`, `check_size`: the checks every format shares;
-- `echo`: a value quoted in a message, cut to about 60 characters.
+- `echo`: a value quoted in a message, cut to about 60 characters;
+- `option`: an option named as the caller spells it (``--force`` on the
+  command line, ``force=True`` in Python; `command_line` switches).
 
 `FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
 shared inside the package.
 """
 
+import contextlib
+import contextvars
 import dataclasses
 import os
 import re
@@ -61,6 +65,34 @@ def echo(value, limit=60):
     if len(value) <= limit:
         return repr(value)
     return repr(value[:limit - 10] + "...") + f" ({len(value)} characters)"
+
+
+_COMMAND_LINE = contextvars.ContextVar("quatarray_command_line", default=False)
+
+
+@contextlib.contextmanager
+def command_line():
+    """Within this block, `option` names options as the ``quatarray`` command spells them."""
+    token = _COMMAND_LINE.set(True)
+    try:
+        yield
+    finally:
+        _COMMAND_LINE.reset(token)
+
+
+def option(name, *values):
+    """An option as a message names it: ``--name v1 or v2`` in `command_line`, else ``name=v1 or v2``.
+
+    >>> from quatarray.formats.text import command_line, option
+    >>> option("force"), option("extrapolate", "clamp", "extend")
+    ('force=True', "extrapolate='clamp' or 'extend'")
+    >>> with command_line():
+    ...     option("force"), option("extrapolate", "clamp", "extend")
+    ('--force', '--extrapolate clamp or extend')
+    """
+    if _COMMAND_LINE.get():
+        return " ".join(["--" + name.replace("_", "-"), " or ".join(map(str, values))]).strip()
+    return f"{name}=" + (" or ".join(map(repr, values)) if values else "True")
 
 
 # --------------------------------------------------------------------------- how numbers were printed
@@ -276,7 +308,7 @@ def check_query(times, t, extrapolate):
         bad = t[(t < times[0]) | (t > times[-1])][0]
         raise ValueError(f"query time {float(bad)!r} is outside the key times [{float(times[0])!r}, "
                          f"{float(times[-1])!r}]; to sample there, extrapolate with "
-                         "--extrapolate clamp or extend (extrapolate='clamp' or 'extend' in Python)")
+                         f"{option('extrapolate', 'clamp', 'extend')}")
 
 
 def check_size(frames, per_frame, what):
