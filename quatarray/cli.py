@@ -21,11 +21,12 @@ import os
 import signal
 import sys
 import time
+import warnings
 
 import numpy as np
 
-from .formats import (FORMATS, FormatError, example_path, format_of, fps_times, read_bvh, read_csv, resample_file,
-                      resample_motion, write_bvh, write_csv, write_npz)
+from .formats import (FORMATS, FormatError, NonUnitKeyWarning, example_path, format_of, fps_times, read_bvh,
+                      read_csv, resample_file, resample_motion, write_bvh, write_csv, write_npz)
 from .formats.atomic import atomic_write
 from .formats.text import command_line, echo
 from .interpolate import EXTRAPOLATE, METHODS as _TRACK_METHODS, Track
@@ -223,7 +224,9 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     where = args.input if args.command == "resample" else args.output
     try:
-        with _exit_on_sigterm(), command_line():
+        with _exit_on_sigterm(), command_line(), warnings.catch_warnings():
+            warnings.simplefilter("always", NonUnitKeyWarning)
+            warnings.showwarning = _show_warning
             return args.run(args)
     except FormatError as exc:
         message = str(exc)
@@ -239,6 +242,10 @@ def main(argv=None):
         return 130
     print("quatarray: error: " + " ".join(message.split()), file=sys.stderr)
     return 2
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print("quatarray: warning: " + " ".join(str(message).split()), file=sys.stderr)
 
 
 class _Terminated(SystemExit):

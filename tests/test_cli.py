@@ -632,3 +632,12 @@ def test_messages_name_options_as_the_caller_spells_them(tmp_path):
         resample_file(example_path("arm.csv"), tmp_path / "o.csv", fps=2)
     err = one_line_error(run("resample", example_path("arm.csv"), "-o", example_path("arm.csv"), "--fps", "2"))
     assert "give --force to replace it" in err and "force=True" not in err
+
+
+def test_non_unit_keys_are_a_warning_on_the_command_line(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text("time,q.w,q.x,q.y,q.z\n0,1,0,0,0\n1,0,3,0,0\n2,0,0,1,0\n")
+    res = run("resample", src, "-o", tmp_path / "out.csv", "--fps", "2")
+    assert res.returncode == 0
+    assert res.stderr == f"quatarray: warning: {src}:3: track 'q': key of norm 3 is normalised (1 key in all " \
+                         "further from norm 1 than 0 decimals explain: 1)\n"

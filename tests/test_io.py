@@ -552,3 +552,34 @@ def test_fps_grid_lands_on_key_times_within_rounding():
     t = fps_times(0.7, 1.3, 10, onto=keys)
     np.testing.assert_array_equal(t[np.isin(plain.round(9), keys)], keys)
     np.testing.assert_array_equal(t[5], plain[5])      # 1.2: no key there, the grid as computed
+
+
+@pytest.mark.parametrize("decimals, keys, warns", [
+    (0, "1,1,0,0", False),                # 0.7071, 0.7071 written with 0 decimals: explained
+    (2, "0.71,0.71,0.00,0.00", False),
+    (2, "0.80,0.80,0.00,0.00", True),     # norm 1.13: 2 decimals explain 0.01
+    (9, "0.862453391,0.506136493,0.000000000,0.000000000", False),
+    (4, "0.5000,0.5000,0.5000,0.5100", True),
+])
+def test_non_unit_keys_warn_once_per_file(tmp_path, decimals, keys, warns):
+    import warnings
+
+    from quatarray.formats import NonUnitKeyWarning
+    text = "time,a.w,a.x,a.y,a.z,b.w,b.x,b.y,b.z\n" + "".join(
+        f"{t},{keys},{keys}\n" for t in range(3))
+    path = write_text(tmp_path / "k.csv", text)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        read_csv(path)
+    assert len(seen) == (1 if warns else 0)
+    if warns:
+        assert issubclass(seen[0].category, NonUnitKeyWarning)
+        assert str(seen[0].message).startswith(f"{path}:2: track 'a': key of norm ")
+        assert "(6 keys in all further from norm 1 than" in str(seen[0].message)
+
+
+def test_non_unit_npz_keys_warn(tmp_path):
+    from quatarray.formats import NonUnitKeyWarning
+    np.savez(tmp_path / "k.npz", times=[0.0, 1.0], keys=[[1.0, 0, 0, 0], [0, 2.0, 0, 0]])
+    with pytest.warns(NonUnitKeyWarning, match=r"keys\[1\]: key of norm 2 is normalised \(1 key in all"):
+        read_npz(tmp_path / "k.npz")

@@ -15,7 +15,7 @@ import numpy as np
 
 from .atomic import atomic_write
 from .keyframes import Keyframes
-from .text import FormatError, TextStyle, check_numbers, echo, load_table, measure_style, row_line, write_rows
+from .text import FormatError, TextStyle, check_numbers, check_unit, echo, load_table, measure_style, row_line, write_rows
 
 __all__ = ["read_csv", "write_csv"]
 
@@ -85,6 +85,13 @@ def read_csv(path, *, scalar_last=False):
         values, times not strictly increasing or a zero quaternion; the message
         names the line.
 
+    Warns
+    -----
+    NonUnitKeyWarning
+        Once per file, naming the first key whose norm differs from 1 by more
+        than the file's decimals explain (``10**-decimals``); keys are
+        returned as read and normalised where they are interpolated.
+
     Examples
     --------
     >>> from quatarray.formats import read_csv, example_path
@@ -114,6 +121,7 @@ def read_csv(path, *, scalar_last=False):
 
     check_numbers(times, keys, path, where)
     style = measure_style(path, 1, ncols, delimiter)
+    check_unit(keys, path, where, style.decimals)
     return Keyframes(times, np.ascontiguousarray(keys), names, style)
 
 

@@ -300,6 +300,35 @@ def check_numbers(times, keys, path, where):
         raise FormatError(f"{at}zero quaternion (cannot be a rotation)", path, line)
 
 
+class NonUnitKeyWarning(UserWarning):
+    """Keys whose norm differs from 1 by more than their written precision explains (they are normalised)."""
+
+
+def check_unit(keys, path, where, decimals=None):
+    """Warn once, naming the first such key, if keys are further from unit norm than their text explains.
+
+    Values written with `decimals` decimals are each within ``0.5 * 10**-decimals``
+    of what was meant, so the norm of a unit quaternion so written is within
+    ``10**-decimals`` of 1.  Without `decimals` (binary floats, or text that
+    reads back exactly) only float rounding is explained (8 eps of the dtype).
+    `where(i, j)` names row `i`, flat track `j` as for `check_numbers`.
+    """
+    flat = keys.reshape(len(keys), -1, 4)
+    eps = np.finfo(keys.dtype if keys.dtype.kind == "f" else np.float64).eps
+    allowed = 8 * eps + (0.0 if decimals is None else 10.0 ** -decimals)
+    off = np.abs(np.sqrt(np.einsum("...i,...i->...", flat, flat)) - 1)
+    bad = off > allowed
+    if bad.any():
+        i, j = np.unravel_index(np.argmax(bad), bad.shape)
+        line, at = where(int(i), int(j))
+        count = int(bad.sum())
+        explained = f"{decimals} decimals explain" if decimals is not None else "float rounding explains"
+        norm = float(np.linalg.norm(flat[i, j]))
+        warnings.warn(str(FormatError(
+            f"{at}key of norm {norm:.9g} is normalised ({count} key{'s' if count != 1 else ''} in all further "
+            f"from norm 1 than {explained}: {allowed:.2g})", path, line)), NonUnitKeyWarning, stacklevel=3)
+
+
 def check_query(times, t, extrapolate):
     """At least two keys, and with ``extrapolate="raise"`` every query time within the keys."""
     if len(times) < 2:
