@@ -640,4 +640,4 @@ def test_non_unit_keys_are_a_warning_on_the_command_line(tmp_path):
     res = run("resample", src, "-o", tmp_path / "out.csv", "--fps", "2")
     assert res.returncode == 0
     assert res.stderr == f"quatarray: warning: {src}:3: track 'q': key of norm 3 is normalised (1 key in all " \
-                         "further from norm 1 than 0 decimals explain: 1)\n"
+                         "further from norm 1 than its decimals explain: 1)\n"

@@ -560,13 +560,14 @@ def test_fps_grid_lands_on_key_times_within_rounding():
     (2, "0.80,0.80,0.00,0.00", True),     # norm 1.13: 2 decimals explain 0.01
     (9, "0.862453391,0.506136493,0.000000000,0.000000000", False),
     (4, "0.5000,0.5000,0.5000,0.5100", True),
+    (4, "1,1,0,0", False),                # a key of 0 decimals among keys of 4 (a %g-style file)
 ])
 def test_non_unit_keys_warn_once_per_file(tmp_path, decimals, keys, warns):
     import warnings
 
     from quatarray.formats import NonUnitKeyWarning
     text = "time,a.w,a.x,a.y,a.z,b.w,b.x,b.y,b.z\n" + "".join(
-        f"{t},{keys},{keys}\n" for t in range(3))
+        f"{t},{keys},{keys}\n" for t in range(3)) + "3,0.5000,0.5000,0.5000,0.5000,1,0,0,0\n"
     path = write_text(tmp_path / "k.csv", text)
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")

@@ -15,7 +15,8 @@ import numpy as np
 
 from .atomic import atomic_write
 from .keyframes import Keyframes
-from .text import FormatError, TextStyle, check_numbers, check_unit, echo, load_table, measure_style, row_line, write_rows
+from .text import (FormatError, TextStyle, check_numbers, check_unit, echo, load_table, measure_style, row_line,
+                   token_decimals, write_rows)
 
 __all__ = ["read_csv", "write_csv"]
 
@@ -121,8 +122,19 @@ def read_csv(path, *, scalar_last=False):
 
     check_numbers(times, keys, path, where)
     style = measure_style(path, 1, ncols, delimiter)
-    check_unit(keys, path, where, style.decimals)
+    check_unit(keys, path, where, style.decimals, lambda: _key_decimals(path, len(rows), len(names)))
     return Keyframes(times, np.ascontiguousarray(keys), names, style)
+
+
+def _key_decimals(path, nrows, ntracks):
+    """Decimals of each key of a CSV file (the most of its four values), or None if the file's numbers
+    do not line up as (rows, 1 + 4 * tracks)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    decimals = token_decimals(data[data.find(b"\n") + 1:])
+    if decimals.size != nrows * (1 + 4 * ntracks):
+        return None
+    return decimals.reshape(nrows, -1)[:, 1:].reshape(nrows, ntracks, 4).max(axis=-1)
 
 
 def write_csv(path, keyframes, *, scalar_last=False):

@@ -31,7 +31,7 @@ def read_npz(path):
     -----
     NonUnitKeyWarning
         Once per file, naming the first key whose norm differs from 1 by more
-        than float rounding (8 eps of its dtype) explains.
+        than ``1e-6`` (what 6 decimals would explain).
 
     Examples
     --------

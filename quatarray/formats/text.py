@@ -304,29 +304,39 @@ class NonUnitKeyWarning(UserWarning):
     """Keys whose norm differs from 1 by more than their written precision explains (they are normalised)."""
 
 
-def check_unit(keys, path, where, decimals=None):
+def check_unit(keys, path, where, decimals=None, per_key=None):
     """Warn once, naming the first such key, if keys are further from unit norm than their text explains.
 
     Values written with `decimals` decimals are each within ``0.5 * 10**-decimals``
     of what was meant, so the norm of a unit quaternion so written is within
     ``10**-decimals`` of 1.  Without `decimals` (binary floats, or text that
-    reads back exactly) only float rounding is explained (8 eps of the dtype).
+    reads back exactly) ``1e-6`` is allowed, as for 6 decimals: keys stored
+    from such text, or normalised in float32, do not warn.  `per_key`, called
+    only when some key is off by more than `decimals` explain, returns the
+    decimals of each key (the most of its four values; shape ``keys.shape[:-1]``
+    flattened to (K, tracks)), for files whose keys have different precisions.
     `where(i, j)` names row `i`, flat track `j` as for `check_numbers`.
     """
     flat = keys.reshape(len(keys), -1, 4)
     eps = np.finfo(keys.dtype if keys.dtype.kind == "f" else np.float64).eps
-    allowed = 8 * eps + (0.0 if decimals is None else 10.0 ** -decimals)
     off = np.abs(np.sqrt(np.einsum("...i,...i->...", flat, flat)) - 1)
+    allowed = 8 * eps + (1e-6 if decimals is None else 10.0 ** -decimals)
     bad = off > allowed
+    if bad.any() and per_key is not None:
+        digits = per_key()
+        if digits is not None:
+            allowed = 8 * eps + 10.0 ** -np.asarray(digits, np.float64)
+            bad = off > allowed
     if bad.any():
         i, j = np.unravel_index(np.argmax(bad), bad.shape)
         line, at = where(int(i), int(j))
         count = int(bad.sum())
-        explained = f"{decimals} decimals explain" if decimals is not None else "float rounding explains"
-        norm = float(np.linalg.norm(flat[i, j]))
+        limit = float(np.broadcast_to(allowed, bad.shape)[i, j])
+        explained = "its decimals explain" if decimals is not None else "is allowed without decimals"
         warnings.warn(str(FormatError(
-            f"{at}key of norm {norm:.9g} is normalised ({count} key{'s' if count != 1 else ''} in all further "
-            f"from norm 1 than {explained}: {allowed:.2g})", path, line)), NonUnitKeyWarning, stacklevel=3)
+            f"{at}key of norm {float(np.linalg.norm(flat[i, j])):.9g} is normalised "
+            f"({count} key{'s' if count != 1 else ''} in all further from norm 1 than {explained}: {limit:.2g})",
+            path, line)), NonUnitKeyWarning, stacklevel=3)
 
 
 def check_query(times, t, extrapolate):
