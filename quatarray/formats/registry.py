@@ -77,13 +77,15 @@ def _read_bvh(path, request):
 
 
 def _write_bvh(path, data, request):
-    bvh.write_bvh(path, dataclasses.replace(data, style=request.style(data.style)))
+    if request.precision is not None:   # every value as asked, interpolated or copied
+        data = dataclasses.replace(data, style=request.style(data.style), copied=None)
+    bvh.write_bvh(path, data)
 
 
 def _resample_bvh(src, dst, kind_in, kind_out, request):
     data = _read_bvh(src, request)
     times = data.times
-    t = request.grid(times[0], times[-1], data.frames.shape[1])
+    t = request.grid(times[0], times[-1], data.frames.shape[1], onto=times)
     out = bvh.resample_motion(data, t, method=request.method, extrapolate=request.extrapolate,
                               frame_time=None if request.fps is None else 1 / request.fps)
     _write_bvh(dst, out, request)
