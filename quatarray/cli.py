@@ -21,13 +21,14 @@ import os
 import signal
 import sys
 import time
+import warnings
 
 import numpy as np
 
-from .formats import (FORMATS, FormatError, example_path, format_of, fps_times, read_bvh, read_csv, resample_file,
-                      resample_motion, write_bvh, write_csv, write_npz)
+from .formats import (FORMATS, FormatError, NonUnitKeyWarning, example_path, format_of, fps_times, read_bvh,
+                      read_csv, resample_file, resample_motion, write_bvh, write_csv, write_npz)
 from .formats.atomic import atomic_write
-from .formats.text import echo
+from .formats.text import command_line, echo
 from .interpolate import EXTRAPOLATE, METHODS as _TRACK_METHODS, Track
 
 __all__ = ["main", "demo"]
@@ -168,7 +169,8 @@ def build_parser():
                     "the NPZ layout, resampled chunk by chunk with Dask). "
                     + " ".join(_families()))
     p.add_argument("input", metavar="IN", help="keyframe file to read")
-    p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
+    p.add_argument("-o", "--output", metavar="OUT", required=True,
+                   help="file to write (atomically; an existing one only with --force)")
     when = p.add_mutually_exclusive_group(required=True)
     when.add_argument("--fps", type=_fps, metavar="F", help="sample at t0 + k/F up to the last key time")
     when.add_argument("--times", metavar="FILE", help="sample at these times (one per line)")
@@ -180,7 +182,9 @@ def build_parser():
     p.add_argument("--precision", type=_precision, metavar="N|full",
                    help="decimals of the values written to CSV or BVH (default: as many as the input has; "
                         "'full': the shortest text that reads back exactly)")
-    p.add_argument("--force", action="store_true", help="allow OUT to be IN (replaced atomically)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing OUT, also when it is IN (not for Zarr stores, which are written "
+                        "while IN is read)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Zarr stores: run on this distributed scheduler")
     p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
     p.set_defaults(run=_run_resample)
@@ -220,7 +224,9 @@ def main(argv=None):
     args = build_parser().parse_args(argv)
     where = args.input if args.command == "resample" else args.output
     try:
-        with _exit_on_sigterm():
+        with _exit_on_sigterm(), command_line(), warnings.catch_warnings():
+            warnings.simplefilter("always", NonUnitKeyWarning)
+            warnings.showwarning = _show_warning
             return args.run(args)
     except FormatError as exc:
         message = str(exc)
@@ -236,6 +242,10 @@ def main(argv=None):
         return 130
     print("quatarray: error: " + " ".join(message.split()), file=sys.stderr)
     return 2
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print("quatarray: warning: " + " ".join(str(message).split()), file=sys.stderr)
 
 
 class _Terminated(SystemExit):

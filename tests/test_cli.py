@@ -423,7 +423,7 @@ def test_existing_output_keeps_permissions(tmp_path):
     out = tmp_path / "out.npz"
     out.write_text("old")
     os.chmod(out, 0o604)
-    assert cli.main(["resample", example_path("arm.csv"), "-o", str(out), "--fps", "30"]) == 0
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(out), "--fps", "30", "--force"]) == 0
     assert os.stat(out).st_mode & 0o777 == 0o604 and read_npz(out).keys.shape[1:] == (3, 4)
 
 
@@ -528,3 +528,116 @@ def test_out_of_memory_is_one_line(tmp_path, monkeypatch, capsys):
     assert cli.main(["resample", example_path("arm.csv"), "-o", str(tmp_path / "o.csv"), "--fps", "30"]) == 2
     assert capsys.readouterr().err == f"quatarray: error: {example_path('arm.csv')}: out of memory (try a lower " \
                                       "--fps or fewer --times)\n"
+
+
+@pytest.mark.parametrize("name, flags", [("arm.csv", []), ("imu.csv", ["--scalar-last"])])
+def test_identity_resample_gives_the_shipped_examples_back(tmp_path, name, flags):
+    """Resampled at their own key times, the shipped examples come back byte for byte (each key is
+    copied with its text; before, a key was normalised and 2 lines of each changed in the last digit)."""
+    src = example_path(name)
+    times = tmp_path / "t.txt"
+    times.write_text("\n".join(line.split(",")[0] for line in open(src).read().splitlines()[1:]) + "\n")
+    out = tmp_path / name
+    assert cli.main(["resample", src, "-o", str(out), "--times", str(times), *flags]) == 0
+    assert out.read_bytes() == open(src, "rb").read()
+
+
+def test_identity_resample_by_fps_on_evenly_spaced_keys(tmp_path):
+    """Keys every 0.1 s from 0.7 s, at --fps 10: the grid's 0.7 + k/10 lands on each key within rounding."""
+    src = tmp_path / "in.csv"
+    rows = [f"{0.7 + k / 10:.1f},{np.cos(k / 5):.4f},{np.sin(k / 5):.4f},0.0000,0.0000" for k in range(9)]
+    src.write_text("time,a.w,a.x,a.y,a.z\n" + "\n".join(rows) + "\n")
+    assert cli.main(["resample", str(src), "-o", str(tmp_path / "out.csv"), "--fps", "10"]) == 0
+    assert (tmp_path / "out.csv").read_text() == src.read_text()
+
+
+def _zarr_input(path):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
+    group = zarr.open_group(str(path), mode="w")
+    group["times"] = np.arange(4.0)
+    group["keys"] = np.tile([1.0, 0.0, 0.0, 0.0], (4, 1))
+    return path
+
+
+@pytest.mark.parametrize("ext", [".csv", ".npz", ".bvh", ".glb", ".gltf", ".zarr"])
+def test_an_existing_output_is_replaced_only_with_force(tmp_path, ext):
+    """Every format: an existing output is refused with a message naming it and --force, and left as it
+    was; with --force it is replaced."""
+    if ext == ".bvh":
+        src = example_path("walk.bvh")
+    elif ext in (".glb", ".gltf"):
+        from quatarray.formats import keyframes_to_gltf
+        src = tmp_path / "in.glb"
+        keyframes_to_gltf(src, read_csv(example_path("arm.csv")))
+    elif ext == ".zarr":
+        src = _zarr_input(tmp_path / "in.zarr")
+    else:
+        src = example_path("arm.csv")
+    out = tmp_path / ("out" + ext)
+    if ext == ".zarr":
+        out.mkdir()
+        (out / "precious").write_text("old")
+    else:
+        out.write_text("old")
+    err = one_line_error(run("resample", src, "-o", out, "--fps", "10"))
+    assert err == f"quatarray: error: {out}: exists; give --force to replace it\n"
+    assert (out / "precious" if ext == ".zarr" else out).read_text() == "old"
+    res = run("resample", src, "-o", out, "--fps", "10", "--force")
+    assert res.returncode == 0, res.stderr
+    assert not (out / "precious").exists() if ext == ".zarr" else out.read_bytes() != b"old"
+
+
+def test_a_gltf_outputs_existing_buffer_file_needs_force(tmp_path):
+    from quatarray.formats import keyframes_to_gltf
+    src = tmp_path / "in.glb"            # a .gltf written from a .glb keeps its buffer in a .bin beside it
+    keyframes_to_gltf(src, read_csv(example_path("arm.csv")))
+    bin_file = tmp_path / "out.bin"
+    bin_file.write_text("old")
+    err = one_line_error(run("resample", src, "-o", tmp_path / "out.gltf", "--fps", "10"))
+    assert f"{bin_file}: exists (the buffer file of the output 'out.gltf'); give --force" in err
+    assert bin_file.read_text() == "old" and not (tmp_path / "out.gltf").exists()
+    res = run("resample", src, "-o", tmp_path / "out.gltf", "--fps", "10", "--force")
+    assert res.returncode == 0 and bin_file.read_bytes() != b"old"
+
+
+def test_a_zarr_store_is_not_written_over_its_input_even_with_force(tmp_path):
+    src = _zarr_input(tmp_path / "in.zarr")
+    before = sorted(os.listdir(src))
+    err = one_line_error(run("resample", src, "-o", src, "--fps", "10", "--force"))
+    assert f"{src}: is the input; Zarr outputs are written while the input is read" in err
+    assert sorted(os.listdir(src)) == before and sorted(os.listdir(tmp_path)) == ["in.zarr"]
+
+
+def test_a_directory_or_a_file_of_the_wrong_kind_is_named(tmp_path):
+    _zarr_input(tmp_path / "in.zarr")
+    (tmp_path / "out.zarr").write_text("a file")
+    err = one_line_error(run("resample", tmp_path / "in.zarr", "-o", tmp_path / "out.zarr", "--fps", "10", "--force"))
+    assert err == f"quatarray: error: {tmp_path / 'out.zarr'}: exists and is not a Zarr store (a directory)\n"
+
+
+def test_messages_name_options_as_the_caller_spells_them(tmp_path):
+    """The command line says --extrapolate clamp or extend and --force; Python says extrapolate='clamp'
+    and force=True; neither speaks the other's language."""
+    from quatarray.formats import resample_file
+    times = tmp_path / "t.txt"
+    times.write_text("0\n5\n")
+    err = one_line_error(run("resample", example_path("arm.csv"), "-o", tmp_path / "o.csv", "--times", times))
+    assert err.endswith("extrapolate with --extrapolate clamp or extend\n") and "Python" not in err
+    with pytest.raises(ValueError, match=r"extrapolate with extrapolate='clamp' or 'extend'$") as info:
+        resample_file(example_path("arm.csv"), tmp_path / "o.csv", times=times)
+    assert "--" not in str(info.value)
+    (tmp_path / "o.csv").write_text("old")
+    with pytest.raises(FileExistsError, match="exists; give force=True to replace it"):
+        resample_file(example_path("arm.csv"), tmp_path / "o.csv", fps=2)
+    err = one_line_error(run("resample", example_path("arm.csv"), "-o", example_path("arm.csv"), "--fps", "2"))
+    assert "give --force to replace it" in err and "force=True" not in err
+
+
+def test_non_unit_keys_are_a_warning_on_the_command_line(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text("time,q.w,q.x,q.y,q.z\n0,1,0,0,0\n1,0,3,0,0\n2,0,0,1,0\n")
+    res = run("resample", src, "-o", tmp_path / "out.csv", "--fps", "2")
+    assert res.returncode == 0
+    assert res.stderr == f"quatarray: warning: {src}:3: track 'q': key of norm 3 is normalised (1 key in all " \
+                         "further from norm 1 than its decimals explain: 1)\n"

@@ -316,7 +316,7 @@ def test_clamped_outside_the_keys(tmp_path, rng):
 def test_clamped_query_times_and_refusals(tmp_path, rng):
     b, animations = skinned(rng)
     b.save(tmp_path / "in.glb")
-    with pytest.raises(ValueError, match="outside animation 0's key times .* use --extrapolate clamp"):
+    with pytest.raises(ValueError, match="outside animation 0's key times .* use extrapolate='clamp'"):
         resample_gltf(tmp_path / "in.glb", tmp_path / "out.glb", times=[-0.5, 0.5])
     with pytest.raises(ValueError, match="extrapolate is 'extend'"):
         resample_gltf(tmp_path / "in.glb", tmp_path / "out.glb", times=[0.5, 2.0], extrapolate="extend")

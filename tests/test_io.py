@@ -412,7 +412,7 @@ def test_size_is_checked_before_allocating():
 
 def test_extrapolation_error_names_the_option(rng):
     kf = Keyframes(np.array([0.0, 1.0]), smooth_keys(rng, 2))
-    with pytest.raises(ValueError, match=r"--extrapolate clamp or extend \(extrapolate='clamp'"):
+    with pytest.raises(ValueError, match=r"extrapolate with extrapolate='clamp' or 'extend'$"):
         resample_keyframes(kf, np.array([2.0]))
 
 
@@ -480,3 +480,107 @@ def test_style_measured_in_blocks_of_lines_is_the_same(tmp_path, monkeypatch, rn
     assert whole == _text.TextStyle(8, True, "\r\n", ",", 3, True)  # 1.5e-7 has 8 decimals
     monkeypatch.setattr(_text, "_MEASURE_BLOCK", 64)
     assert _text.measure_style(path, 1, 5) == whole
+
+
+# --------------------------------------------------------------------------- precision of what is written
+
+def _written(keys, decimals):
+    """`keys` (K, tracks, 4) as the cells of a CSV file with `decimals` decimals; a key that rounds to
+    zero becomes the identity (a zero quaternion is refused by the reader)."""
+    text = np.char.mod(f"%.{decimals}f", keys)
+    zero = (np.abs(np.char.mod(f"%.{decimals}f", keys).astype(float)) == 0).all(axis=-1)
+    text[zero] = ["1", "0", "0", "0"]
+    return text
+
+
+@given(seed=st.integers(0, 2**32 - 1), nkeys=st.integers(2, 7), ntracks=st.integers(1, 3),
+       decimals=st.integers(0, 9), method=st.sampled_from(METHODS), fps=st.sampled_from([2.0, 3.0, 7.5, 30.0]))
+def test_csv_interpolated_values_are_never_rounded_to_the_inputs_decimals(seed, nkeys, ntracks, decimals, method,
+                                                                          fps):
+    """Random tracks written with 0-9 decimals, resampled by resample_file and read back: every
+    interpolated value is within 1e-6 of the value computed from the keys as read, and unit; every
+    row at a key time is that key copied, with the input's text (and sign of the curve there)."""
+    import tempfile
+
+    from quatarray import Track
+    from quatarray.formats import resample_file
+    rng = np.random.default_rng(seed)
+    times = np.round(np.cumsum(rng.uniform(0.1, 0.6, nkeys)), 2)
+    cells = _written(smooth_keys(rng, nkeys, (ntracks,)), decimals)
+    header = "time," + ",".join(f"t{j}.{c}" for j in range(ntracks) for c in "wxyz")
+    lines = [header] + [f"{t:.2f}," + ",".join(row.ravel()) for t, row in zip(times, cells)]
+    with tempfile.TemporaryDirectory() as tmp:
+        src, dst = os.path.join(tmp, "in.csv"), os.path.join(tmp, "out.csv")
+        write_text(src, "\n".join(lines) + "\n")
+        resample_file(src, dst, fps=fps, method=method)
+        kf, out = read_csv(src), read_csv(dst)
+        out_cells = [line.split(",")[1:] for line in open(dst).read().splitlines()[1:]]
+    want = np.asarray(Track(kf.times, kf.keys, method=method)(out.times))
+    at_key = np.isin(out.times, kf.times)
+    assert at_key[0] and at_key.sum() >= 1
+    inner = ~at_key
+    np.testing.assert_allclose(out.keys[inner], want[inner], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(out.keys[inner], axis=-1), 1.0, rtol=0, atol=1e-6)
+    for i in np.flatnonzero(at_key):
+        k = int(np.searchsorted(kf.times, out.times[i]))
+        sign = np.sign(np.einsum("ij,ij->i", kf.keys[k], want[i]))[:, None]
+        np.testing.assert_array_equal(out.keys[i], np.where(sign < 0, -kf.keys[k] + 0.0, kf.keys[k]))
+        unit = out.keys[i] / np.linalg.norm(out.keys[i], axis=-1, keepdims=True)
+        np.testing.assert_allclose(unit, want[i], rtol=0, atol=1e-12)
+        expected = [str(c) if s > 0 else c[1:] if c.startswith("-") else "-" + c if float(c) else str(c)
+                    for c, s in zip(cells[k].ravel(), np.repeat(sign.ravel(), 4))]
+        assert out_cells[i] == expected
+
+
+def test_integer_keys_are_not_rounded_to_integers(tmp_path):
+    """The issue's example: keys written as integers, resampled at 2 fps, gave 0.5,1,1,0,0."""
+    from quatarray.formats import resample_file
+    src = write_text(tmp_path / "in.csv", "time,q.w,q.x,q.y,q.z\n0,1,0,0,0\n1,0,1,0,0\n")
+    resample_file(src, tmp_path / "out.csv", fps=2)
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert lines[1] == "0,1,0,0,0" and lines[3] == "1,0,1,0,0"
+    middle = np.array(lines[2].split(","), float)
+    np.testing.assert_allclose(middle, [0.5, np.sqrt(0.5), np.sqrt(0.5), 0, 0], rtol=0, atol=1e-15)
+
+
+def test_fps_grid_lands_on_key_times_within_rounding():
+    """0.7 + 1 / 10 is 0.7999999999999999, not the key at 0.8: within a millionth of a frame it is moved
+    onto the key, so that row is the key, not an interpolation one rounding away."""
+    keys = np.array([0.7, 0.8, 0.9, 1.0, 1.1, 1.3])
+    plain = fps_times(0.7, 1.3, 10)
+    assert plain[1] != 0.8 and plain[2] != 0.9
+    t = fps_times(0.7, 1.3, 10, onto=keys)
+    np.testing.assert_array_equal(t[np.isin(plain.round(9), keys)], keys)
+    np.testing.assert_array_equal(t[5], plain[5])      # 1.2: no key there, the grid as computed
+
+
+@pytest.mark.parametrize("decimals, keys, warns", [
+    (0, "1,1,0,0", False),                # 0.7071, 0.7071 written with 0 decimals: explained
+    (2, "0.71,0.71,0.00,0.00", False),
+    (2, "0.80,0.80,0.00,0.00", True),     # norm 1.13: 2 decimals explain 0.01
+    (9, "0.862453391,0.506136493,0.000000000,0.000000000", False),
+    (4, "0.5000,0.5000,0.5000,0.5100", True),
+    (4, "1,1,0,0", False),                # a key of 0 decimals among keys of 4 (a %g-style file)
+])
+def test_non_unit_keys_warn_once_per_file(tmp_path, decimals, keys, warns):
+    import warnings
+
+    from quatarray.formats import NonUnitKeyWarning
+    text = "time,a.w,a.x,a.y,a.z,b.w,b.x,b.y,b.z\n" + "".join(
+        f"{t},{keys},{keys}\n" for t in range(3)) + "3,0.5000,0.5000,0.5000,0.5000,1,0,0,0\n"
+    path = write_text(tmp_path / "k.csv", text)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        read_csv(path)
+    assert len(seen) == (1 if warns else 0)
+    if warns:
+        assert issubclass(seen[0].category, NonUnitKeyWarning)
+        assert str(seen[0].message).startswith(f"{path}:2: track 'a': key of norm ")
+        assert "(6 keys in all further from norm 1 than" in str(seen[0].message)
+
+
+def test_non_unit_npz_keys_warn(tmp_path):
+    from quatarray.formats import NonUnitKeyWarning
+    np.savez(tmp_path / "k.npz", times=[0.0, 1.0], keys=[[1.0, 0, 0, 0], [0, 2.0, 0, 0]])
+    with pytest.warns(NonUnitKeyWarning, match=r"keys\[1\]: key of norm 2 is normalised \(1 key in all"):
+        read_npz(tmp_path / "k.npz")

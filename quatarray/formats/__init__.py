@@ -25,11 +25,11 @@ from .gltf import keyframes_to_gltf, resample_gltf
 from .keyframes import Keyframes, example_path, fps_steps, fps_times, read_times, resample_keyframes
 from .npz import read_npz, write_npz
 from .registry import FORMATS, Format, format_of, resample_file
-from .text import FormatError, TextStyle
+from .text import FormatError, NonUnitKeyWarning, TextStyle
 from .zarr import resample_zarr
 
 __all__ = [
-    "FormatError", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
+    "FormatError", "NonUnitKeyWarning", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
     "Joint", "Motion", "read_bvh", "write_bvh", "resample_motion", "resample_gltf", "keyframes_to_gltf",
     "resample_zarr", "read_times", "fps_times", "fps_steps", "resample_keyframes", "example_path",
     "Format", "FORMATS", "format_of", "resample_file",

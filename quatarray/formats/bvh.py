@@ -67,6 +67,11 @@ class Motion:
     frame_time_text : str or None
         ``Frame Time`` as printed in the file read; written back unchanged
         while it still reads as `frame_time`.
+    copied : ndarray of bool, shape (K,), or None
+        Which frames are copied from the file (`resample_motion`: a frame at
+        its own time).  Only those keep the style's decimals; the others are
+        written with the digits that read back exactly.  None: every frame
+        is as read.
     """
 
     hierarchy: str
@@ -75,6 +80,7 @@ class Motion:
     frames: np.ndarray
     style: TextStyle = None
     frame_time_text: str = None
+    copied: np.ndarray = None
 
     @property
     def times(self):
@@ -331,8 +337,10 @@ def write_bvh(path, motion):
     """Write a BVH file: the hierarchy verbatim, then ``MOTION``, atomically.
 
     Values are written in ``motion.style`` (the decimals and line endings of
-    the file read; shortest exact text without one), ``Frame Time`` as
-    `frame_time_text` gives it.
+    the file read; shortest exact text without one), except frames that
+    ``motion.copied`` leaves out (interpolated ones), which are written with
+    the digits that read back exactly; ``Frame Time`` as `frame_time_text`
+    gives it.
 
     Examples
     --------
@@ -354,7 +362,8 @@ def write_bvh(path, motion):
         f.write(hierarchy)
         f.write(f"MOTION\nFrames: {len(frames)}\n"
                 f"Frame Time: {frame_time_text(float(motion.frame_time), motion.frame_time_text)}\n")
-        write_rows(f, frames, style, sep=" ")
+        write_rows(f, frames, style, sep=" ",
+                   exact=None if motion.copied is None else ~np.asarray(motion.copied, bool))
 
 
 # --------------------------------------------------------------------------- resampling
@@ -407,7 +416,8 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
     Rotation channels go Euler -> quaternion -> interpolate -> Euler in the same
     channel order (Shoemake); among the equivalent Euler triples the one nearest
     the linearly interpolated input angles is written, so curves stay
-    continuous.  Position channels are interpolated linearly.  The new frame
+    continuous.  Position channels are interpolated linearly.  A frame at its
+    own time is copied as read (and marked in ``copied``).  The new frame
     time is `frame_time`, by default the spacing of `t` (the old frame time
     when `t` has one element).
 
@@ -446,4 +456,7 @@ def resample_motion(motion, t, *, method="slerp", extrapolate="raise", frame_tim
             angles = _euler.as_euler(np.asarray(track(t[start:start + rows])), seq, degrees=True,
                                        suppress_warnings=True)
             block[:, cols] = _nearest_euler(angles, block[:, cols], seq[0] == seq[2])
-    return Motion(motion.hierarchy, motion.joints, frame_time, frames, motion.style, motion.frame_time_text)
+    at = np.minimum(np.searchsorted(times, t), len(times) - 1)
+    copied = times[at] == t
+    frames[copied] = motion.frames[at[copied]]   # a frame at its own time: as read, not through Euler angles
+    return Motion(motion.hierarchy, motion.joints, frame_time, frames, motion.style, motion.frame_time_text, copied)

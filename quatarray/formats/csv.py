@@ -15,7 +15,8 @@ import numpy as np
 
 from .atomic import atomic_write
 from .keyframes import Keyframes
-from .text import FormatError, TextStyle, check_numbers, echo, load_table, measure_style, row_line, write_rows
+from .text import (FormatError, TextStyle, check_numbers, check_unit, echo, load_table, measure_style, row_line,
+                   token_decimals, write_rows)
 
 __all__ = ["read_csv", "write_csv"]
 
@@ -85,6 +86,13 @@ def read_csv(path, *, scalar_last=False):
         values, times not strictly increasing or a zero quaternion; the message
         names the line.
 
+    Warns
+    -----
+    NonUnitKeyWarning
+        Once per file, naming the first key whose norm differs from 1 by more
+        than the file's decimals explain (``10**-decimals``); keys are
+        returned as read and normalised where they are interpolated.
+
     Examples
     --------
     >>> from quatarray.formats import read_csv, example_path
@@ -114,7 +122,19 @@ def read_csv(path, *, scalar_last=False):
 
     check_numbers(times, keys, path, where)
     style = measure_style(path, 1, ncols, delimiter)
+    check_unit(keys, path, where, style.decimals, lambda: _key_decimals(path, len(rows), len(names)))
     return Keyframes(times, np.ascontiguousarray(keys), names, style)
+
+
+def _key_decimals(path, nrows, ntracks):
+    """Decimals of each key of a CSV file (the most of its four values), or None if the file's numbers
+    do not line up as (rows, 1 + 4 * tracks)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    decimals = token_decimals(data[data.find(b"\n") + 1:])
+    if decimals.size != nrows * (1 + 4 * ntracks):
+        return None
+    return decimals.reshape(nrows, -1)[:, 1:].reshape(nrows, ntracks, 4).max(axis=-1)
 
 
 def write_csv(path, keyframes, *, scalar_last=False):
@@ -124,7 +144,10 @@ def write_csv(path, keyframes, *, scalar_last=False):
     without ``names`` they are called ``q`` (no batch) or ``q0, q1, ...``
     (flattened batch index).  Values are written in ``keyframes.style``
     (decimals, line endings, separator), by default with the digits that read
-    back to the same value; times always read back to the same value.
+    back to the same value; times always read back to the same value.  When
+    ``keyframes.copied`` marks the rows copied from a file (as
+    `resample_keyframes` does), only those keep the style's decimals: the
+    others are written with the digits that read back to the same value.
 
     Examples
     --------
@@ -158,5 +181,6 @@ def write_csv(path, keyframes, *, scalar_last=False):
     with atomic_write(path, newline=style.newline) as f:
         f.write(header.getvalue() + "\n")
         write_rows(f, flat.reshape(len(flat), 4 * len(names)).astype(dtype, copy=False), style,
-                   first=times.astype(dtype, copy=False))
+                   first=times.astype(dtype, copy=False),
+                   exact=None if keyframes.copied is None else ~np.asarray(keyframes.copied, bool))
 

@@ -24,6 +24,7 @@ Every problem with a file raises `FormatError` naming the file and the object.
 
 import base64
 import copy
+import errno
 import json
 import os
 import struct
@@ -35,7 +36,7 @@ from .atomic import atomic_write
 from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
 from .gltf_sampler import resample_sampler
 from .keyframes import fps_times
-from .text import FormatError, check_size
+from .text import FormatError, check_size, option
 
 __all__ = ["write_gltf", "resample_gltf", "keyframes_to_gltf"]
 
@@ -276,8 +277,11 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         (glTF defines no extrapolation).
     force : bool, default False
         Allow the ``.bin`` file a ``.gltf`` output writes beside it to
-        replace a file of the input (its buffer, an image); without it that
-        is a `FormatError`, before anything is written.
+        replace an existing file; without it, a file of the input (its
+        buffer, an image) is a `FormatError` and any other existing file a
+        `FileExistsError`, before anything is written.  `dst` itself is
+        replaced (`quatarray.formats.resample_file` refuses an existing `dst`
+        without `force`).
 
     Returns
     -------
@@ -296,10 +300,13 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     (11, 241)
     """
     gf = read_gltf(src)
-    if (not force and os.path.splitext(dst)[1].lower() == ".gltf" and gf.layout != "embedded"
-            and _replaces_input(_sidecar(dst), gf)):
-        raise FormatError(f"would replace {os.path.basename(_sidecar(dst))!r}, a file of the input "
-                          f"{os.path.basename(gf.path)!r}; give --force (force=True) to replace it", dst)
+    if not force and os.path.splitext(dst)[1].lower() == ".gltf" and gf.layout != "embedded":
+        if _replaces_input(_sidecar(dst), gf):
+            raise FormatError(f"would replace {os.path.basename(_sidecar(dst))!r}, a file of the input "
+                              f"{os.path.basename(gf.path)!r}; give {option('force')} to replace it", dst)
+        if os.path.lexists(_sidecar(dst)):
+            raise FileExistsError(errno.EEXIST, f"exists (the buffer file of the output {os.path.basename(dst)!r}); "
+                                                f"give {option('force')} to replace it", _sidecar(dst))
     animations = read_animations(gf)
     if not any(animations):
         raise FormatError("no animation samplers to resample", gf.path)
@@ -326,7 +333,7 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
             bad = t[0] if grid[0] < t0 else t[-1]
             raise ValueError(f"query time {float(bad)!r} is outside animation {a}'s key times [{float(t0)!r}, "
                              f"{float(t1)!r}] and extrapolate is {extrapolate!r} (glTF holds the end values: "
-                             "use --extrapolate clamp)")
+                             f"use {option('extrapolate', 'clamp')})")
         t = grid.astype(np.float64)   # the values belong to the times as written
         outputs = [resample_sampler(s.times, s.values, s.interpolation, t, s.path == "rotation", method)
                    for s in samplers]

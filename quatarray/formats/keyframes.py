@@ -30,12 +30,19 @@ class Keyframes:
         How the CSV file they came from printed its values (decimals, line
         endings, separator); `write_csv` writes the same way.  None: values
         with the shortest text that reads back exactly, ``\\n``, commas.
+    copied : ndarray of bool, shape (K,), or None
+        Which rows hold keys copied from the file (`resample_keyframes`: a
+        query time that is a key time).  Only those rows keep the file's
+        decimals; every other row is written with the digits that read back
+        exactly, so that an interpolated value is never rounded to the
+        input's precision.  None: every row is as read.
     """
 
     times: np.ndarray
     keys: np.ndarray
     names: tuple = None
     style: TextStyle = None
+    copied: np.ndarray = None
 
 
 
@@ -64,11 +71,14 @@ def read_times(path):
     return t
 
 
-def fps_times(t0, t1, fps, per_frame=1):
+def fps_times(t0, t1, fps, per_frame=1, onto=None):
     """Times ``t0 + k / fps`` for k = 0, 1, ... up to `t1` inclusive, within rounding.
 
     A last sample past `t1` by no more than rounding (a millionth of a frame,
-    or the rounding of `t0` and `t1` themselves) is moved onto `t1`.  More frames than `quatarray.formats.text.MAX_VALUES` / `per_frame`
+    or the rounding of `t0` and `t1` themselves) is moved onto `t1`, and with
+    `onto` (key times, increasing) a sample within a millionth of a frame of a
+    key time is moved onto it, so that it is that key, not an interpolation
+    one rounding away.  More frames than `quatarray.formats.text.MAX_VALUES` / `per_frame`
     (values per output frame) raise ValueError before anything is allocated.
 
     Examples
@@ -81,7 +91,14 @@ def fps_times(t0, t1, fps, per_frame=1):
     """
     n = fps_steps(t0, t1, fps)
     check_size(n + 1, per_frame, f"a rate of {fps:g} fps over {t1 - t0:g} s")
-    return np.minimum(t0 + np.arange(n + 1) / fps, t1)
+    t = np.minimum(t0 + np.arange(n + 1) / fps, t1)
+    if onto is not None and len(onto) and len(t):
+        onto = np.asarray(onto, np.float64)
+        right = np.minimum(np.searchsorted(onto, t), len(onto) - 1)
+        near = np.where(np.abs(onto[right] - t) <= np.abs(onto[right - 1] - t), right, np.maximum(right - 1, 0))
+        snap = np.abs(onto[near] - t) <= 1e-6 / fps
+        t[snap] = onto[near[snap]]
+    return t
 
 
 def fps_steps(t0, t1, fps):
@@ -106,6 +123,13 @@ def fps_steps(t0, t1, fps):
 def resample_keyframes(keyframes, t, *, method="slerp", extrapolate="raise"):
     """Evaluate the keyframes' curves at times `t`; the names and text style are kept.
 
+    At a query time equal to a key time the key itself is returned, as read
+    (with the sign the curve has there, which may differ after hemisphere
+    alignment), and the row is marked in ``copied``: `write_csv` writes only
+    such rows with the input's decimals, so an identity resample gives the
+    input's text back, while every interpolated value is written with the
+    digits that read back exactly.
+
     Tracks are independent, so they are interpolated a block of tracks at a
     time (about 2**18 keys per block) into one preallocated output: the
     interpolator's per-key tables then cost a bounded amount of memory on top
@@ -129,7 +153,13 @@ def resample_keyframes(keyframes, t, *, method="slerp", extrapolate="raise"):
     for j in range(0, flat.shape[1], step):
         track = Track(times, flat[:, j:j + step], method=method, extrapolate=extrapolate)
         out[:, j:j + step] = np.asarray(track(t))
-    return Keyframes(t, out.reshape((len(t),) + keys.shape[1:]), keyframes.names, keyframes.style)
+    at = np.minimum(np.searchsorted(times, t), len(times) - 1)
+    copied = times[at] == t
+    if copied.any():   # the key itself, on the side of the curve
+        key = flat[at[copied]]
+        flip = (np.einsum("...i,...i->...", out[copied], key) < 0)[..., None]
+        out[copied] = np.where(flip, -key + 0.0, key)   # + 0.0: a flipped 0 is 0, not -0
+    return Keyframes(t, out.reshape((len(t),) + keys.shape[1:]), keyframes.names, keyframes.style, copied)
 
 
 def example_path(name):

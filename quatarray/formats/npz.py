@@ -9,7 +9,7 @@ import numpy as np
 from .._validate import float_array
 from .atomic import atomic_write
 from .keyframes import Keyframes
-from .text import FormatError, check_numbers
+from .text import FormatError, check_numbers, check_unit
 
 __all__ = ["read_npz", "write_npz"]
 
@@ -26,6 +26,12 @@ def read_npz(path):
         Not an NPZ archive, a missing array, wrong shapes or dtypes, non-finite
         values, times not strictly increasing or a zero quaternion (the
         message names the index).
+
+    Warns
+    -----
+    NonUnitKeyWarning
+        Once per file, naming the first key whose norm differs from 1 by more
+        than ``1e-6`` (what 6 decimals would explain).
 
     Examples
     --------
@@ -83,6 +89,7 @@ def read_npz(path):
         return None, "keys[" + ", ".join(map(str, (i,) + np.unravel_index(j, batch))) + "]: "
 
     check_numbers(times, keys, name, where)
+    check_unit(keys, name, where)
     return Keyframes(times, keys, names)
 
 

@@ -8,13 +8,14 @@ everywhere at once.
 """
 
 import dataclasses
+import errno
 import os
 
 import numpy as np
 
 from . import bvh, csv, gltf, npz, zarr
 from .keyframes import fps_times, read_times, resample_keyframes
-from .text import FormatError, TextStyle, echo
+from .text import FormatError, TextStyle, echo, option
 
 __all__ = ["Format", "FORMATS", "format_of", "resample_file"]
 
@@ -33,9 +34,10 @@ class Request:
     scheduler: str = None
     progress: bool = None
 
-    def grid(self, t0, t1, per_frame):
-        """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first)."""
-        return fps_times(t0, t1, self.fps, per_frame) if self.times is None else self.times
+    def grid(self, t0, t1, per_frame, onto=None):
+        """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first; a time
+        within a millionth of a frame of a key time in `onto` is that key time)."""
+        return fps_times(t0, t1, self.fps, per_frame, onto) if self.times is None else self.times
 
     def style(self, style):
         """`style` (the input's, or None) with the decimals `precision` asks for."""
@@ -49,7 +51,9 @@ def _read_csv(path, request):
 
 
 def _write_csv(path, data, request):
-    csv.write_csv(path, dataclasses.replace(data, style=request.style(data.style)), scalar_last=request.scalar_last)
+    if request.precision is not None:   # every value as asked, interpolated or copied
+        data = dataclasses.replace(data, style=request.style(data.style), copied=None)
+    csv.write_csv(path, data, scalar_last=request.scalar_last)
 
 
 def _read_npz(path, request):
@@ -62,7 +66,7 @@ def _write_npz(path, data, request):
 
 def _resample_keyframes(src, dst, kind_in, kind_out, request):
     data = FORMATS[kind_in].read(src, request)
-    t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size)
+    t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size, onto=data.times)
     out = resample_keyframes(data, t, method=request.method, extrapolate=request.extrapolate)
     FORMATS[kind_out].write(dst, out, request)
     return len(data.times), len(t)
@@ -73,13 +77,15 @@ def _read_bvh(path, request):
 
 
 def _write_bvh(path, data, request):
-    bvh.write_bvh(path, dataclasses.replace(data, style=request.style(data.style)))
+    if request.precision is not None:   # every value as asked, interpolated or copied
+        data = dataclasses.replace(data, style=request.style(data.style), copied=None)
+    bvh.write_bvh(path, data)
 
 
 def _resample_bvh(src, dst, kind_in, kind_out, request):
     data = _read_bvh(src, request)
     times = data.times
-    t = request.grid(times[0], times[-1], data.frames.shape[1])
+    t = request.grid(times[0], times[-1], data.frames.shape[1], onto=times)
     out = bvh.resample_motion(data, t, method=request.method, extrapolate=request.extrapolate,
                               frame_time=None if request.fps is None else 1 / request.fps)
     _write_bvh(dst, out, request)
@@ -113,6 +119,11 @@ class Format:
     resample : callable
         ``resample(src, dst, ext_in, ext_out, request) -> (keys read,
         frames written)``, the resampler of the family.
+    replaces_input : bool
+        The input is read whole before the output is renamed into place,
+        so the output may be the input (with ``force``).
+    directory : bool
+        The format is a directory (a Zarr store), not a file.
     """
 
     name: str
@@ -120,6 +131,8 @@ class Format:
     read: object
     write: object
     resample: object
+    replaces_input: bool = True
+    directory: bool = False
 
 
 #: File extension (lower case) -> `Format`.
@@ -129,7 +142,8 @@ FORMATS = {
     ".bvh": Format("BVH", "BVH", _read_bvh, _write_bvh, _resample_bvh),
     ".gltf": Format("glTF", "glTF", None, None, _resample_gltf),
     ".glb": Format("GLB", "glTF", None, None, _resample_gltf),
-    ".zarr": Format("Zarr", "Zarr", None, None, _resample_zarr),
+    ".zarr": Format("Zarr", "Zarr", None, None, _resample_zarr, replaces_input=False,
+                    directory=True),
 }
 
 
@@ -180,8 +194,10 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         writes the shortest text that reads back exactly.  Times are always
         written exactly.
     force : bool
-        Allow `dst` to be `src` (replaced atomically), and a ``.gltf`` output's
-        ``.bin`` to replace a file of a glTF input.
+        Replace an existing `dst` (atomically), also when it is `src`, and
+        let a ``.gltf`` output's ``.bin`` replace an existing file.  A Zarr
+        store, written chunk by chunk while its input is read, is never
+        written over its input.
     scheduler, progress
         Zarr stores only: see `quatarray.formats.resample_zarr`.
 
@@ -196,6 +212,8 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         An unknown extension, or an unreadable input or times file (the
         message names the file and line), or `dst` is `src` (or a ``.gltf``
         output's ``.bin`` a file of the input) without `force`.
+    FileExistsError
+        `dst` (or a ``.gltf`` output's ``.bin``) exists, without `force`.
     ValueError
         Query times outside the keys with ``extrapolate="raise"``, a single key,
         an output of more than ``quatarray.formats.text.MAX_VALUES`` values.
@@ -219,8 +237,19 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         raise ValueError("give exactly one of fps and times")
     if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
         raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
-    if not force and _same_file(src, dst):
-        raise FormatError("is the input file; give --force (force=True) to replace it", dst)
+    if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
+        if FORMATS[kind_out].directory:
+            raise FileExistsError(errno.EEXIST, f"exists and is not a {FORMATS[kind_out].name} store (a directory)",
+                                  os.fspath(dst))
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(dst))
+    if _same_file(src, dst):
+        if not FORMATS[kind_out].replaces_input:
+            raise FormatError(f"is the input; {FORMATS[kind_out].name} outputs are written while the input is "
+                              "read, so they cannot replace it: write elsewhere, then rename", dst)
+        if not force:
+            raise FormatError(f"is the input file; give {option('force')} to replace it", dst)
+    elif not force and os.path.lexists(dst):
+        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(dst))
     if family != "Zarr":   # Zarr stores read their query times chunk by chunk (also from a .zarr store)
         if times is not None and isinstance(times, (str, os.PathLike)):
             times = read_times(times)

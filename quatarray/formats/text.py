@@ -7,12 +7,16 @@
   looking at lines one by one only once that parse has failed, to name the bad
   one;
 - `check_numbers`, `check_query`, `check_size`: the checks every format shares;
-- `echo`: a value quoted in a message, cut to about 60 characters.
+- `echo`: a value quoted in a message, cut to about 60 characters;
+- `option`: an option named as the caller spells it (``--force`` on the
+  command line, ``force=True`` in Python; `command_line` switches).
 
 `FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
 shared inside the package.
 """
 
+import contextlib
+import contextvars
 import dataclasses
 import os
 import re
@@ -61,6 +65,34 @@ def echo(value, limit=60):
     if len(value) <= limit:
         return repr(value)
     return repr(value[:limit - 10] + "...") + f" ({len(value)} characters)"
+
+
+_COMMAND_LINE = contextvars.ContextVar("quatarray_command_line", default=False)
+
+
+@contextlib.contextmanager
+def command_line():
+    """Within this block, `option` names options as the ``quatarray`` command spells them."""
+    token = _COMMAND_LINE.set(True)
+    try:
+        yield
+    finally:
+        _COMMAND_LINE.reset(token)
+
+
+def option(name, *values):
+    """An option as a message names it: ``--name v1 or v2`` in `command_line`, else ``name=v1 or v2``.
+
+    >>> from quatarray.formats.text import command_line, option
+    >>> option("force"), option("extrapolate", "clamp", "extend")
+    ('force=True', "extrapolate='clamp' or 'extend'")
+    >>> with command_line():
+    ...     option("force"), option("extrapolate", "clamp", "extend")
+    ('--force', '--extrapolate clamp or extend')
+    """
+    if _COMMAND_LINE.get():
+        return " ".join(["--" + name.replace("_", "-"), " or ".join(map(str, values))]).strip()
+    return f"{name}=" + (" or ".join(map(repr, values)) if values else "True")
 
 
 # --------------------------------------------------------------------------- how numbers were printed
@@ -176,7 +208,7 @@ def _digits(ranges):
     return top, low != top
 
 
-def write_rows(f, rows, style=None, sep=None, first=None):
+def write_rows(f, rows, style=None, sep=None, first=None, exact=None):
     """Write a 2-D float array as text, one line per row.
 
     Without ``style.decimals``, float64 is written as ``repr`` writes it (the
@@ -184,11 +216,21 @@ def write_rows(f, rows, style=None, sep=None, first=None):
     significant digits.  With it, values are written with that many decimals
     (trailing zeros dropped when ``style.trim``), and a value that rounds to
     zero without being zero is written as plain zero, not ``-0.000``.
+    `exact`, a boolean mask of rows, writes those rows as without
+    ``style.decimals`` (an interpolated value among keys copied from a file).
     `first`, a column written before `rows` (CSV times), is written with
     ``style.time_decimals`` where that reads back to the same number, else
     exactly.
     """
     style = style or TextStyle()
+    if exact is not None and style.decimals is not None and np.any(exact):
+        exact = np.asarray(exact, bool)
+        bounds = np.concatenate([[0], np.flatnonzero(np.diff(exact)) + 1, [len(rows)]])
+        plain = dataclasses.replace(style, decimals=None, trim=False)
+        for start, stop in zip(bounds[:-1], bounds[1:]):   # runs of rows in one style
+            write_rows(f, rows[start:stop], plain if exact[start] else style, sep,
+                       None if first is None else first[start:stop])
+        return
     sep = style.delimiter if sep is None else sep
     fmt = ("%r" if rows.dtype == np.float64 else "%.9g") if style.decimals is None else f"%.{style.decimals}f"
     line = sep.join([fmt] * rows.shape[1]) + "\n"
@@ -258,6 +300,45 @@ def check_numbers(times, keys, path, where):
         raise FormatError(f"{at}zero quaternion (cannot be a rotation)", path, line)
 
 
+class NonUnitKeyWarning(UserWarning):
+    """Keys whose norm differs from 1 by more than their written precision explains (they are normalised)."""
+
+
+def check_unit(keys, path, where, decimals=None, per_key=None):
+    """Warn once, naming the first such key, if keys are further from unit norm than their text explains.
+
+    Values written with `decimals` decimals are each within ``0.5 * 10**-decimals``
+    of what was meant, so the norm of a unit quaternion so written is within
+    ``10**-decimals`` of 1.  Without `decimals` (binary floats, or text that
+    reads back exactly) ``1e-6`` is allowed, as for 6 decimals: keys stored
+    from such text, or normalised in float32, do not warn.  `per_key`, called
+    only when some key is off by more than `decimals` explain, returns the
+    decimals of each key (the most of its four values; shape ``keys.shape[:-1]``
+    flattened to (K, tracks)), for files whose keys have different precisions.
+    `where(i, j)` names row `i`, flat track `j` as for `check_numbers`.
+    """
+    flat = keys.reshape(len(keys), -1, 4)
+    eps = np.finfo(keys.dtype if keys.dtype.kind == "f" else np.float64).eps
+    off = np.abs(np.sqrt(np.einsum("...i,...i->...", flat, flat)) - 1)
+    allowed = 8 * eps + (1e-6 if decimals is None else 10.0 ** -decimals)
+    bad = off > allowed
+    if bad.any() and per_key is not None:
+        digits = per_key()
+        if digits is not None:
+            allowed = 8 * eps + 10.0 ** -np.asarray(digits, np.float64)
+            bad = off > allowed
+    if bad.any():
+        i, j = np.unravel_index(np.argmax(bad), bad.shape)
+        line, at = where(int(i), int(j))
+        count = int(bad.sum())
+        limit = float(np.broadcast_to(allowed, bad.shape)[i, j])
+        explained = "its decimals explain" if decimals is not None else "is allowed without decimals"
+        warnings.warn(str(FormatError(
+            f"{at}key of norm {float(np.linalg.norm(flat[i, j])):.9g} is normalised "
+            f"({count} key{'s' if count != 1 else ''} in all further from norm 1 than {explained}: {limit:.2g})",
+            path, line)), NonUnitKeyWarning, stacklevel=3)
+
+
 def check_query(times, t, extrapolate):
     """At least two keys, and with ``extrapolate="raise"`` every query time within the keys."""
     if len(times) < 2:
@@ -266,7 +347,7 @@ def check_query(times, t, extrapolate):
         bad = t[(t < times[0]) | (t > times[-1])][0]
         raise ValueError(f"query time {float(bad)!r} is outside the key times [{float(times[0])!r}, "
                          f"{float(times[-1])!r}]; to sample there, extrapolate with "
-                         "--extrapolate clamp or extend (extrapolate='clamp' or 'extend' in Python)")
+                         f"{option('extrapolate', 'clamp', 'extend')}")
 
 
 def check_size(frames, per_frame, what):
