@@ -117,7 +117,7 @@ class Resample:
                 from quatarray.formats import resample_file
             except ImportError as exc:
                 raise NotImplementedError(f"quatarray.formats is not available ({exc})") from None
-            self.run = lambda: resample_file(self.src, self.dst, fps=2 * FPS, method="slerp")
+            self.run = lambda: resample_file(self.src, self.dst, fps=2 * FPS, method="slerp", force=True)
         else:
             twin = scipy_resample_npz if case == "npz" else scipy_resample_bvh
             self.run = lambda: twin(self.src, self.dst, 2 * FPS)
