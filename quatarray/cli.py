@@ -204,9 +204,15 @@ def _run_resample(args):
                                    precision=args.precision, force=args.force, scheduler=args.scheduler,
                                    progress=False if args.quiet else None)
     own = FORMATS[format_of(args.input)].family == "glTF"
-    print(f"{args.input}: {nkeys} keys -> {args.output}: {nframes} frames "
-          f"({args.method or ('own' if own else 'slerp')}, {time.perf_counter() - start:.2f} s)")
+    method = args.method or ("each sampler's own interpolation" if own else "slerp")
+    print(f"{args.input}: {_count(nkeys, 'key')} -> {args.output}: {_count(nframes, 'frame')} "
+          f"({method}, {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def _count(n, noun):
+    """``1 frame``, ``2 frames``."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 def _run_demo(args):

@@ -641,3 +641,56 @@ def test_non_unit_keys_are_a_warning_on_the_command_line(tmp_path):
     assert res.returncode == 0
     assert res.stderr == f"quatarray: warning: {src}:3: track 'q': key of norm 3 is normalised (1 key in all " \
                          "further from norm 1 than its decimals explain: 1)\n"
+
+
+@pytest.mark.parametrize("case", ["empty csv", "blank first line", "garbage npz", "missing times file",
+                                  "missing input", "fps 1e308", "not utf-8 in a bvh header", "not utf-8 in times"])
+def test_messages_say_what_is_wrong_in_one_style(tmp_path, case):
+    src, extra, want = example_path("arm.csv"), [], None
+    if case == "empty csv":
+        src = tmp_path / "empty.csv"
+        src.write_text("")
+        want = f"{src}: the file is empty (expected a header line 'time,<track>.w,...')"
+    elif case == "blank first line":
+        src = tmp_path / "blank.csv"
+        src.write_text("\n\n")
+        want = f"{src}:1: the first line is empty"
+    elif case == "garbage npz":
+        src = tmp_path / "g.npz"
+        src.write_bytes(np.random.default_rng(1).bytes(300))
+        want = f"{src}: not an NPZ archive of arrays (numpy.savez writes them)"
+    elif case == "missing times file":
+        extra = ["--times", tmp_path / "nosuch.txt"]
+        want = f"{tmp_path / 'nosuch.txt'}: No such file or directory"
+    elif case == "missing input":
+        src = tmp_path / "nosuch.csv"
+        want = f"{src}: No such file or directory"
+    elif case == "fps 1e308":
+        extra = ["--fps", "1e308"]
+        want = f"{src}: a rate of 1e+308 fps over 4 s asks for inf frames; the limit is 1,073,741,824 values"
+    elif case == "not utf-8 in a bvh header":
+        lines = open(example_path("walk.bvh"), "rb").read().split(b"\n")
+        lines[1] += b" \xff"
+        src = tmp_path / "bad.bvh"
+        src.write_bytes(b"\n".join(lines))
+        res = run("resample", src, "-o", tmp_path / "out.bvh", "--fps", "10")
+        assert res.returncode == 0, res.stderr    # the hierarchy is kept as bytes; no number is touched
+        assert open(tmp_path / "out.bvh", "rb").read().split(b"\n")[1] == lines[1]
+        return
+    else:
+        (tmp_path / "t.txt").write_bytes(b"0\n0.5\xff\n")
+        extra = ["--times", tmp_path / "t.txt"]
+        want = f"{tmp_path / 't.txt'}:2: non-numeric value '0.5\\xff' (not UTF-8 text) (value 1)"
+    err = one_line_error(run("resample", src, "-o", tmp_path / ("out" + os.path.splitext(str(src))[1]),
+                             *(extra or ["--fps", "10"])))
+    assert err.startswith(f"quatarray: error: {want}"), err
+    assert "pickle" not in err and "not found." not in err and "codec" not in err
+
+
+def test_summary_line_grammar(tmp_path):
+    src = tmp_path / "in.csv"
+    src.write_text("time,q.w,q.x,q.y,q.z\n0,1,0,0,0\n1,0,1,0,0\n")
+    times = tmp_path / "t.txt"
+    times.write_text("0.5\n")
+    res = run("resample", src, "-o", tmp_path / "out.csv", "--times", times)
+    assert res.returncode == 0 and f"{src}: 2 keys -> {tmp_path / 'out.csv'}: 1 frame (slerp, " in res.stdout

@@ -861,7 +861,7 @@ def test_cli_times_file_and_message(tmp_path, rng):
     (tmp_path / "t.txt").write_text("0.1\n0.2\n0.4\n")
     res = run("resample", tmp_path / "in.glb", "-o", tmp_path / "out.glb", "--times", tmp_path / "t.txt")
     assert res.returncode == 0, res.stderr
-    assert "6 frames (own," in res.stdout                       # 3 times in each of the two animations
+    assert "6 frames (each sampler's own interpolation," in res.stdout                       # 3 times in each of the two animations
     doc, data = load(tmp_path / "out.glb")
     t, got, _ = channel_output(doc, data, 0, 1, "translation")
     np.testing.assert_array_equal(t, np.float32([0.1, 0.2, 0.4]))

@@ -111,7 +111,7 @@ CSV_ERRORS = {  # text, line of the problem, message pattern
     "no dot": ("time,angle\n0,1\n", 1, r"column 2 is 'angle', expected '<track>.w'"),
     "twice": ("time,a.w,a.x,a.y,a.z,a.w,a.x,a.y,a.z\n0,1,0,0,0,1,0,0,0\n", 1, r"track 'a' appears twice"),
     "no tracks": ("time\n0\n", 1, r"no quaternion columns"),
-    "empty file": ("", 1, r"column 1 must be 'time'"),
+    "empty file": ("", None, r"the file is empty"),
     "non-numeric": (HEADER + "0,1,0,0,0\n1,1,0,abc,0\n", 3, r"non-numeric value 'abc' in column 'a.y'"),
     "empty cell": (HEADER + "0,1,0,0,0\n1,1,0,,0\n", 3, r"non-numeric value '' in column 'a.y'"),
     "short row": (HEADER + "0,1,0,0,0\n\n1,1,0,0,0\n2,1,0,0\n", 5, r"expected 5 values, got 4"),
@@ -230,7 +230,7 @@ def test_npz_not_an_archive(tmp_path):
     single = tmp_path / "one.npz"
     with open(single, "wb") as f:
         np.save(f, np.zeros(3))
-    with pytest.raises(FormatError, match=r"not an NPZ archive \(a single .npy array\)"):
+    with pytest.raises(FormatError, match=r"not an NPZ archive of arrays \(a single .npy array\)"):
         read_npz(single)
 
 

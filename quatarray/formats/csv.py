@@ -102,6 +102,10 @@ def read_csv(path, *, scalar_last=False):
     """
     with open(path, encoding="utf-8-sig", errors="surrogateescape", newline="") as f:
         first = f.readline()
+    if not first.strip():
+        raise FormatError("the file is empty (expected a header line 'time,<track>.w,...')" if not first
+                          else "the first line is empty (expected a header line 'time,<track>.w,...')", path,
+                          None if not first else 1)
     delimiter = _delimiter(first)
     try:
         header = [c.strip() for c in next(csv.reader([first], delimiter=delimiter), [])]

@@ -6,7 +6,7 @@ import os
 import numpy as np
 
 from ..interpolate import Track
-from .text import FormatError, TextStyle, check_numbers, check_query, check_size, load_table, row_line
+from .text import MAX_VALUES, FormatError, TextStyle, check_numbers, check_query, check_size, load_table, row_line
 
 __all__ = ["Keyframes", "read_times", "fps_times", "fps_steps", "resample_keyframes", "example_path"]
 
@@ -112,11 +112,16 @@ def fps_steps(t0, t1, fps):
     """
     if not (np.isfinite(fps) and fps > 0):
         raise ValueError(f"expected fps > 0, got {fps}")
-    span = (t1 - t0) * fps
-    # within rounding: a millionth of a frame, plus the rounding of long spans and of large
-    # times (absolute clock times such as 1403636579.76 s carry 2.4e-7 s each)
-    slack = 1e-6 + 1e-12 * span + 8 * np.finfo(np.float64).eps * max(abs(t0), abs(t1)) * fps
-    return int(np.floor(span + slack))
+    with np.errstate(over="ignore"):
+        span = (t1 - t0) * fps
+        # within rounding: a millionth of a frame, plus the rounding of long spans and of large
+        # times (absolute clock times such as 1403636579.76 s carry 2.4e-7 s each)
+        slack = 1e-6 + 1e-12 * span + 8 * np.finfo(np.float64).eps * max(abs(t0), abs(t1)) * fps
+        last = np.floor(span + slack)
+    if not last < 2.0**62:   # the frame count of --fps 1e308 is no integer numpy can hold
+        raise ValueError(f"a rate of {fps:g} fps over {t1 - t0:g} s asks for {float(span):.3g} frames; the limit "
+                         f"is {MAX_VALUES:,} values")
+    return int(last)
 
 # --------------------------------------------------------------------------- resampling
 

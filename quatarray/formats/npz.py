@@ -49,10 +49,10 @@ def read_npz(path):
         f = path if hasattr(path, "read") else stack.enter_context(open(path, "rb"))
         try:
             archive = np.load(f, allow_pickle=False)
-        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-            raise FormatError(f"not an NPZ archive ({exc})", name) from None
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile):   # numpy's own message would offer pickle
+            raise FormatError("not an NPZ archive of arrays (numpy.savez writes them)", name) from None
         if not isinstance(archive, np.lib.npyio.NpzFile):
-            raise FormatError("not an NPZ archive (a single .npy array)", name)
+            raise FormatError("not an NPZ archive of arrays (a single .npy array)", name)
         stack.enter_context(archive)
         missing = [a for a in ("times", "keys") if a not in archive.files]
         names = None

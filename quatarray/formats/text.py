@@ -18,6 +18,7 @@ shared inside the package.
 import contextlib
 import contextvars
 import dataclasses
+import errno
 import os
 import re
 import warnings
@@ -60,11 +61,21 @@ def echo(value, limit=60):
     "'abc'"
     >>> echo("x" * 1000)
     "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx...' (1000 characters)"
+    >>> print(echo(b"0.5\\xff".decode("utf-8", "surrogateescape")))
+    '0.5\\xff' (not UTF-8 text)
     """
     value = str(value)
     if len(value) <= limit:
-        return repr(value)
-    return repr(value[:limit - 10] + "...") + f" ({len(value)} characters)"
+        text = repr(value)
+    else:
+        text = repr(value[:limit - 10] + "...") + f" ({len(value)} characters)"
+    if not _NOT_UTF8.search(value):
+        return text
+    # bytes that are not UTF-8 (read with surrogateescape): shown as the bytes they are
+    return re.sub(r"\\udc([89a-f][0-9a-f])", r"\\x\1", text) + " (not UTF-8 text)"
+
+
+_NOT_UTF8 = re.compile("[\udc80-\udcff]")
 
 
 _COMMAND_LINE = contextvars.ContextVar("quatarray_command_line", default=False)
@@ -400,10 +411,17 @@ def _diagnose(path, skip, ncols, delimiter, names=None, what="values"):
 def load_table(path, skip, ncols, delimiter, names=None, what="values"):
     """Parse the numbers after line `skip` into (rows, ncols) float64, naming bad lines."""
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), contextlib.ExitStack() as stack:
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data"
-            rows = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
-                              ndmin=2, comments=None, encoding="utf-8-sig")
+            try:
+                rows = np.loadtxt(path, dtype=np.float64, delimiter=delimiter, skiprows=skip,
+                                  ndmin=2, comments=None, encoding="utf-8-sig")
+            except UnicodeDecodeError:   # bytes that are not UTF-8: the line with them is named below
+                f = stack.enter_context(open(path, encoding="utf-8-sig", errors="surrogateescape"))
+                rows = np.loadtxt(f, dtype=np.float64, delimiter=delimiter, skiprows=skip,
+                                  ndmin=2, comments=None)
+    except FileNotFoundError:   # numpy says "x not found.": the one style, "x: No such file or directory"
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path)) from None
     except ValueError as exc:
         error = str(exc)
     else:
