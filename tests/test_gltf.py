@@ -908,3 +908,65 @@ def test_wrong_json_shapes_are_format_errors(tmp_path, rng, capsys, where, value
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and match in err
     assert not (tmp_path / "out.glb").exists()
+
+
+def _tweaked(tmp_path, change):
+    """The arm example as an embedded .gltf, its JSON changed by `change(doc)`."""
+    import json
+    src = tmp_path / "arm.gltf"
+    keyframes_to_gltf(src, read_csv(example_path("arm.csv")))
+    doc = json.loads(src.read_text())
+    change(doc)
+    out = tmp_path / "tweaked.gltf"
+    out.write_text(json.dumps(doc))
+    return out
+
+
+def _rotation_output(doc):
+    return doc["accessors"][doc["animations"][0]["samplers"][0]["output"]]
+
+
+def _nest(doc, depth):
+    inner = {}
+    doc["extras"] = inner
+    for _ in range(depth):
+        inner["x"] = {}
+        inner = inner["x"]
+
+
+@pytest.mark.parametrize("case, change, message", [
+    ("byteStride 2.5", lambda d: d["bufferViews"][_rotation_output(d)["bufferView"]].update(byteStride=2.5),
+     "has byteStride 2.5; expected an integer multiple of 4 from 4 to 252, at least the 16 bytes of an element"),
+    ("byteStride 3", lambda d: d["bufferViews"][_rotation_output(d)["bufferView"]].update(byteStride=3),
+     "has byteStride 3; expected an integer multiple of 4"),
+    ("byteStride 8", lambda d: d["bufferViews"][_rotation_output(d)["bufferView"]].update(byteStride=8),
+     "at least the 16 bytes of an element"),
+    ("node 99", lambda d: d["animations"][0]["channels"][0]["target"].update(node=99),
+     "channel 0: target node 99 does not exist (the file has 3 nodes)"),
+    ("UNSIGNED_INT", lambda d: _rotation_output(d).update(componentType=5125),
+     "rotation output of componentType UNSIGNED_INT; expected FLOAT or a normalized BYTE"),
+    ("SHORT not normalized", lambda d: _rotation_output(d).update(componentType=5122),
+     "rotation output of componentType SHORT (not normalized)"),
+    ("extras 900 deep", lambda d: _nest(d, 900), "JSON nested more than 128 levels deep"),
+])
+def test_malformed_gltf_is_a_one_line_error(tmp_path, case, change, message):
+    src = _tweaked(tmp_path, change)
+    res = run("resample", src, "-o", tmp_path / "out.glb", "--fps", 10)
+    assert res.returncode == 2 and "Traceback" not in res.stderr, res.stderr
+    assert res.stderr.startswith(f"quatarray: error: {src}") and message in res.stderr, res.stderr
+    assert not (tmp_path / "out.glb").exists()
+
+
+def test_json_nested_past_the_parsers_recursion_is_a_one_line_error(tmp_path):
+    src = tmp_path / "deep.gltf"
+    src.write_text('{"asset": {"version": "2.0"}, "extras": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    res = run("resample", src, "-o", tmp_path / "out.glb", "--fps", 10)
+    assert res.returncode == 2 and res.stderr == f"quatarray: error: {src}: JSON nested more than 128 levels deep\n"
+
+
+def test_extras_nested_within_the_limit_are_written_back(tmp_path):
+    import json
+    src = _tweaked(tmp_path, lambda d: _nest(d, 120))
+    res = run("resample", src, "-o", tmp_path / "out.gltf", "--fps", 10)
+    assert res.returncode == 0, res.stderr
+    assert json.loads((tmp_path / "out.gltf").read_text())["extras"] == json.loads(src.read_text())["extras"]

@@ -31,6 +31,10 @@ _COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 
 _INDEX_COMPONENTS = (5121, 5123, 5125)
 _NORMALISED = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}   # max(c / d, -1)
 SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}   # matrices never hold animation data
+_NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT", 5123: "UNSIGNED_SHORT", 5125: "UNSIGNED_INT",
+          FLOAT: "FLOAT"}
+#: Nesting of the JSON document read (objects and arrays); deeper ones are refused before copying.
+MAX_DEPTH = 128
 _PATH_TYPES = {"rotation": "VEC4", "translation": "VEC3", "scale": "VEC3", "weights": "SCALAR"}
 
 #: Extensions a file may require: none of them changes animation data, and the
@@ -177,6 +181,10 @@ def read_gltf(path):
         doc = json.loads(text.decode("utf-8-sig"))   # (a byte-order mark is not allowed, but harmless)
     except (UnicodeDecodeError, ValueError) as exc:
         raise FormatError(f"not a glTF file: bad JSON ({exc})", path) from None
+    except RecursionError:
+        raise FormatError(f"JSON nested more than {MAX_DEPTH} levels deep", path) from None
+    if _depth(doc) > MAX_DEPTH:   # copying and writing the document back recurse once per level
+        raise FormatError(f"JSON nested more than {MAX_DEPTH} levels deep", path)
     if not isinstance(doc, dict):
         raise FormatError(f"not a glTF file: expected a JSON object, got {type(doc).__name__}", path)
     version = (doc.get("asset") or {}).get("version") if isinstance(doc.get("asset"), dict) else None
@@ -206,6 +214,20 @@ def read_gltf(path):
                               f"({doc['buffers'][b]['byteLength']} bytes)", path)
     layout = "glb" if bin_chunk is not None else "external" if "external" in layouts else "embedded"
     return GltfFile(doc, buffers, path, layout)
+
+
+def _depth(doc):
+    """How deeply `doc` (parsed JSON) nests arrays and objects (counted without recursion, up to
+    one past `MAX_DEPTH`)."""
+    deepest, stack = 0, [(doc, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, (dict, list)):
+            deepest = max(deepest, depth)
+            if deepest > MAX_DEPTH:
+                break
+            stack.extend((x, depth + 1) for x in (item.values() if isinstance(item, dict) else item))
+    return deepest
 
 
 def _index(x):
@@ -265,7 +287,10 @@ def _elements(gf, view_index, offset, count, dtype, n, what):
         raise FormatError(f"{what}: bufferView {view_index!r} does not exist (the file has {len(views)})", gf.path)
     view = views[view_index]
     size = dtype.itemsize * n
-    step = view.get("byteStride") or size
+    step = view.get("byteStride", size)
+    if not (_index(step) and step == size or (_index(step) and 4 <= step <= 252 and step % 4 == 0 and step >= size)):
+        raise FormatError(f"{what}: bufferView {view_index} has byteStride {step!r}; expected an integer multiple of "
+                          f"4 from 4 to 252, at least the {size} bytes of an element", gf.path)
     if not (isinstance(offset, int) and offset >= 0):
         raise FormatError(f"{what}: expected a byteOffset >= 0, got {offset!r}", gf.path)
     need = offset + step * (count - 1) + size
@@ -344,6 +369,10 @@ def read_animations(gf):
             if not (isinstance(s, int) and 0 <= s < len(samplers)):
                 raise FormatError(f"{where} channel {c}: sampler {s!r} does not exist "
                                   f"(the animation has {len(samplers)})", path)
+            node, nodes = target.get("node"), doc.get("nodes", [])
+            if node is not None and not (_index(node) and 0 <= node < len(nodes)):
+                raise FormatError(f"{where} channel {c}: target node {node!r} does not exist "
+                                  f"(the file has {len(nodes)} nodes)", path)
             if not (isinstance(target.get("path"), str) and target["path"] in _PATH_TYPES):
                 raise FormatError(f"{where} channel {c}: unsupported target path {target.get('path')!r} "
                                   f"(expected {', '.join(_PATH_TYPES)})", path)
@@ -369,6 +398,12 @@ def read_animations(gf):
                                   f"key {k} is {float(times[k])!r}", path)
             values = read_accessor(gf, sampler.get("output"), what + " output")
             out_type = doc["accessors"][sampler["output"]]["type"]
+            ctype = doc["accessors"][sampler["output"]]["componentType"]
+            normalized = doc["accessors"][sampler["output"]].get("normalized") is True
+            if target in ("rotation", "weights") and not (ctype == FLOAT or (ctype in _NORMALISED and normalized)):
+                raise FormatError(f"{what}: {target} output of componentType {_NAMES[ctype]}"
+                                  f"{'' if normalized or ctype not in _NORMALISED else ' (not normalized)'}; "
+                                  "expected FLOAT or a normalized BYTE, UNSIGNED_BYTE, SHORT or UNSIGNED_SHORT", path)
             per_key = 3 * len(times) if interpolation == "CUBICSPLINE" else len(times)
             if len(values) % per_key or (target is not None and out_type != _PATH_TYPES[target]) \
                     or (target in ("rotation", "translation", "scale") and len(values) != per_key):
