@@ -178,7 +178,9 @@ def build_parser():
                                                      "sampler's own interpolation)")
     p.add_argument("--extrapolate", choices=EXTRAPOLATE, default="raise",
                    help="query times outside the keys: raise (default), clamp or extend")
-    p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
+    p.add_argument("--scalar-last", action="store_true",
+                   help="write CSV components x, y, z, w (default: in the input CSV's order; its columns are "
+                        "matched by name, in any order and case)")
     p.add_argument("--precision", type=_precision, metavar="N|full",
                    help="decimals of the values written to CSV or BVH (default: as many as the input has; "
                         "'full': the shortest text that reads back exactly)")

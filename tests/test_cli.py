@@ -98,13 +98,19 @@ def test_times_file_and_conversion_csv_to_npz(tmp_path, inputs):
     np.testing.assert_array_equal(got.keys, want.keys)
 
 
-def test_scalar_last(tmp_path, inputs):
+@pytest.mark.parametrize("flags", [["--scalar-last"], []])
+def test_scalar_last(tmp_path, inputs, flags):
+    """A scalar-last input is read by its column names and written back scalar-last, with or without
+    --scalar-last; from a scalar-first input, --scalar-last writes x, y, z, w."""
     out = tmp_path / "out.csv"
-    res = run("resample", inputs["xyzw"], "-o", out, "--fps", 10, "--scalar-last")
+    res = run("resample", inputs["xyzw"], "-o", out, "--fps", 10, *flags)
     assert res.returncode == 0, res.stderr
     assert out.read_text().split("\n", 1)[0].startswith("time,shoulder.x,shoulder.y,shoulder.z,shoulder.w,")
     np.testing.assert_allclose(read_csv(out, scalar_last=True).keys, expected("csv", inputs["csv"], "slerp", 10).keys,
                                rtol=0, atol=0.5e-9 * (1 + 1e-6))  # the input's 9 decimals
+    res = run("resample", inputs["csv"], "-o", tmp_path / "xyzw.csv", "--fps", 10, "--scalar-last")
+    assert res.returncode == 0, res.stderr
+    assert (tmp_path / "xyzw.csv").read_text().split("\n", 1)[0] == out.read_text().split("\n", 1)[0]
 
 
 @pytest.mark.parametrize("mode", ["clamp", "extend"])

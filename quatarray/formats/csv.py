@@ -9,6 +9,7 @@ input's line endings and separator.  Every problem with a file raises
 """
 
 import csv
+import dataclasses
 import io
 
 import numpy as np
@@ -20,38 +21,50 @@ from .text import (FormatError, TextStyle, check_numbers, check_unit, echo, load
 
 __all__ = ["read_csv", "write_csv"]
 
-def _csv_tracks(header, scalar_last, path):
-    """Track names from the header cells; raise FormatError naming the bad column."""
-    if not header or header[0].lower() != "time":
+def _csv_columns(header, path):
+    """``(time column, track names, key columns (tracks, 4) in w, x, y, z order, scalar_last)`` from the
+    header cells, matched by name (case-insensitively, in any order); FormatError naming the bad column.
+
+    One pass with a dict: 250,000 tracks take as long as a few.
+    """
+    lower = [c.lower() for c in header]
+    times = [i for i, c in enumerate(lower) if c == "time"]
+    if len(times) != 1:
+        if times:
+            raise FormatError(f"bad header: columns {times[0] + 1} and {times[1] + 1} are both 'time'", path, 1)
         hint = (" (the separator must be a comma, a tab or a semicolon)"
-                if len(header) == 1 and header[0].lower().startswith("time") else "")
-        raise FormatError(f"bad header: column 1 must be 'time', got {echo(header[0] if header else '')}{hint}",
-                          path, 1)
-    order, other = ("xyzw", "wxyz") if scalar_last else ("wxyz", "xyzw")
-    names = []
-    for start in range(1, len(header), 4):
-        group = header[start:start + 4]
-        base = group[0].rpartition(".")[0]
-        if not base:
-            raise FormatError(f"bad header: column {start + 1} is {echo(group[0])}, expected '<track>.{order[0]}'",
-                              path, 1)
-        expected = [f"{base}.{c}" for c in order]
-        if len(group) < 4 and group == expected[:len(group)]:
-            raise FormatError(f"bad header: track {echo(base)} has {len(group)} of its 4 columns "
-                              f"({', '.join(expected)})", path, 1)
-        if group != expected:
-            k = next(k for k in range(4) if group[k] != expected[k])
-            msg = f"bad header: column {start + k + 1} is {echo(group[k])}, expected {echo(expected[k])}"
-            if group == [f"{base}.{c}" for c in other]:
-                msg += (" (the file looks scalar-first: leave out --scalar-last)" if scalar_last
-                        else " (the file looks scalar-last: use --scalar-last)")
-            raise FormatError(msg, path, 1)
-        if base in names:
-            raise FormatError(f"bad header: track {echo(base)} appears twice", path, 1)
-        names.append(base)
-    if not names:
-        raise FormatError("bad header: no quaternion columns after 'time'", path, 1)
-    return tuple(names)
+                if len(header) == 1 and lower[0].startswith("time") else "")
+        raise FormatError(f"bad header: no 'time' column, got {echo(','.join(header))}{hint}", path, 1)
+    tracks, order = {}, []   # casefolded name -> (name as first written, {component: column})
+    for i, cell in enumerate(header):
+        if i == times[0]:
+            continue
+        base, dot, comp = cell.rpartition(".")
+        comp = comp.lower()
+        if not (dot and base and comp in ("w", "x", "y", "z")):
+            raise FormatError(f"bad header: column {i + 1} is {echo(cell)}, expected 'time' or '<track>.w', "
+                              "'<track>.x', '<track>.y', '<track>.z'", path, 1)
+        key = base.casefold()
+        if key not in tracks:
+            tracks[key] = (base, {})
+            order.append(key)
+        columns = tracks[key][1]
+        if comp in columns:
+            raise FormatError(f"bad header: column {i + 1} ({echo(cell)}) repeats column {columns[comp] + 1} "
+                              f"({echo(header[columns[comp]])})", path, 1)
+        columns[comp] = i
+    if not order:
+        raise FormatError("bad header: no quaternion columns besides 'time'", path, 1)
+    for key in order:
+        base, columns = tracks[key]
+        if len(columns) < 4:
+            missing = [f"{base}.{c}" for c in "wxyz" if c not in columns]
+            raise FormatError(f"bad header: track {echo(base)} has {len(columns)} of its 4 columns (no "
+                              f"{', '.join(map(echo, missing))})", path, 1)
+    names = tuple(tracks[key][0] for key in order)
+    cols = np.array([[tracks[key][1][c] for c in "wxyz"] for key in order], dtype=np.intp)
+    scalar_last = bool((cols[:, 0] > cols[:, 1:].max(axis=1)).all())   # every track writes w after x, y, z
+    return times[0], names, cols, scalar_last
 
 
 def _delimiter(header):
@@ -65,19 +78,23 @@ def read_csv(path, *, scalar_last=False):
     Parameters
     ----------
     path : str or os.PathLike
-        A header line ``time,<a>.w,<a>.x,<a>.y,<a>.z,<b>.w,...`` then one line
-        per key.  Empty lines are ignored.  ``time`` may have any case; the
-        separator is a comma, or a tab or semicolon when the header has no
-        comma.
+        A header line naming a ``time`` column and four columns per track,
+        ``<a>.w``, ``<a>.x``, ``<a>.y``, ``<a>.z``, then one line per key.
+        Columns are matched by name, case-insensitively and in any order
+        (``time`` last, tracks interleaved, ``x, y, z, w``); empty lines are
+        ignored; the separator is a comma, or a tab or semicolon when the
+        header has no comma.
     scalar_last : bool, optional
-        The file's components are ``x, y, z, w`` (header ``<a>.x ... <a>.w``).
+        No effect on reading (the columns say which component they hold);
+        accepted so that `read_csv` and `write_csv` take the same options.
 
     Returns
     -------
     Keyframes
         ``keys`` of shape (K, tracks, 4), scalar-first, float64; ``names``
-        the track names; ``style`` the file's decimals, line endings and
-        separator.
+        the track names in the order of their first column (as first
+        written); ``style`` the file's decimals, line endings, separator
+        and whether its tracks are written ``x, y, z, w``.
 
     Raises
     ------
@@ -111,40 +128,42 @@ def read_csv(path, *, scalar_last=False):
         header = [c.strip() for c in next(csv.reader([first], delimiter=delimiter), [])]
     except csv.Error as exc:  # a cell over csv.field_size_limit(), or a stray quote
         raise FormatError(f"bad header: {exc}", path, 1) from None
-    names = _csv_tracks(header, scalar_last, path)
-    ncols = 1 + 4 * len(names)
+    time_col, names, cols, file_scalar_last = _csv_columns(header, path)
+    ncols = len(header)
     rows = load_table(path, 1, ncols, delimiter, header)
     if not len(rows):
         raise FormatError("no keyframes after the header", path)
-    keys = rows[:, 1:].reshape(len(rows), len(names), 4)
-    if scalar_last:
-        keys = np.roll(keys, 1, axis=-1)
-    times = np.ascontiguousarray(rows[:, 0])
+    keys = rows[:, cols]   # (K, tracks, 4), scalar-first whatever the file's order
+    times = np.ascontiguousarray(rows[:, time_col])
 
     def where(i, j):
         return row_line(path, 1, i, delimiter), ("" if j is None else f"track {echo(names[j])}: ")
 
     check_numbers(times, keys, path, where)
-    style = measure_style(path, 1, ncols, delimiter)
-    check_unit(keys, path, where, style.decimals, lambda: _key_decimals(path, len(rows), len(names)))
-    return Keyframes(times, np.ascontiguousarray(keys), names, style)
+    style = measure_style(path, 1, ncols, delimiter, time_col)
+    style = dataclasses.replace(style, scalar_last=file_scalar_last)
+    check_unit(keys, path, where, style.decimals, lambda: _key_decimals(path, len(rows), ncols, cols))
+    return Keyframes(times, keys, names, style)
 
 
-def _key_decimals(path, nrows, ntracks):
+def _key_decimals(path, nrows, ncols, cols):
     """Decimals of each key of a CSV file (the most of its four values), or None if the file's numbers
-    do not line up as (rows, 1 + 4 * tracks)."""
+    do not line up as (rows, ncols)."""
     with open(path, "rb") as f:
         data = f.read()
     decimals = token_decimals(data[data.find(b"\n") + 1:])
-    if decimals.size != nrows * (1 + 4 * ntracks):
+    if decimals.size != nrows * ncols:
         return None
-    return decimals.reshape(nrows, -1)[:, 1:].reshape(nrows, ntracks, 4).max(axis=-1)
+    return decimals.reshape(nrows, ncols)[:, cols].max(axis=-1)
 
 
-def write_csv(path, keyframes, *, scalar_last=False):
+def write_csv(path, keyframes, *, scalar_last=None):
     """Write keyframes to a CSV file (layout as `read_csv`), atomically.
 
-    ``keys`` of shape (K, *batch, 4) are written as ``prod(batch)`` tracks;
+    ``keys`` of shape (K, *batch, 4) are written as ``prod(batch)`` tracks,
+    ``time`` first, then each track's ``w, x, y, z`` (``x, y, z, w`` with
+    `scalar_last`; None: as ``keyframes.style.scalar_last`` says, that is as
+    the file read was written);
     without ``names`` they are called ``q`` (no batch) or ``q0, q1, ...``
     (flattened batch index).  Values are written in ``keyframes.style``
     (decimals, line endings, separator), by default with the digits that read
@@ -174,10 +193,12 @@ def write_csv(path, keyframes, *, scalar_last=False):
         names = ("q",) if keys.ndim == 2 else tuple(f"q{j}" for j in range(flat.shape[1]))
     if len(names) != flat.shape[1]:
         raise ValueError(f"expected {flat.shape[1]} track names, got {len(names)}")
+    style = keyframes.style or TextStyle()
+    if scalar_last is None:
+        scalar_last = style.scalar_last
     if scalar_last:
         flat = np.roll(flat, -1, axis=-1)
     order = "xyzw" if scalar_last else "wxyz"
-    style = keyframes.style or TextStyle()
     dtype = np.float32 if keys.dtype == np.float32 and times.dtype == np.float32 else np.float64
     header = io.StringIO()
     csv.writer(header, delimiter=style.delimiter, lineterminator="").writerow(

@@ -53,7 +53,7 @@ def _read_csv(path, request):
 def _write_csv(path, data, request):
     if request.precision is not None:   # every value as asked, interpolated or copied
         data = dataclasses.replace(data, style=request.style(data.style), copied=None)
-    csv.write_csv(path, data, scalar_last=request.scalar_last)
+    csv.write_csv(path, data, scalar_last=request.scalar_last or None)
 
 
 def _read_npz(path, request):
@@ -187,7 +187,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         except for glTF, where it keeps each sampler's own interpolation
         (see `quatarray.formats.resample_gltf`).
     scalar_last : bool
-        CSV input and output have components ``x, y, z, w``.
+        CSV output in ``x, y, z, w`` order.  By default a CSV output is
+        written in the order of a CSV input (the columns of an input are
+        matched by name, so it needs no option), else ``w, x, y, z``.
     precision : int or "full", optional
         Decimals of the values written to CSV or BVH.  By default those of the
         input (for BVH, the most decimals among its frame values); ``"full"``

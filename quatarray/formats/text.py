@@ -127,6 +127,8 @@ class TextStyle:
     time_decimals, time_trim : int or None, bool
         The same as `decimals` and `trim` for a time column (CSV), which is
         written so only where that reads back to the same time.
+    scalar_last : bool
+        Quaternions are written ``x, y, z, w`` (CSV).
     """
 
     decimals: int = None
@@ -135,6 +137,7 @@ class TextStyle:
     delimiter: str = ","
     time_decimals: int = None
     time_trim: bool = False
+    scalar_last: bool = False
 
 
 _NUMBER_BYTE = np.zeros(256, bool)
@@ -171,11 +174,11 @@ def token_decimals(data):
     return decimals
 
 
-def measure_style(path, skip, ncols=None, delimiter=","):
+def measure_style(path, skip, ncols=None, delimiter=",", time_column=0):
     """The `TextStyle` of the numbers after the first `skip` lines of `path`.
 
-    With `ncols`, the first of every `ncols` numbers (a time column) is
-    counted apart.  More than 17 decimals (a tiny value written with an
+    With `ncols`, number `time_column` of every `ncols` numbers (a time
+    column) is counted apart.  More than 17 decimals (a tiny value written with an
     exponent) means shortest round-trip text (``decimals=None``).  The file is
     looked at in blocks of whole lines (about 4 MB), so the scratch stays
     small for large files.
@@ -198,7 +201,7 @@ def measure_style(path, skip, ncols=None, delimiter=","):
         parts = {"values": decimals}
         if ncols and len(decimals) % ncols == 0:
             table = decimals.reshape(-1, ncols)
-            parts = {"values": table[:, 1:], "times": table[:, 0]}
+            parts = {"values": np.delete(table, time_column, axis=1), "times": table[:, time_column]}
         for kind, part in parts.items():
             if part.size:
                 ranges[kind].append((int(part.min()), int(part.max())))
