@@ -2,7 +2,7 @@
 
 ::
 
-    quatarray resample IN -o OUT (--fps F | --times FILE) [--method slerp|squad|bezier|linear]
+    quatarray resample IN -o OUT (--fps F | --times FILE) [--method slerp|linear|squad|bezier|spline]
                                  [--extrapolate raise|clamp|extend] [--scalar-last]
                                  [--precision N|full] [--force]
     quatarray demo [-o DIR]
@@ -33,8 +33,8 @@ from .interpolate import EXTRAPOLATE, METHODS as _TRACK_METHODS, Track
 
 __all__ = ["main", "demo"]
 
-#: The Track methods the command line offers, default first (every one but 'spline').
-METHODS = ("slerp",) + tuple(m for m in _TRACK_METHODS if m not in ("slerp", "spline"))
+#: The Track methods the command line offers, default first.
+METHODS = ("slerp",) + tuple(m for m in _TRACK_METHODS if m != "slerp")
 
 
 # --------------------------------------------------------------------------- demo

@@ -700,3 +700,13 @@ def test_summary_line_grammar(tmp_path):
     times.write_text("0.5\n")
     res = run("resample", src, "-o", tmp_path / "out.csv", "--times", times)
     assert res.returncode == 0 and f"{src}: 2 keys -> {tmp_path / 'out.csv'}: 1 frame (slerp, " in res.stdout
+
+
+def test_method_spline_on_the_command_line(tmp_path):
+    """--method spline is Track(method='spline') (scipy's RotationSpline curve), as in the API."""
+    out = tmp_path / "out.npz"
+    res = run("resample", example_path("arm.csv"), "-o", out, "--fps", 10, "--method", "spline")
+    assert res.returncode == 0, res.stderr
+    want = resample_keyframes(read_csv(example_path("arm.csv")), fps_times(0.0, 4.0, 10), method="spline")
+    np.testing.assert_array_equal(read_npz(out).keys, want.keys)
+    assert "{slerp,linear,squad,bezier,spline}" in run("resample", "--help").stdout
