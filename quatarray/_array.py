@@ -265,6 +265,31 @@ class QuatArray(np.ndarray):
         res = _raw(self).astype(dtype, *args, **kwargs)
         return res.view(type(self)) if res.dtype in (np.float32, np.float64) else res
 
+    # --- reductions: the methods are the NumPy functions ----------------------------
+    def mean(self, *args, **kwargs):
+        """Arithmetic mean over batch axes, exactly ``np.mean(q, ...)`` (not normalised;
+        the mean rotation is `Rotation.mean`).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from quatarray import QuatArray
+        >>> q = QuatArray([[1.0, 0, 0, 0], [0, 1, 0, 0]])
+        >>> q.mean()
+        QuatArray([0.5, 0.5, 0. , 0. ])
+        """
+        return np.mean(self, *args, **kwargs)
+
+    def std(self, *args, **kwargs):
+        """Refused as ``np.std(q)`` is: a spread of components has no quaternion meaning
+        (use ``q.ndarray.std()`` for the components)."""
+        return np.std(self, *args, **kwargs)
+
+    def var(self, *args, **kwargs):
+        """Refused as ``np.var(q)`` is: a spread of components has no quaternion meaning
+        (use ``q.ndarray.var()`` for the components)."""
+        return np.var(self, *args, **kwargs)
+
     # --- algebra -----------------------------------------------------------------
     def conj(self):
         """Conjugate (w, -x, -y, -z); also ``~q``.

@@ -416,6 +416,21 @@ def test_sum_and_mean_are_over_batch_axes(rng, axis):
         np.sum(q, dtype=np.float32)
 
 
+@pytest.mark.parametrize("axis", [None, 0, 1, (0, 1), -1])
+def test_mean_and_std_methods_agree_with_the_functions(rng, axis):
+    """q.mean() is np.mean(q) (it raised TypeError about 'casting' and 'subok' of ufunc 'divide');
+    q.std() and q.var() are refused with np.std's message, which says why."""
+    q = qa(rng, (3, 5), unit=False)
+    got, want = q.mean(axis=axis), np.mean(q, axis=axis)
+    assert type(got) is QuatArray and got.shape == want.shape
+    assert_array_equal(got, want)
+    assert_array_equal(q.mean(axis, keepdims=True), np.mean(q, axis, keepdims=True))
+    for name in ("std", "var"):
+        with pytest.raises(TypeError, match=f"NumPy function '{name}' has no quaternion meaning for QuatArray; "
+                                            "use q.ndarray"):
+            getattr(q, name)(axis=axis)
+
+
 HANDLERS = sorted(((f, h) for table in (_array.BATCH_FUNCTIONS, _array.COMPARISON_FUNCTIONS,
                                         _array.LAYOUT_FUNCTIONS) for f, h in table.items()),
                   key=lambda fh: fh[0].__name__)
