@@ -72,6 +72,9 @@ def demo(outdir=".", *, fps=120, file=None):
         print(f"  {method:<7} {1e3 * elapsed:7.2f} ms   peak |w| {speed.max():5.2f} rad/s   "
               f"largest frame-to-frame change of |w| {jump:5.2f} rad/s", file=file)
     print("  (slerp's angular speed jumps at every key; squad and bezier change it smoothly)", file=file)
+    apart = float(np.abs(speeds["squad"] - speeds["bezier"]).max())
+    print(f"  (squad and bezier share their tangents at the keys, so on these keys their |w| differs by at most "
+          f"{apart:.3f} rad/s: their lines lie on top of each other)", file=file)
 
     walk = read_bvh(example_path("walk.bvh"))
     start = time.perf_counter()
@@ -99,12 +102,12 @@ def demo(outdir=".", *, fps=120, file=None):
         print('demo.png not written: matplotlib is not installed (pip install "quatarray[plot]")', file=file)
         return None
     png = os.path.join(outdir, "demo.png")
-    _plot(Figure, png, t, speeds, kf)
+    _plot(Figure, png, t, speeds, kf, apart)
     print(f"wrote {png}: angular speed |w(t)| per track for slerp, squad and bezier", file=file)
     return png
 
 
-def _plot(Figure, path, t, speeds, kf):
+def _plot(Figure, path, t, speeds, kf, apart):
     fig = Figure(figsize=(8, 2.2 * len(kf.names) + 0.6), layout="constrained")
     axes = fig.subplots(len(kf.names), 1, sharex=True, squeeze=False)[:, 0]
     styles = {"slerp": dict(color="tab:red", lw=1.2), "squad": dict(color="tab:blue", lw=1.8),
@@ -116,7 +119,9 @@ def _plot(Figure, path, t, speeds, kf):
             ax.plot(t, speed[:, j], label=method, **styles[method])
         ax.set_ylabel(f"{name}\n|\u03c9| (rad/s)")
     axes[0].legend(loc="upper right", ncol=3, fontsize="small")
-    fig.suptitle("Angular speed |\u03c9(t)|: slerp jumps at the keys (grey), squad and B\u00e9zier are smooth")
+    fig.suptitle("Angular speed |\u03c9(t)|: slerp jumps at the keys (grey), squad and B\u00e9zier are smooth\n"
+                 "(squad and B\u00e9zier share their key tangents: here they differ by at most "
+                 f"{apart:.3f} rad/s and overlap)", fontsize="medium")
     axes[-1].set_xlabel("time (s)")
     with atomic_write(path, binary=True) as f:
         fig.savefig(f, format="png", dpi=110)

@@ -710,3 +710,17 @@ def test_method_spline_on_the_command_line(tmp_path):
     want = resample_keyframes(read_csv(example_path("arm.csv")), fps_times(0.0, 4.0, 10), method="spline")
     np.testing.assert_array_equal(read_npz(out).keys, want.keys)
     assert "{slerp,linear,squad,bezier,spline}" in run("resample", "--help").stdout
+
+
+def test_demo_says_why_squad_and_bezier_overlap(tmp_path, capsys):
+    """Their printed numbers agree to 2 decimals; the demo says by how much |w| differs, and that is true."""
+    cli.demo(str(tmp_path), file=sys.stdout)
+    out = capsys.readouterr().out
+    said = re.search(r"their \|w\| differs by at most ([0-9.]+) rad/s", out)
+    assert said, out
+    kf = read_csv(example_path("arm.csv"))
+    t = fps_times(kf.times[0], kf.times[-1], 120)
+    from quatarray import Track
+    speed = {m: np.linalg.norm(np.asarray(Track(kf.times, kf.keys, method=m).angular_velocity(t)), axis=-1)
+             for m in ("squad", "bezier")}
+    assert float(said.group(1)) == round(float(np.abs(speed["squad"] - speed["bezier"]).max()), 3) > 0
