@@ -122,6 +122,13 @@ def _touches_last(key, shape):
 class QuatArray(np.ndarray):
     """Array of quaternions, shape (..., 4), components scalar-first (w, x, y, z).
 
+    Operators: ``p * q`` (Hamilton product), ``p / q`` (p q⁻¹), ``p + q``,
+    ``p - q``, ``q ** t``, ``==`` per quaternion, with NumPy broadcasting of
+    batch shapes; real operands act as real quaternions.  In-place operators
+    follow NumPy's casting rule (``p32 *= p64`` computes in float64 and
+    rounds to float32).  See the module docstring for indexing, ufuncs,
+    NumPy functions and the refusal of NaN and infinite input.
+
     Parameters
     ----------
     data : array_like, shape (..., 4)
@@ -153,13 +160,6 @@ class QuatArray(np.ndarray):
         Conversions of the rotation q/|q| (scalar-first; `Rotation` has scipy's API).
     from_matrix, from_rotvec, from_mrp, from_euler, from_davenport
         The inverse conversions (class methods, unit results).
-
-    Operators: ``p * q`` (Hamilton product), ``p / q`` (p q⁻¹), ``p + q``,
-    ``p - q``, ``q ** t``, ``==`` per quaternion, with NumPy broadcasting of
-    batch shapes; real operands act as real quaternions.  In-place operators
-    follow NumPy's casting rule (``p32 *= p64`` computes in float64 and
-    rounds to float32).  See the module docstring for indexing, ufuncs,
-    NumPy functions and the refusal of NaN and infinite input.
 
     Examples
     --------

@@ -160,6 +160,7 @@ PAGES = {  # page: minimum number of plots (images of at least 300 x 150 CSS pix
     "index.html": 1,
     "api/generated/quatarray.Rotation.html": 0,
     "guide/interpolation.html": 3,
+    "api/generated/quatarray.QuatArray.html": 0,
 }
 
 
@@ -252,6 +253,24 @@ def test_page_in_chromium(browser, server, page):
     assert not broken, broken
     plots = [i for i in images if "/_images/" in i[0] and i[4] >= 300 and i[5] >= 150]
     assert len(plots) >= PAGES[page], images
+
+    # reST markup rendered, not shown: no double backticks left in the text (numpydoc turned the
+    # QuatArray docstring's "Operators: ``p * q`` ..." paragraph into Methods rows that showed them)
+    text = browser.execute_script("return document.querySelector('main').innerText")
+    assert "``" not in text, text[max(0, text.find("``") - 200):text.find("``") + 200]
+    if page.endswith("QuatArray.html"):
+        rows = browser.execute_script("""
+            return Array.from(document.querySelectorAll('table tr td:first-child'), td => td.innerText);""")
+        assert not [r for r in rows if r.startswith("Operators")], rows
+        assert "Operators: p * q (Hamilton product)" in text
+
+    # display formulas are whole: none starts left of its box, where no scrolling reaches it
+    cut = browser.execute_script("""
+        return Array.from(document.querySelectorAll('div.math'), d => {
+            const box = d.getBoundingClientRect();
+            return Array.from(d.querySelectorAll('math'), m => m.getBoundingClientRect().left - box.left);
+        }).flat().filter(x => x < -0.5);""")
+    assert not cut, cut
 
     path = _screenshot(browser, page)
     assert path.stat().st_size > 10_000
