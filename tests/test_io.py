@@ -610,3 +610,17 @@ def test_non_unit_npz_keys_warn(tmp_path):
     np.savez(tmp_path / "k.npz", times=[0.0, 1.0], keys=[[1.0, 0, 0, 0], [0, 2.0, 0, 0]])
     with pytest.warns(NonUnitKeyWarning, match=r"keys\[1\]: key of norm 2 is normalised \(1 key in all"):
         read_npz(tmp_path / "k.npz")
+
+
+def test_a_full_disk_names_the_file(tmp_path, rng, monkeypatch):
+    """Errno 28 while writing names the file asked for (it named none), and leaves nothing behind."""
+    import errno
+
+    def full(f, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(qcsv, "write_rows", full)
+    with pytest.raises(OSError) as info:
+        write_csv(tmp_path / "k.csv", Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
+    assert info.value.errno == errno.ENOSPC and info.value.filename == str(tmp_path / "k.csv")
+    assert os.listdir(tmp_path) == []

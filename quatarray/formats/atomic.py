@@ -38,10 +38,15 @@ def atomic_write(path, binary=False, newline="\n"):
         raise type(exc)(exc.errno, exc.strerror, path) from None
     try:
         os.chmod(tmp, mode)  # mkstemp makes 0600
-        with (os.fdopen(fd, "wb") if binary else
-              os.fdopen(fd, "w", encoding="utf-8", errors="surrogateescape", newline=newline)) as f:
-            fd = None
-            yield f
+        try:
+            with (os.fdopen(fd, "wb") if binary else
+                  os.fdopen(fd, "w", encoding="utf-8", errors="surrogateescape", newline=newline)) as f:
+                fd = None
+                yield f
+        except OSError as exc:   # a full disk (errno 28) while writing or closing names no file: name it
+            if exc.filename is not None or exc.errno is None:
+                raise
+            raise type(exc)(exc.errno, exc.strerror, path) from None
         try:
             os.replace(tmp, path)
         except OSError as exc:
