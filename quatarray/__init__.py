@@ -10,6 +10,7 @@ without copying); keyframe interpolation (`lerp`, `nlerp`, `slerp`, `squad`,
 threads long batches use.
 """
 
+from . import _command  # noqa: F401  (first: a Ctrl-C while the command starts ends it quietly)
 from . import testing
 from ._array import QuatArray
 from ._rotation import Rotation

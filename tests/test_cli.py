@@ -724,3 +724,42 @@ def test_demo_says_why_squad_and_bezier_overlap(tmp_path, capsys):
     speed = {m: np.linalg.norm(np.asarray(Track(kf.times, kf.keys, method=m).angular_velocity(t)), axis=-1)
              for m in ("squad", "bezier")}
     assert float(said.group(1)) == round(float(np.abs(speed["squad"] - speed["bezier"]).max()), 3) > 0
+
+
+def test_a_full_disk_is_one_line_naming_the_output(tmp_path, monkeypatch, capsys):
+    import errno
+
+    from quatarray.formats import csv as qcsv
+
+    def full(f, *args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(qcsv, "write_rows", full)
+    out = tmp_path / "o.csv"
+    assert cli.main(["resample", example_path("arm.csv"), "-o", str(out), "--fps", "30"]) == 2
+    assert capsys.readouterr().err == f"quatarray: error: {out}: No space left on device\n"
+    assert os.listdir(tmp_path) == []
+
+
+def test_ctrl_c_while_the_command_imports_prints_no_traceback(tmp_path):
+    """SIGINT while NumPy is being imported (held there by a finder that waits): no traceback."""
+    (tmp_path / "sitecustomize.py").write_text(
+        "import sys, time\n"
+        "class Wait:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'numpy':\n"
+        "            print('importing', flush=True)\n"
+        "            time.sleep(30)\n"
+        "        return None\n"
+        "sys.meta_path.insert(0, Wait())\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), ROOT]))
+    proc = subprocess.Popen([sys.executable, "-m", "quatarray", "--version"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout.readline() == "importing\n"
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    assert proc.returncode in (130, -signal.SIGINT)
