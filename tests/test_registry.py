@@ -134,3 +134,23 @@ def test_unknown_extension_lists_every_registered_one():
     with pytest.raises(ValueError, match=r"unknown extension '\.txt' \(expected \.csv, \.npz, \.bvh, \.gltf, "
                                          r"\.glb, \.zarr\)"):
         format_of("notes.txt")
+
+
+def test_help_lists_every_registered_extension(capsys):
+    from quatarray import cli
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "(.csv, .npz, .bvh, .gltf, .glb or .zarr)" in out
+
+
+def test_resample_file_writes_zarr(tmp_path):
+    """resample_file goes through the registry for Zarr stores too (it could not write them)."""
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
+    group = zarr.open_group(str(tmp_path / "in.zarr"), mode="w")
+    group["times"], group["keys"] = np.array([0.0, 1.0]), np.array([[1.0, 0, 0, 0], [0, 0, 0, 1]])
+    assert resample_file(tmp_path / "in.zarr", tmp_path / "out.zarr", fps=4, progress=False) == (2, 5)
+    got = zarr.open_group(str(tmp_path / "out.zarr"), mode="r")["keys"][...]
+    np.testing.assert_allclose(got, np.asarray(Track([0.0, 1.0], group["keys"][...])(np.arange(5) / 4)),
+                               rtol=0, atol=1e-15)
