@@ -309,6 +309,59 @@ def test_bad_shapes_and_types(rng):
         qd.mean(da.ones((5, 4)), -np.ones(5)).compute()
 
 
+@pytest.mark.parametrize("name, call, chunkwise", [
+    ("p", lambda q: qd.multiply(q, q[:1]), True),
+    ("q", lambda q: qd.multiply(q[:1], q), True),
+    ("q0", lambda q: qd.slerp(q, q[:1], 0.3), True),
+    ("q1", lambda q: qd.squad(q[:1], q[:1], q[:1], q, 0.3), True),
+    ("t", lambda q: qd.slerp(q[:1], q[:1], da.where(da.isnan(q[:, 1]), np.nan, 0.3)), True),
+    ("q", lambda q: qd.normalize(q), True),
+    ("q", lambda q: qd.as_matrix(q), True),
+    ("rotvec", lambda q: qd.from_rotvec(q[:, :3]), True),
+    ("q", lambda q: qd.unflip(q), False),         # every chunk's sign depends on the chunks before
+    ("q", lambda q: qd.unflip(q.rechunk({0: -1})), False),
+    ("q", lambda q: qd.mean(q), False),
+], ids=["multiply-p", "multiply-q", "slerp", "squad", "slerp-t", "normalize", "as_matrix", "from_rotvec", "unflip",
+        "unflip-1", "mean"])
+def test_nan_refused_per_chunk_when_computed(rng, name, call, chunkwise):
+    """NaN and inf are refused as by the in-memory API (a ValueError naming the argument) when
+    the chunk holding them is computed; building the graph computes nothing."""
+    q = unit(rng, (6,), np.float64)
+    q[4, 1] = np.nan
+    lazy = call(da.from_array(q, chunks=(2, 4)))
+    with pytest.raises(ValueError, match=f"expected finite values in {name}, got nan or inf"):
+        lazy.compute(scheduler="synchronous")
+    if chunkwise:       # the chunks without NaN compute
+        assert np.isfinite(lazy[:2].compute(scheduler="synchronous")).all()
+
+
+def test_unknown_chunk_sizes(rng, scheduler):
+    """Boolean indexing leaves chunk sizes unknown (NaN): elementwise functions work on them,
+    broadcasting them against known sizes asks for compute_chunk_sizes()."""
+    q = rng.normal(size=(20, 4))
+    mask = q[:, 0] > 0
+    x = da.from_array(q, chunks=(6, 4))
+    y = x[x[:, 0] > 0]
+    assert np.isnan(y.shape[0])
+    sel = QuatArray(q[mask])
+
+    def check(lazy, expected, dtype):     # the shape is known once computed
+        np.testing.assert_allclose(lazy.compute(), np.asarray(expected), **tol(dtype))
+
+    check(qd.normalize(y), sel.normalized(), np.float64)
+    check(qd.multiply(y, y), sel * sel, np.float64)
+    check(qd.multiply(y, np.array([0.0, 0, 0, 1])), sel * QuatArray([0.0, 0, 0, 1]), np.float64)
+    check(qd.slerp(qd.normalize(y), np.array([1.0, 0, 0, 0]), 0.25),
+          qi.slerp(sel.normalized(), QuatArray([1.0, 0, 0, 0]), 0.25), np.float64)
+    np.testing.assert_allclose(qd.mean(y).compute(), quats(Rotation.from_quat(q[mask], scalar_first=True).mean()),
+                               rtol=0, atol=64 * np.finfo(float).eps)
+    with pytest.raises(ValueError, match=r"expected p with known chunk sizes.*p\.compute_chunk_sizes\(\)"):
+        qd.multiply(y, x)
+    with pytest.raises(ValueError, match=r"known chunk sizes along axis 0.*q\.compute_chunk_sizes\(\)"):
+        qd.unflip(y)
+    check(qd.unflip(y.compute_chunk_sizes()), qi.unflip(q[mask]), np.float64)
+
+
 @pytest.mark.parametrize("call", [
     lambda d: QuatArray(d),
     lambda d: Rotation.from_quat(d),
