@@ -461,7 +461,7 @@ def test_zarr_cli_failure_leaves_no_output(store, capsys):
     assert "nothere.zarr" in capsys.readouterr().err
 
 
-def test_zarr_cli_replaces_existing_store_and_shows_progress(store, monkeypatch, capsys):
+def test_zarr_existing_output_needs_force_and_progress_shows(store, capsys):
     import zarr
 
     from quatarray.formats import zarr as _zarr
@@ -469,10 +469,140 @@ def test_zarr_cli_replaces_existing_store_and_shows_progress(store, monkeypatch,
     dst = str(tmp / "out.zarr")
     _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=1, progress=False)
     assert capsys.readouterr().err == ""
-    _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=True)
+    with pytest.raises(FileExistsError, match="force"):
+        _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=False)
+    assert zarr.open_group(dst, mode="r")["times"].shape[0] == len(quatarray.formats.fps_times(times[0], times[-1], 1))
+    _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=True, force=True)
     assert "100% Completed" in capsys.readouterr().err
     assert zarr.open_group(dst, mode="r")["times"].shape[0] == len(quatarray.formats.fps_times(times[0], times[-1], 3))
     assert sorted(os.listdir(tmp)) == ["in.zarr", "out.zarr"]
+
+
+def test_zarr_input_is_never_its_output(store, capsys):
+    """Even with --force: a store cannot be replaced atomically while it is read."""
+    from quatarray.cli import main
+    tmp, times, _ = store
+    before = sorted(os.listdir(tmp / "in.zarr"))
+    os.symlink(tmp / "in.zarr", tmp / "link.zarr")
+    for out in ("in.zarr", "in.zarr/", "link.zarr"):
+        assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", "--force"]) == 2
+        err = capsys.readouterr().err
+        assert f"{tmp / out}: is the input store" in err and "another store" in err
+    assert sorted(os.listdir(tmp / "in.zarr")) == before
+    assert sorted(os.listdir(tmp)) == ["in.zarr", "link.zarr"]
+
+
+def test_zarr_messages_name_the_users_path(store, capsys):
+    """Never a temporary ``.part`` name: a missing folder, a regular file at OUT.zarr."""
+    from quatarray.cli import main
+    tmp, times, _ = store
+    src = str(tmp / "in.zarr")
+    out = tmp / "nodir" / "o8.zarr"
+    assert main(["resample", src, "-o", str(out), "--fps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {out}: No such file or directory") and ".part" not in err
+    (tmp / "file.zarr").write_text("not a store")
+    assert main(["resample", src, "-o", str(tmp / "file.zarr"), "--fps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert f"{tmp / 'file.zarr'}: File exists" in err and "--force" in err and ".part" not in err
+    assert (tmp / "file.zarr").read_text() == "not a store"
+    assert main(["resample", src, "-o", str(tmp / "file.zarr"), "--fps", "2", "--force"]) == 0
+    assert (tmp / "file.zarr" / "zarr.json").exists()
+    assert sorted(os.listdir(tmp)) == ["file.zarr", "in.zarr"]
+
+
+@pytest.mark.filterwarnings("ignore:The data type")    # zarr on fixed-length strings
+@pytest.mark.parametrize("damage, message", [
+    ("complex", "expected 'keys' of real numbers, got dtype complex128"),
+    ("strings", "expected 'keys' of real numbers, got dtype"),
+    ("group", "expected 'keys' to be an array, got a group"),
+    ("no keys", "missing array 'keys' (found arrays: times)"),
+    ("group json", "not a Zarr group with arrays 'times' and 'keys' (its metadata (zarr.json) is not valid JSON"),
+    ("array json", "cannot open array 'keys': its metadata (zarr.json) is not valid JSON"),
+    ("chunk", "cannot read array 'keys' at (slice(10, 20, 1)"),
+])
+def test_zarr_bad_stores_give_clear_errors(tmp_path, damage, message, capsys):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    from quatarray.cli import main
+    src = tmp_path / "in.zarr"
+    g = zarr.open_group(str(src), mode="w")
+    g["times"] = np.arange(30.0)
+    keys = np.tile([1.0, 0, 0, 0], (30, 1))
+    if damage == "complex":
+        g["keys"] = keys.astype(complex)
+    elif damage == "strings":
+        g["keys"] = keys.astype(str)
+    elif damage == "group":
+        g.create_group("keys")
+    elif damage != "no keys":
+        g.create_array("keys", data=keys, chunks=(10, 4), compressors=zarr.codecs.ZstdCodec())
+    if damage == "group json":
+        (src / "zarr.json").write_text('{"zarr_format": 3, "node_type": "gro')
+    elif damage == "array json":
+        (src / "keys" / "zarr.json").write_text("{bad")
+    elif damage == "chunk":
+        (src / "keys" / "c" / "1" / "0").write_bytes(b"garbage" * 9)
+    assert main(["resample", str(src), "-o", str(tmp_path / "out.zarr"), "--fps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {src}: ") and message in err, err
+    assert "Traceback" not in err and sorted(os.listdir(tmp_path)) == ["in.zarr"]
+
+
+def test_zarr_huge_output_is_refused_or_built_window_by_window(store, monkeypatch, capsys):
+    """--fps 1e12 is refused before any writing when the disk cannot hold it, and the task graph
+    is built a window of chunks at a time: its size does not grow with the number of queries."""
+    import zarr
+    from dask.callbacks import Callback
+
+    from quatarray.formats import zarr as _zarr
+    from quatarray.cli import main
+    tmp, times, keys = store
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / "out.zarr"), "--fps", "1e12"]) == 2
+    err = capsys.readouterr().err
+    assert "out.zarr: the output needs" in err and "GB free" in err
+    assert sorted(os.listdir(tmp)) == ["in.zarr"]
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 3 * 8)      # 8 queries x 3 tracks a chunk
+    monkeypatch.setattr(_zarr, "WINDOW_CHUNKS", 4)
+    largest = {}
+    for fps in (8, 64):     # 7 and 49 chunks
+        graphs = []
+        with Callback(start=lambda dsk: graphs.append(len(dsk))):
+            dst = str(tmp / f"out{fps}.zarr")
+            _, n = _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=fps, progress=False)
+        assert len(graphs) == 1 + -(-n // (8 * 4)), graphs       # reading the keys, then one per window
+        largest[fps] = max(graphs)
+        out = zarr.open_group(dst, mode="r")
+        np.testing.assert_array_equal(out["keys"][...], np.asarray(Track(times, keys)(out["times"][...])))
+    assert largest[64] == largest[8], largest
+
+
+def test_zarr_storage_options_need_a_url(store):
+    from quatarray.formats import zarr as _zarr
+    tmp, _, _ = store
+    with pytest.raises(ValueError, match="expected a store URL .* for storage_options"):
+        _zarr.resample_zarr(str(tmp / "in.zarr"), str(tmp / "out.zarr"), fps=2, storage_options={"anon": True})
+
+
+def test_zarr_memory_url_through_the_cli(store, capsys):
+    """Any fsspec URL zarr opens: memory:// here (in this process), with --storage-option parsed."""
+    import zarr
+
+    from quatarray.cli import main
+    tmp, times, keys = store
+    src = zarr.open_group("memory://qa-cli/in.zarr", mode="w")
+    src["times"], src["keys"] = times, keys
+    out = "memory://qa-cli/out.zarr"
+    assert main(["resample", "memory://qa-cli/in.zarr", "-o", out, "--fps", "5", "--quiet",
+                 "--storage-option", "skip_instance_cache=true"]) == 0
+    got = zarr.open_group(out, mode="r")
+    np.testing.assert_array_equal(got["keys"][...], np.asarray(Track(times, keys)(got["times"][...])))
+    import fsspec
+    fs = fsspec.filesystem("memory")
+    assert sorted(p.rsplit("/", 1)[-1] for p in fs.ls("/qa-cli", detail=False)) == ["in.zarr", "out.zarr"]   # no .part left
+    assert main(["resample", quatarray.formats.example_path("arm.csv"), "-o", str(tmp / "o.csv"), "--fps", "5",
+                 "--storage-option", "anon=true"]) == 2
+    assert "storage options apply to Zarr stores (.zarr) only" in capsys.readouterr().err
+    fs.rm("/qa-cli", recursive=True)
 
 
 @pytest.mark.parametrize("t0, t1, fps", [(0.0, 999_999_999.0, 1.0), (0.0, 4.2, 30.0), (0.0, 127 / 30, 30.0),
@@ -483,106 +613,30 @@ def test_zarr_fps_grid_is_io_fps_times(t0, t1, fps):
     from quatarray.formats import zarr as _zarr
     from quatarray.formats import fps_steps, fps_times
 
-    t, _ = _zarr._query_times(np.array([t0, t1]), fps, None, 1 << 20)
-    assert t.shape == (fps_steps(t0, t1, fps) + 1,)
-    if t.shape[0] < 10**6:
-        assert np.array_equal(t.compute(), fps_times(t0, t1, fps))
+    queries = _zarr._Queries(np.array([t0, t1]), fps, None, None)
+    n = queries.size
+    assert n == fps_steps(t0, t1, fps) + 1
+    if n < 10**6:
+        assert np.array_equal(queries.window(0, n, 1 << 20).compute(), fps_times(t0, t1, fps))
+        assert np.array_equal(queries.window(5, n, 7).compute(), fps_times(t0, t1, fps)[5:])
     else:
-        assert t[-1].compute() == t1 and t[-2].compute() < t1
+        assert queries.window(n - 2, n, 4).compute()[1] == t1 and queries.window(n - 2, n, 4).compute()[0] < t1
 
 
-# --------------------------------------------------------------------------- the Zarr output's chunk writer
-
-def _chunk_files(root):
-    return {os.path.relpath(os.path.join(d, f), root): open(os.path.join(d, f), "rb").read()
-            for d, _, fs in os.walk(root) for f in fs if f != "zarr.json"}
-
-
-@pytest.mark.parametrize("blosc", [None, ("lz4", 1, "shuffle"), ("zstd", 3, "bitshuffle")])
-@pytest.mark.parametrize("dtype", DTYPES)
-@pytest.mark.parametrize("shape, chunks", [((1000, 4), (256, 4)),          # 4096-byte multiples (float32), ragged end
-                                           ((700, 3, 4), (300, 3, 4)),     # an unaligned tail in every chunk
-                                           ((5, 4), (8, 4))])              # one chunk, larger than the array
-def test_raw_chunks_are_the_files_zarr_writes(tmp_path, rng, dtype, shape, chunks, blosc):
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
-    from zarr.codecs import BloscCodec
-
-    from quatarray.formats.zarr import RawChunks
-    data = rng.normal(size=shape).astype(dtype)
-    data[:len(data) // 2] = np.round(data[:len(data) // 2])   # something for a compressor to find
-    compressors = None if blosc is None else BloscCodec(cname=blosc[0], clevel=blosc[1], shuffle=blosc[2])
-    made = {}
-    for name in ("zarr", "ours"):
-        root = str(tmp_path / name)
-        a = zarr.open_group(root, mode="w").create_array("keys", shape=shape, chunks=chunks, dtype=dtype,
-                                                         compressors=compressors)
-        if name == "zarr":
-            a[...] = data
-        else:
-            da.store(da.from_array(data, chunks=chunks), RawChunks(a, root), lock=False, scheduler="threads")
-        made[name] = _chunk_files(root)
-        np.testing.assert_array_equal(zarr.open_group(root, mode="r")["keys"][...], data)
-    assert made["ours"] == made["zarr"] and len(made["ours"]) == -(-shape[0] // chunks[0])
-
-
-def test_raw_chunks_fall_back_to_plain_writes(tmp_path, rng, monkeypatch):
-    """Where O_DIRECT is refused (tmpfs at open; a device's alignment at write), the same bytes
-    are written plainly."""
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
-    import errno
-
-    from quatarray.formats import zarr as _zarr
-    data = rng.normal(size=(2048, 4)).astype(np.float32)
-    real_open, real_write = os.open, os.write
-    direct = getattr(os, "O_DIRECT", 0)
-    for refuse in ("open", "write"):
-        seen = []
-
-        def fake_open(path, flags, mode=0o777, *args, refuse=refuse, seen=seen, **kw):
-            if os.sep + "c" + os.sep in os.fspath(path):   # a chunk file (zarr's own files pass)
-                seen.append(flags & direct)
-                if refuse == "open" and flags & direct:
-                    raise OSError(errno.EINVAL, "Invalid argument")
-            return real_open(path, flags, mode, *args, **kw)
-
-        def fake_write(fd, data, refuse=refuse):
-            if refuse == "write" and direct and _fcntl_flags(fd) & direct:
-                raise OSError(errno.EINVAL, "Invalid argument")
-            return real_write(fd, data)
-
-        monkeypatch.setattr(_zarr.os, "open", fake_open)
-        monkeypatch.setattr(_zarr.os, "write", fake_write)
-        root = str(tmp_path / refuse)
-        a = zarr.open_group(root, mode="w").create_array("keys", shape=data.shape, chunks=(1024, 4),
-                                                         dtype=np.float32, compressors=None)
-        w = _zarr.RawChunks(a, root)
-        w[0:1024, 0:4] = data[:1024]
-        w[1024:2048, 0:4] = data[1024:]
-        monkeypatch.undo()
-        np.testing.assert_array_equal(zarr.open_group(root, mode="r")["keys"][...], data)
-        if direct:   # O_DIRECT asked for once per chunk (then plainly where refused at open)
-            assert sum(1 for f in seen if f) == 2
-
-
-def _fcntl_flags(fd):
-    import fcntl
-    return fcntl.fcntl(fd, fcntl.F_GETFL)
-
-
-def test_raw_chunks_refuse_what_they_cannot_write(tmp_path):
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
-    from quatarray.formats.zarr import RawChunks
-    g = zarr.open_group(str(tmp_path / "s.zarr"), mode="w")
-    packed = g.create_array("packed", shape=(10, 4), chunks=(5, 4), dtype=np.float32)   # zstd by default
-    with pytest.raises(ValueError, match="expected a Zarr v3 array with codec bytes"):
-        RawChunks(packed, str(tmp_path / "s.zarr"))
-    raw = g.create_array("raw", shape=(10, 4), chunks=(5, 4), dtype=np.float32, compressors=None)
-    w = RawChunks(raw, str(tmp_path / "s.zarr"))
-    with pytest.raises(ValueError, match="expected one whole chunk"):
-        w[2:7, 0:4] = np.zeros((5, 4))
-    # a store removed under a late write is not created again
-    import shutil
-    shutil.rmtree(tmp_path / "s.zarr")
-    with pytest.raises(FileNotFoundError):
-        w[0:5, 0:4] = np.zeros((5, 4))
-    assert os.listdir(tmp_path) == []
+def test_no_zarr_internals_in_the_package():
+    """Zarr through its public API only: no private modules or names anywhere in quatarray/."""
+    import re
+    root = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "quatarray")
+    private = re.compile(r"zarr\.core\b|zarr\.\w+\._|\bzarr\._|encode_chunk_key|chunk_key_encoding|\.serializer\b|"
+                         r"\bcname\.value\b|\.metadata\.|\bfrom zarr\.(core|abc|api|storage\._|codecs\._)")
+    found = []
+    for folder, _, files in os.walk(root):
+        for name in files:
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                for number, line in enumerate(open(path, encoding="utf-8"), 1):
+                    if private.search(line):
+                        found.append(f"{os.path.relpath(path, root)}:{number}: {line.strip()}")
+    assert not found, "\n".join(found)
+    assert private.search("from zarr.core.metadata import ArrayV3Metadata")      # the scan can fail
+    assert private.search("keys.encode_chunk_key((0, 1))")
