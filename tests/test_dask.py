@@ -1,6 +1,7 @@
 """quatarray.dask equals the in-memory API on chunked data; the Zarr path of the CLI; clear errors."""
 
 import importlib
+import json
 import os
 import pickle
 import sys
@@ -248,15 +249,142 @@ def test_track_and_tasks_pickle_small(rng):
     assert len(pickle.dumps(qd.slerp(keys[:4], keys[4:8], da.ones(4, chunks=2)).__dask_graph__())) < 20_000
 
 
-def test_local_cluster_two_processes(rng, tmp_path):
+@pytest.fixture(scope="module")
+def s3():
+    """An S3-protocol server (moto's server mode, real HTTP) on a free port of 127.0.0.1 only,
+    and the storage_options that reach a fresh bucket on it through s3fs."""
+    server_mod = pytest.importorskip("moto.server", reason="moto[server] is not installed (the test extra: "
+                                                            "pip install -e '.[test]')")
+    pytest.importorskip("s3fs", reason="s3fs is not installed (the test extra: pip install -e '.[test]')")
+    pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import logging
+
+    import s3fs
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)
+    server = server_mod.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    try:
+        host, port = server.get_host_and_port()
+        assert host == "127.0.0.1"
+        options = {"key": "testing", "secret": "testing", "endpoint_url": f"http://127.0.0.1:{port}",
+                   "client_kwargs": {"region_name": "eu-west-1"}}
+        s3fs.S3FileSystem(**options).mkdir("quatarray-test")
+        yield options
+    finally:
+        server.stop()
+
+
+def _s3_objects(options, prefix):
+    import s3fs
+    fs = s3fs.S3FileSystem(skip_instance_cache=True, **options)
+    return sorted(p[len(prefix) + 1:] for p in fs.ls(prefix, detail=False))
+
+
+def _s3_input(rng, url, options, k=30, batch=(2,)):
+    import zarr
+    times = np.cumsum(rng.uniform(0.1, 1, k))
+    keys = unit(rng, (k,) + batch, np.float32)
+    g = zarr.open_group(url, mode="w", storage_options=options)
+    g["times"] = times
+    g.create_array("keys", data=keys, chunks=(10,) + batch + (4,))
+    return times, keys
+
+
+def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
+    """The command line's Zarr path against an S3-protocol server: store in, store out, times from a
+    store, an existing output refused without --force, no temporary prefix left behind."""
+    import zarr
+
+    from quatarray.formats import zarr as _zarr
+    from quatarray.cli import main
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 2 * 64)     # several chunks (and windows) to write
+    monkeypatch.setattr(_zarr, "WINDOW_CHUNKS", 2)
+    times, keys = _s3_input(rng, "s3://quatarray-test/cli/in.zarr", s3)
+    flags = [arg for k, v in s3.items() for arg in ("--storage-option", f"{k}={json.dumps(v) if isinstance(v, dict) else v}")]
+    out = "s3://quatarray-test/cli/out.zarr"
+    args = ["resample", "s3://quatarray-test/cli/in.zarr", "-o", out, "--method", "squad", "--quiet", *flags]
+    assert main(args + ["--fps", "20"]) == 0, capsys.readouterr().err
+    got = zarr.open_group(out, mode="r", storage_options=s3)
+    t = got["times"][...]
+    np.testing.assert_array_equal(t, quatarray.formats.fps_times(times[0], times[-1], 20))
+    np.testing.assert_array_equal(got["keys"][...], np.asarray(Track(times, keys, method="squad")(t)))
+    assert _s3_objects(s3, "quatarray-test/cli") == ["in.zarr", "out.zarr"]
+    assert main(args + ["--fps", "5"]) == 2
+    assert f"{out}: File exists" in capsys.readouterr().err
+    assert main(args + ["--times", "s3://quatarray-test/cli/out.zarr", "--force"]) == 2
+    assert f"{out}: is the times store" in capsys.readouterr().err
+    assert main(["resample", "s3://quatarray-test/cli/out.zarr", "-o", "s3://quatarray-test/cli/again.zarr",
+                 "--times", "s3://quatarray-test/cli/in.zarr", "--extrapolate", "clamp", "--quiet", *flags]) == 0
+    again = zarr.open_group("s3://quatarray-test/cli/again.zarr", mode="r", storage_options=s3)
+    np.testing.assert_array_equal(again["keys"][...], np.asarray(Track(t, got["keys"][...], extrapolate="clamp")(times)))
+    assert main(args + ["--fps", "5", "--force"]) == 0
+    assert zarr.open_group(out, mode="r", storage_options=s3)["times"].shape == (len(
+        quatarray.formats.fps_times(times[0], times[-1], 5)),)
+    assert _s3_objects(s3, "quatarray-test/cli") == ["again.zarr", "in.zarr", "out.zarr"]
+
+
+def test_s3_quatarray_dask(s3, rng):
+    """quatarray.dask on chunks read from and written to an S3-protocol server with dask's
+    from_zarr / to_zarr and storage_options."""
+    times, keys = _s3_input(rng, "s3://quatarray-test/qd/in.zarr", s3, batch=())
+    track = Track(times, keys, method="squad")
+    t = da.linspace(times[0], times[-1], 500, chunks=128)
+    qd.evaluate(track, t).to_zarr("s3://quatarray-test/qd/out.zarr", component="keys", storage_options=s3)
+    back = da.from_zarr("s3://quatarray-test/qd/out.zarr", component="keys", storage_options=s3)
+    assert back.chunks[0] == (128, 128, 128, 116)
+    np.testing.assert_array_equal(back.compute(), np.asarray(track(t.compute())))
+    stored = da.from_zarr("s3://quatarray-test/qd/in.zarr", component="keys", storage_options=s3)
+    np.testing.assert_allclose(qd.mean(stored).compute(), quats(Rotation.from_quat(keys, scalar_first=True).mean()),
+                               rtol=0, atol=8 * np.finfo(np.float32).eps)
+
+
+def test_object_store_output_appears_metadata_last(rng, monkeypatch):
+    """On an object store (memory:// here) the output is written under a temporary prefix and
+    copied under the target chunks first, each array's zarr.json after its chunks, the group's last;
+    a failure leaves nothing."""
+    import fsspec
+    import zarr
+
+    from quatarray.formats import zarr as _zarr
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 16)
+    times, keys = _s3_input(rng, "memory://qa-order/in.zarr", None, batch=())
+    fs = fsspec.filesystem("memory")
+    copied = []
+    real = type(fs).copy
+
+    def copy(self, path1, path2, *args, **kwargs):
+        copied.extend([path2] if isinstance(path2, str) else path2)
+        return real(self, path1, path2, *args, **kwargs)
+
+    monkeypatch.setattr(type(fs), "copy", copy)
+    _zarr.resample_zarr("memory://qa-order/in.zarr", "memory://qa-order/out.zarr", fps=9, progress=False)
+    names = [p.split("/out.zarr/", 1)[1] for p in copied]
+    assert names[-1] == "zarr.json" and names.index("keys/zarr.json") > max(
+        i for i, n in enumerate(names) if n.startswith("keys/c/"))
+    assert sorted(fs.ls("/qa-order", detail=False)) == ["/qa-order/in.zarr", "/qa-order/out.zarr"]
+    out = zarr.open_group("memory://qa-order/out.zarr", mode="r")
+    np.testing.assert_array_equal(out["keys"][...], np.asarray(Track(times, keys)(out["times"][...])))
+    fs.pipe("/qa-order/in.zarr/keys/c/1/0", b"garbage")          # fails while writing
+    with pytest.raises(ValueError, match="cannot read array 'keys'"):
+        _zarr.resample_zarr("memory://qa-order/in.zarr", "memory://qa-order/bad.zarr", fps=9, progress=False)
+    assert sorted(fs.ls("/qa-order", detail=False)) == ["/qa-order/in.zarr", "/qa-order/out.zarr"]
+    fs.rm("/qa-order", recursive=True)
+
+
+def test_local_cluster_two_processes_writing_to_s3(rng, s3):
+    """Two worker processes, as the hosts of a cluster would: quatarray.dask's tasks, and the
+    Zarr path's chunks written by the workers to the S3-protocol server."""
     distributed = pytest.importorskip("distributed", reason="distributed is not installed (the dask extra)")
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import zarr
+
     from quatarray.formats import resample_zarr
     times = np.cumsum(rng.uniform(0.1, 1, 30))
     keys = unit(rng, (30, 2), np.float64)
     track = Track(times, keys, method="squad")
     t = rng.uniform(times[0], times[-1], 200)
     q = _flippy(rng, 40, 2, np.float64)
+    g = zarr.open_group("s3://quatarray-test/cluster/in.zarr", mode="w", storage_options=s3)
+    g["times"], g["keys"] = times, keys
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True, dashboard_address=None,
                                   silence_logs=40) as cluster, distributed.Client(cluster) as client:
         lazy = [qd.evaluate(track, da.from_array(t, chunks=30)),
@@ -265,17 +393,24 @@ def test_local_cluster_two_processes(rng, tmp_path):
                 qd.slerp(da.from_array(q[:-1], chunks=(6, 2, 4)), q[1:], 0.3),
                 da.zeros(8, chunks=2).map_blocks(lambda b: np.full(b.shape, quatarray.get_num_threads()), dtype=int)]
         got = client.compute(lazy, sync=True)
-        assert len(client.scheduler_info()["workers"]) == 2
-        # the CLI's Zarr path on the cluster (--scheduler ADDRESS): workers write the chunks
-        g = zarr.open_group(str(tmp_path / "in.zarr"), mode="w")
-        g["times"], g["keys"] = times, keys
-        assert resample_zarr(str(tmp_path / "in.zarr"), str(tmp_path / "out.zarr"), times=t, method="squad",
-                             scheduler=cluster.scheduler_address, progress=False) == (30, 200)
-    np.testing.assert_allclose(zarr.open_group(str(tmp_path / "out.zarr"), mode="r")["keys"][...],
-                               np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
+        pids = set(client.run(os.getpid).values())
+        assert len(pids) == 2 and os.getpid() not in pids      # two processes, not this one
+        # the CLI's Zarr path on the cluster (--scheduler ADDRESS); the workers write the chunks
+        assert resample_zarr("s3://quatarray-test/cluster/in.zarr", "s3://quatarray-test/cluster/out.zarr",
+                             times=t, method="squad", scheduler=cluster.scheduler_address, progress=False,
+                             storage_options=s3) == (30, 200)
+        # and the active Client is used when no scheduler is named, with distributed's progress
+        assert resample_zarr("s3://quatarray-test/cluster/in.zarr", "s3://quatarray-test/cluster/out2.zarr",
+                             times=t, method="squad", progress=True, storage_options=s3) == (30, 200)
+        tasks = client.run(lambda dask_worker: len(dask_worker.state.log))
+        assert all(n > 0 for n in tasks.values())
+    for name in ("out", "out2"):
+        stored = zarr.open_group(f"s3://quatarray-test/cluster/{name}.zarr", mode="r", storage_options=s3)
+        np.testing.assert_allclose(stored["keys"][...], np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
     np.testing.assert_allclose(got[0], np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
     np.testing.assert_array_equal(got[1], np.asarray(qi.unflip(q)))
-    np.testing.assert_allclose(got[2], quats(Rotation.from_quat(q, scalar_first=True).mean()), rtol=0, atol=100 * np.finfo(float).eps)
+    np.testing.assert_allclose(got[2], quats(Rotation.from_quat(q, scalar_first=True).mean()), rtol=0,
+                               atol=100 * np.finfo(float).eps)
     np.testing.assert_allclose(got[3], np.asarray(qi.slerp(q[:-1], q[1:], 0.3)), rtol=0, atol=32 * np.finfo(float).eps)
     assert set(got[4]) == {1}
 

@@ -415,9 +415,10 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     times_store = times if isinstance(times, (str, os.PathLike)) and is_zarr(times) else None
     where = _locations(storage_options, src=src, dst=dst, times=times_store)
     loc_in, loc_out = where["src"], where["dst"]
-    if loc_in.key() == loc_out.key():
-        raise ValueError(f"{loc_out.name}: is the input store; a Zarr store is not replaced atomically "
-                         "while it is read (even when forced): write to another store")
+    for what, loc in (("input", loc_in), ("times", where.get("times"))):
+        if loc is not None and loc.key() == loc_out.key():
+            raise ValueError(f"{loc_out.name}: is the {what} store; a Zarr store is not replaced atomically "
+                             "while it is read (even when forced): write to another store")
     key_times, keys = _read(loc_in)
     check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
