@@ -775,3 +775,20 @@ def test_no_zarr_internals_in_the_package():
     assert not found, "\n".join(found)
     assert private.search("from zarr.core.metadata import ArrayV3Metadata")      # the scan can fail
     assert private.search("keys.encode_chunk_key((0, 1))")
+
+
+def test_readme_dask_example_runs_twice_with_progress(capsys):
+    """The README's example writes into a temporary directory (so it runs again), shows progress;
+    run here at 10⁵ queries instead of 10⁷."""
+    pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import re
+    readme = open(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "README.md"),
+                  encoding="utf-8").read()
+    code = re.search(r"## Beyond memory.*?```python\n(.*?)```", readme, re.S).group(1)
+    assert "10**7" in code and "TemporaryDirectory" in code and "ProgressBar" in code
+    code = code.replace("10**7", "10**5").replace("2**20", "2**14")
+    for _ in range(2):
+        namespace = {}
+        exec(compile(code, "README.md", "exec"), namespace)
+        assert "100% Completed" in capsys.readouterr().out
+        assert namespace["q"].shape == (10**5, 4) and not os.path.exists(namespace["folder"])
