@@ -619,8 +619,8 @@ def test_zarr_input_is_never_its_output(store, capsys):
     tmp, times, _ = store
     before = sorted(os.listdir(tmp / "in.zarr"))
     os.symlink(tmp / "in.zarr", tmp / "link.zarr")
-    for out in ("in.zarr", "in.zarr/", "link.zarr"):
-        assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", "--force"]) == 2
+    for out, force in [("in.zarr", []), ("in.zarr", ["--force"]), ("in.zarr/", ["--force"]), ("link.zarr", ["--force"])]:
+        assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", *force]) == 2
         err = capsys.readouterr().err
         assert f"{tmp / out}: is the input store" in err and "another store" in err
     assert sorted(os.listdir(tmp / "in.zarr")) == before
