@@ -118,7 +118,7 @@ def _locations(storage_options, **stores):
     found = {k: _Location(v, storage_options) for k, v in stores.items() if v is not None}
     if storage_options and not any(loc.url for loc in found.values()):
         raise ValueError("expected a store URL (such as s3://bucket/out.zarr or memory://out.zarr) for "
-                         f"storage_options to apply to, got the local paths {', '.join(found)}")
+                         f"storage_options to apply to, got the local paths {', '.join(loc.name for loc in found.values())}")
     return found
 
 
