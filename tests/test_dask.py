@@ -310,9 +310,9 @@ def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
     np.testing.assert_array_equal(got["keys"][...], np.asarray(Track(times, keys, method="squad")(t)))
     assert _s3_objects(s3, "quatarray-test/cli") == ["in.zarr", "out.zarr"]
     assert main(args + ["--fps", "5"]) == 2
-    assert f"{out}: File exists" in capsys.readouterr().err
+    assert f"{out}: exists; give" in capsys.readouterr().err
     assert main(args + ["--times", "s3://quatarray-test/cli/out.zarr", "--force"]) == 2
-    assert f"{out}: is the times store" in capsys.readouterr().err
+    assert f"{out}: is the times store; Zarr outputs are written while" in capsys.readouterr().err
     assert main(["resample", "s3://quatarray-test/cli/out.zarr", "-o", "s3://quatarray-test/cli/again.zarr",
                  "--times", "s3://quatarray-test/cli/in.zarr", "--extrapolate", "clamp", "--quiet", *flags]) == 0
     again = zarr.open_group("s3://quatarray-test/cli/again.zarr", mode="r", storage_options=s3)
@@ -604,7 +604,7 @@ def test_zarr_existing_output_needs_force_and_progress_shows(store, capsys):
     dst = str(tmp / "out.zarr")
     _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=1, progress=False)
     assert capsys.readouterr().err == ""
-    with pytest.raises(FileExistsError, match="force"):
+    with pytest.raises(FileExistsError, match="exists; give force=True to replace it"):
         _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=False)
     assert zarr.open_group(dst, mode="r")["times"].shape[0] == len(quatarray.formats.fps_times(times[0], times[-1], 1))
     _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=True, force=True)
@@ -622,7 +622,7 @@ def test_zarr_input_is_never_its_output(store, capsys):
     for out, force in [("in.zarr", []), ("in.zarr", ["--force"]), ("in.zarr/", ["--force"]), ("link.zarr", ["--force"])]:
         assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", *force]) == 2
         err = capsys.readouterr().err
-        assert f"{tmp / out}: is the input store" in err and "another store" in err
+        assert f"{tmp / out}: is the input; Zarr outputs are written while the input is read" in err, err
     assert sorted(os.listdir(tmp / "in.zarr")) == before
     assert sorted(os.listdir(tmp)) == ["in.zarr", "link.zarr"]
 
@@ -630,6 +630,7 @@ def test_zarr_input_is_never_its_output(store, capsys):
 def test_zarr_messages_name_the_users_path(store, capsys):
     """Never a temporary ``.part`` name: a missing folder, a regular file at OUT.zarr."""
     from quatarray.cli import main
+    from quatarray.formats import zarr as _zarr
     tmp, times, _ = store
     src = str(tmp / "in.zarr")
     out = tmp / "nodir" / "o8.zarr"
@@ -637,12 +638,13 @@ def test_zarr_messages_name_the_users_path(store, capsys):
     err = capsys.readouterr().err
     assert err.startswith(f"quatarray: error: {out}: No such file or directory") and ".part" not in err
     (tmp / "file.zarr").write_text("not a store")
-    assert main(["resample", src, "-o", str(tmp / "file.zarr"), "--fps", "2"]) == 2
-    err = capsys.readouterr().err
-    assert f"{tmp / 'file.zarr'}: File exists" in err and "--force" in err and ".part" not in err
+    for force in ([], ["--force"]):     # a file is never replaced by a store
+        assert main(["resample", src, "-o", str(tmp / "file.zarr"), "--fps", "2", *force]) == 2
+        err = capsys.readouterr().err
+        assert err == f"quatarray: error: {tmp / 'file.zarr'}: exists and is not a Zarr store (a directory)\n"
     assert (tmp / "file.zarr").read_text() == "not a store"
-    assert main(["resample", src, "-o", str(tmp / "file.zarr"), "--fps", "2", "--force"]) == 0
-    assert (tmp / "file.zarr" / "zarr.json").exists()
+    with pytest.raises(FileExistsError, match="exists and is not a Zarr store"):
+        _zarr.resample_zarr(src, str(tmp / "file.zarr"), fps=2, force=True)
     assert sorted(os.listdir(tmp)) == ["file.zarr", "in.zarr"]
 
 

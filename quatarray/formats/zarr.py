@@ -30,8 +30,9 @@ The output appears only when complete:
   created, and a half-written array would be readable (as fill values)
   meanwhile.
 
-Replacing an existing store needs ``force``; it is removed first (the
-metadata first, so that it never looks half-present).  The input store is
+Replacing an existing store needs ``force`` (a file where the store
+should be is never replaced); on an object store the old store is removed
+first (its metadata first, so that it never looks half-present).  The input store is
 never replaced, even with ``force``: neither way is atomic for a store
 that is still being read.
 """
@@ -287,8 +288,7 @@ def _atomic(loc, force):
 
 def _refuse_existing(exists, name, force):
     if exists and not force:
-        raise FileExistsError(errno.EEXIST, "File exists (not replaced unless forced: force=True, or --force "
-                                            "on the command line)", name)
+        raise FileExistsError(errno.EEXIST, "exists; give force=True to replace it", name)
 
 
 @contextlib.contextmanager
@@ -297,11 +297,13 @@ def _atomic_dir(path, name, force):
     folder = os.path.dirname(path)
     if not os.path.isdir(folder):
         raise FileNotFoundError(errno.ENOENT, "No such file or directory (its folder does not exist)", name)
+    if os.path.lexists(path) and not os.path.isdir(path):    # never replace a file by a store
+        raise FileExistsError(errno.EEXIST, "exists and is not a Zarr store (a directory)", name)
     _refuse_existing(os.path.lexists(path), name, force)
     tmp = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
     try:
         yield {"store": tmp}
-        if os.path.lexists(path):   # a store (or a file) there: move it aside first, then drop it
+        if os.path.lexists(path):   # a store there: move it aside first, then drop it
             old = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".old")
             os.replace(path, os.path.join(old, "store"))
             os.replace(tmp, path)
@@ -415,10 +417,10 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     times_store = times if isinstance(times, (str, os.PathLike)) and is_zarr(times) else None
     where = _locations(storage_options, src=src, dst=dst, times=times_store)
     loc_in, loc_out = where["src"], where["dst"]
-    for what, loc in (("input", loc_in), ("times", where.get("times"))):
+    for what, loc in (("input", loc_in), ("times store", where.get("times"))):
         if loc is not None and loc.key() == loc_out.key():
-            raise ValueError(f"{loc_out.name}: is the {what} store; a Zarr store is not replaced atomically "
-                             "while it is read (even when forced): write to another store")
+            raise ValueError(f"{loc_out.name}: is the {what}; Zarr outputs are written while the {what} is "
+                             "read, so they cannot replace it (even when forced): write elsewhere, then rename")
     key_times, keys = _read(loc_in)
     check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
