@@ -594,6 +594,14 @@ def test_zarr_cli_failure_leaves_no_output(store, capsys):
     assert "cannot write .bvh from .zarr input" in capsys.readouterr().err
     assert main(["resample", str(tmp / "nothere.zarr"), "-o", str(dst), "--fps", "2"]) == 2
     assert "nothere.zarr" in capsys.readouterr().err
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(dst), "--times", str(tmp / "nothere.zarr")]) == 2
+    assert f"{tmp / 'nothere.zarr'}: No such file or directory" in capsys.readouterr().err
+    (tmp / "bad.zarr").mkdir()
+    (tmp / "bad.zarr" / "zarr.json").write_text("{")
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(dst), "--times", str(tmp / "bad.zarr")]) == 2
+    assert "bad.zarr: not a Zarr array or group of times (its metadata (zarr.json) is not valid JSON" in \
+        capsys.readouterr().err
+    assert sorted(os.listdir(tmp)) == ["bad.zarr", "in.zarr", "t.txt"]
 
 
 def test_zarr_existing_output_needs_force_and_progress_shows(store, capsys):

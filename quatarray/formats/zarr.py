@@ -241,15 +241,20 @@ class _Queries:
         self.fps, self.array = fps, None
         if fps is not None:
             self.t0, self.t1 = float(key_times[0]), float(key_times[-1])
-            self.size = fps_steps(self.t0, self.t1, fps) + 1   # the same count and values as io.fps_times
+            self.size = fps_steps(self.t0, self.t1, fps) + 1   # the same count and values as fps_times
             return
         if loc is not None:
             import zarr
-            node = zarr.open(mode="r", **loc.store())
+            try:
+                node = zarr.open(mode="r", **loc.store())
+            except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
+                if not loc.exists():
+                    raise FileNotFoundError(errno.ENOENT, "No such file or directory", loc.name) from None
+                raise FormatError(f"not a Zarr array or group of times ({_reason(exc)})", loc.name) from None
             self.array = _node(node, "times", loc) if isinstance(node, zarr.Group) else node
             self.where = loc.name
             if self.array.ndim != 1 or np.dtype(self.array.dtype).kind not in "biuf":
-                        raise FormatError(f"expected times of real numbers, shape (N,), got {self.array.dtype} "
+                raise FormatError(f"expected times of real numbers, shape (N,), got {self.array.dtype} "
                                   f"{self.array.shape}", loc.name)
             self.size = self.array.shape[0]
             return
