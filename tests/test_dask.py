@@ -310,7 +310,7 @@ def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
     np.testing.assert_array_equal(got["keys"][...], np.asarray(Track(times, keys, method="squad")(t)))
     assert _s3_objects(s3, "quatarray-test/cli") == ["in.zarr", "out.zarr"]
     assert main(args + ["--fps", "5"]) == 2
-    assert f"{out}: exists; give" in capsys.readouterr().err
+    assert f"{out}: exists; give --force to replace it\n" in capsys.readouterr().err     # the CLI's words
     assert main(args + ["--times", "s3://quatarray-test/cli/out.zarr", "--force"]) == 2
     assert f"{out}: is the times store; Zarr outputs are written while" in capsys.readouterr().err
     assert main(["resample", "s3://quatarray-test/cli/out.zarr", "-o", "s3://quatarray-test/cli/again.zarr",

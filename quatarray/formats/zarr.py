@@ -49,7 +49,7 @@ from functools import partial
 import numpy as np
 
 from .keyframes import fps_steps, read_times
-from .text import FormatError, check_query
+from .text import FormatError, check_query, option
 
 #: Quaternions per output chunk: 2**21 of them are 32 MiB in float32.
 CHUNK_QUATS = 1 << 21
@@ -293,7 +293,7 @@ def _atomic(loc, force):
 
 def _refuse_existing(exists, name, force):
     if exists and not force:
-        raise FileExistsError(errno.EEXIST, "exists; give force=True to replace it", name)
+        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", name)
 
 
 @contextlib.contextmanager
