@@ -66,7 +66,7 @@ class ChunkedTrack:
         else:
             from quatarray.formats import resample_zarr
             resample_zarr(os.path.join(self.folder, "in.zarr"), os.path.join(self.folder, "out.zarr"),
-                          fps=self.fps, method="squad", progress=False)
+                          fps=self.fps, method="squad", progress=False, force=True)
 
 
 class ChunkedReductions:

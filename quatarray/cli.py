@@ -17,6 +17,7 @@ with a one-line message naming the file (and line) on stderr and exit status
 
 import argparse
 import contextlib
+import json
 import os
 import signal
 import sys
@@ -155,6 +156,17 @@ def _families():
     return [f"{' and '.join(exts)} convert into each other." for exts in families.values() if len(exts) > 1]
 
 
+def _storage_option(text):
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE, got {echo(text)}")
+    try:
+        value = json.loads(value)
+    except ValueError:
+        pass
+    return key.strip(), value
+
+
 def build_parser():
     """The argument parser of the ``quatarray`` command."""
     from . import __version__
@@ -193,6 +205,11 @@ def build_parser():
                    help="replace an existing OUT, also when it is IN (not for Zarr stores, which are written "
                         "while IN is read)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Zarr stores: run on this distributed scheduler")
+    p.add_argument("--storage-option", metavar="KEY=VALUE", action="append", type=_storage_option, default=[],
+                   dest="storage_options",
+                   help="Zarr stores given as URLs (s3://..., gs://..., memory://...): an option of their "
+                        "filesystem, e.g. endpoint_url=http://127.0.0.1:9000 or anon=true (VALUE is read as "
+                        "JSON when it parses, else as text); repeat for several")
     p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
     p.set_defaults(run=_run_resample)
 
@@ -209,7 +226,8 @@ def _run_resample(args):
     nkeys, nframes = resample_file(args.input, args.output, fps=args.fps, times=args.times, method=args.method,
                                    extrapolate=args.extrapolate, scalar_last=args.scalar_last,
                                    precision=args.precision, force=args.force, scheduler=args.scheduler,
-                                   progress=False if args.quiet else None)
+                                   progress=False if args.quiet else None,
+                                   storage_options=dict(args.storage_options) or None)
     own = FORMATS[format_of(args.input)].family == "glTF"
     method = args.method or ("each sampler's own interpolation" if own else "slerp")
     print(f"{args.input}: {_count(nkeys, 'key')} -> {args.output}: {_count(nframes, 'frame')} "

@@ -56,11 +56,8 @@ except ImportError as exc:  # pragma: no cover - exercised by a monkeypatched im
     raise ImportError("quatarray.dask needs the optional dependency dask[array]: "
                       "pip install 'quatarray[dask]'") from exc
 
-from . import _convert as Cv
-from . import _euler as Eu
-from . import _interp_kernels as IK
-from . import _kernels as Kn
-from ._validate import batch_axis
+from . import _convert, _euler, _interp_kernels, _kernels
+from ._validate import all_finite, batch_axis
 from .interpolate import Track as _MemoryTrack
 
 __all__ = [
@@ -102,12 +99,39 @@ def _quat(x, name):
 
 
 def _batch(names, arrays, cores):
+    """The broadcast batch shape.  Unknown sizes (NaN, after boolean indexing) are taken as they
+    are when every batch shape is the same; they cannot be broadcast against known ones."""
     shapes = [a.shape[:a.ndim - c] for a, c in zip(arrays, cores)]
+    unknown = [n for n, s in zip(names, shapes) if any(np.isnan(s))]
+    if unknown:
+        # arrays of ones (scalars included) broadcast against anything; the others must match
+        full = [(a, s) for a, s in zip(arrays, shapes) if any(n != 1 for n in s)]
+        rank = max(len(s) for s in shapes)
+        a0, s0 = full[0]
+        if len(s0) == rank and all(s == s0 and a.chunks[:rank] == a0.chunks[:rank] for a, s in full):
+            return s0
+        raise ValueError(f"expected {' and '.join(unknown)} with known chunk sizes to broadcast against "
+                         f"{', '.join(n for n in names if n not in unknown) or 'each other'}, got shapes "
+                         f"{', '.join(f'{n}: {s}' for n, s in zip(names, shapes))}; call "
+                         f"{unknown[0]}.compute_chunk_sizes() first")
     try:
         return np.broadcast_shapes(*shapes)
     except ValueError:
         got = ", ".join(f"{n}: {s}" for n, s in zip(names, shapes))
         raise ValueError(f"expected broadcastable batch shapes for {', '.join(names)}, got {got}") from None
+
+
+def _finite(block, name):
+    """`block`, or a `ValueError` if it holds NaN or inf: the in-memory API's rule, checked per
+    chunk when the chunk is computed."""
+    if not all_finite(block):
+        raise ValueError(f"expected finite values in {name}, got nan or inf")
+    return block
+
+
+def _checked(kernel, names, *blocks, **params):
+    """``kernel(*blocks, **params)`` after checking that every block is finite."""
+    return kernel(*(_finite(b, n) for b, n in zip(blocks, names)), **params)
 
 
 def _apply(kernel, names, arrays, cores, out_core, dtype, **params):
@@ -120,14 +144,14 @@ def _apply(kernel, names, arrays, cores, out_core, dtype, **params):
     for a, c in zip(arrays, cores):
         pairs += [a, _LETTERS[:nb][nb - (a.ndim - c):] + "".join(next(letters) for _ in range(c))]
     out_ix = "".join(next(letters) for _ in out_core)
-    return da.blockwise(partial(kernel, **params) if params else kernel, _LETTERS[:nb] + out_ix, *pairs,
+    return da.blockwise(partial(_checked, kernel, tuple(names), **params), _LETTERS[:nb] + out_ix, *pairs,
                         new_axes=dict(zip(out_ix, out_core)), dtype=dtype, concatenate=True,
                         meta=np.empty((0,) * (nb + len(out_core)), dtype))
 
 
 def _unary(kernel, q, name="q", out_core=(4,), **params):
     q = _quat(q, name)
-    return _apply(kernel, (name,), [q], (1,), out_core, Kn.result_dtype(q.dtype), **params)
+    return _apply(kernel, (name,), [q], (1,), out_core, _kernels.result_dtype(q.dtype), **params)
 
 
 # --------------------------------------------------------------------------- algebra
@@ -154,7 +178,7 @@ def multiply(p, q):
     array([-1.,  0.,  0.,  0.])
     """
     p, q = _quat(p, "p"), _quat(q, "q")
-    return _apply(Kn.multiply, ("p", "q"), [p, q], (1, 1), (4,), Kn.result_dtype(p.dtype, q.dtype))
+    return _apply(_kernels.multiply, ("p", "q"), [p, q], (1, 1), (4,), _kernels.result_dtype(p.dtype, q.dtype))
 
 
 def conjugate(q):
@@ -166,7 +190,7 @@ def conjugate(q):
     >>> qd.conjugate(da.from_array(np.array([[1., 2, 3, 4]]))).compute()
     array([[ 1., -2., -3., -4.]])
     """
-    return _unary(Kn.conjugate, q)
+    return _unary(_kernels.conjugate, q)
 
 
 def inverse(q):
@@ -178,7 +202,7 @@ def inverse(q):
     >>> qd.inverse(da.from_array(np.array([[2., 0, 0, 0]]))).compute() + 0.0
     array([[0.5, 0. , 0. , 0. ]])
     """
-    return _unary(Kn.inverse, q)
+    return _unary(_kernels.inverse, q)
 
 
 def normalize(q):
@@ -190,7 +214,7 @@ def normalize(q):
     >>> qd.normalize(da.from_array(np.array([[0., 0, 3, 4]]))).compute()
     array([[0. , 0. , 0.6, 0.8]])
     """
-    return _unary(Kn.normalize, q)
+    return _unary(_kernels.normalize, q)
 
 
 def exp(q):
@@ -201,7 +225,7 @@ def exp(q):
     >>> qd.exp(da.zeros((3, 4), chunks=(2, 4))).compute()[2]
     array([1., 0., 0., 0.])
     """
-    return _unary(Kn.exp, q)
+    return _unary(_kernels.exp, q)
 
 
 def log(q):
@@ -213,7 +237,7 @@ def log(q):
     >>> qd.log(da.from_array(np.array([[1., 0, 0, 0]]))).compute()
     array([[0., 0., 0., 0.]])
     """
-    return _unary(Kn.log, q)
+    return _unary(_kernels.log, q)
 
 
 def power(q, t):
@@ -227,7 +251,7 @@ def power(q, t):
     True
     """
     q, t = _quat(q, "q"), _array(t, "t")
-    return _apply(Kn.power, ("q", "t"), [q, t], (1, 0), (4,), Kn.result_dtype(q.dtype))
+    return _apply(_kernels.power, ("q", "t"), [q, t], (1, 0), (4,), _kernels.result_dtype(q.dtype))
 
 
 def rotate(q, v, inverse=False):
@@ -241,7 +265,7 @@ def rotate(q, v, inverse=False):
     array([[0., 1., 0.]])
     """
     q, v = _quat(q, "q"), _array(v, "v", 1, (3,))
-    return _apply(Kn.rotate, ("q", "v"), [q, v], (1, 1), (3,), Kn.result_dtype(q.dtype, v.dtype),
+    return _apply(_kernels.rotate, ("q", "v"), [q, v], (1, 1), (3,), _kernels.result_dtype(q.dtype, v.dtype),
                   inverse=bool(inverse))
 
 
@@ -257,7 +281,7 @@ def from_matrix(matrix, assume_valid=False):
     array([[1., 0., 0., 0.]])
     """
     m = _array(matrix, "matrix", 2, (3, 3))
-    return _apply(Cv.from_matrix, ("matrix",), [m], (2,), (4,), m.dtype, assume_valid=bool(assume_valid))
+    return _apply(_convert.from_matrix, ("matrix",), [m], (2,), (4,), m.dtype, assume_valid=bool(assume_valid))
 
 
 def as_matrix(q):
@@ -271,7 +295,7 @@ def as_matrix(q):
            [0., 1., 0.],
            [0., 0., 1.]])
     """
-    return _unary(Cv.as_matrix, q, out_core=(3, 3))
+    return _unary(_convert.as_matrix, q, out_core=(3, 3))
 
 
 def from_rotvec(rotvec, degrees=False):
@@ -284,7 +308,7 @@ def from_rotvec(rotvec, degrees=False):
     array([[0., 0., 0., 1.]])
     """
     v = _array(rotvec, "rotvec", 1, (3,))
-    return _apply(Cv.from_rotvec, ("rotvec",), [v], (1,), (4,), v.dtype, degrees=bool(degrees))
+    return _apply(_convert.from_rotvec, ("rotvec",), [v], (1,), (4,), v.dtype, degrees=bool(degrees))
 
 
 def as_rotvec(q, degrees=False):
@@ -296,7 +320,7 @@ def as_rotvec(q, degrees=False):
     >>> np.round(qd.as_rotvec(da.from_array(np.array([[0., 0, 0, 1]]))).compute(), 12)
     array([[0.        , 0.        , 3.14159265]])
     """
-    return _unary(Cv.as_rotvec, q, out_core=(3,), degrees=bool(degrees))
+    return _unary(_convert.as_rotvec, q, out_core=(3,), degrees=bool(degrees))
 
 
 def from_euler(seq, angles, degrees=False):
@@ -308,7 +332,7 @@ def from_euler(seq, angles, degrees=False):
     >>> np.round(qd.from_euler("z", da.from_array(np.array([[90.]])), degrees=True).compute(), 6)
     array([[0.707107, 0.      , 0.      , 0.707107]])
     """
-    axes, _ = Eu.check_seq(seq)
+    axes, _ = _euler.check_seq(seq)
     a = _array(angles, "angles")
     if a.ndim == 0:
         a = a.reshape(1)
@@ -319,7 +343,7 @@ def from_euler(seq, angles, degrees=False):
 
 
 def _from_euler_block(angles, seq, degrees):
-    return Eu.from_euler(seq, angles, degrees)
+    return _euler.from_euler(seq, angles, degrees)
 
 
 def as_euler(q, seq, degrees=False, suppress_warnings=False):
@@ -332,8 +356,8 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     >>> np.round(qd.as_euler(q, "zyx", degrees=True).compute(), 9)
     array([[90., 30., 10.]])
     """
-    Eu.check_seq(seq, 3)
-    return _unary(Eu.as_euler, q, out_core=(3,), seq=seq, degrees=bool(degrees),
+    _euler.check_seq(seq, 3)
+    return _unary(_euler.as_euler, q, out_core=(3,), seq=seq, degrees=bool(degrees),
                   suppress_warnings=bool(suppress_warnings))
 
 
@@ -346,12 +370,12 @@ def from_quat(quat, scalar_first=False):
     >>> qd.from_quat(da.from_array(np.array([[0., 0, 3, 4]]))).compute()
     array([[0.8, 0. , 0. , 0.6]])
     """
-    return _unary(Cv.from_quat, quat, "quat", scalar_first=bool(scalar_first))
+    return _unary(_convert.from_quat, quat, "quat", scalar_first=bool(scalar_first))
 
 
 def _as_quat_block(q, canonical, scalar_first):
     if canonical:
-        q = Cv.canonical(q)
+        q = _convert.canonical(q)
     return q.copy() if scalar_first else q[..., [1, 2, 3, 0]]
 
 
@@ -372,7 +396,7 @@ def as_quat(q, canonical=False, *, scalar_first=False):
 def _pairwise(kernel, names, quats, t, **params):
     quats = [_quat(x, n) for x, n in zip(quats, names)]
     t = _array(t, "t")
-    dtype = Kn.result_dtype(*(q.dtype for q in quats))
+    dtype = _kernels.result_dtype(*(q.dtype for q in quats))
     return _apply(kernel, names + ("t",), quats + [t], (1,) * len(quats) + (0,), (4,), dtype, **params)
 
 
@@ -384,7 +408,7 @@ def lerp(q0, q1, t):
     >>> qd.lerp(np.array([1., 0, 0, 0]), np.array([0., 0, 0, 1]), 0.5).compute()
     array([0.5, 0. , 0. , 0.5])
     """
-    return _pairwise(IK.lerp, ("q0", "q1"), [q0, q1], t)
+    return _pairwise(_interp_kernels.lerp, ("q0", "q1"), [q0, q1], t)
 
 
 def nlerp(q0, q1, t, *, shortest=True):
@@ -395,7 +419,7 @@ def nlerp(q0, q1, t, *, shortest=True):
     >>> np.round(qd.nlerp(np.array([1., 0, 0, 0]), np.array([0., 0, 0, 1]), 0.5).compute(), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
-    return _pairwise(IK.nlerp, ("q0", "q1"), [q0, q1], t, shortest=bool(shortest))
+    return _pairwise(_interp_kernels.nlerp, ("q0", "q1"), [q0, q1], t, shortest=bool(shortest))
 
 
 def slerp(q0, q1, t, *, shortest=True):
@@ -411,7 +435,7 @@ def slerp(q0, q1, t, *, shortest=True):
     >>> np.round(q.compute()[2], 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
-    return _pairwise(IK.slerp, ("q0", "q1"), [q0, q1], t, shortest=bool(shortest))
+    return _pairwise(_interp_kernels.slerp, ("q0", "q1"), [q0, q1], t, shortest=bool(shortest))
 
 
 def squad(q0, a, b, q1, t):
@@ -423,7 +447,7 @@ def squad(q0, a, b, q1, t):
     >>> np.allclose(qd.squad(q0, q0, q1, q1, 0.25).compute(), qd.slerp(q0, q1, 0.25).compute())
     True
     """
-    return _pairwise(IK.squad, ("q0", "a", "b", "q1"), [q0, a, b, q1], t)
+    return _pairwise(_interp_kernels.squad, ("q0", "a", "b", "q1"), [q0, a, b, q1], t)
 
 
 def bezier(q0, a, b, q1, t):
@@ -435,7 +459,7 @@ def bezier(q0, a, b, q1, t):
     >>> qd.bezier(q0, q0, q0, q0, 0.3).compute()
     array([1., 0., 0., 0.])
     """
-    return _pairwise(IK.bezier, ("q0", "a", "b", "q1"), [q0, a, b, q1], t)
+    return _pairwise(_interp_kernels.bezier, ("q0", "a", "b", "q1"), [q0, a, b, q1], t)
 
 
 # --------------------------------------------------------------------------- unflip along a chunked axis
@@ -444,14 +468,14 @@ def _unflip_summary(q, axis):
     """Per chunk along `axis` (kept, length 1): first and last quaternion (4 + 4),
     the sign of the last one in the chunk's own unflip (1) and whether a zero
     dot product restarts the signs inside the chunk (1)."""
-    qa = np.moveaxis(q, axis, 0)
-    dtype = Kn.result_dtype(q)
+    qa = np.moveaxis(_finite(q, "q"), axis, 0)
+    dtype = _kernels.result_dtype(q)
     out = np.empty((1,) + qa.shape[1:-1] + (10,), dtype)
     out[0, ..., 0:4] = qa[0]
     out[0, ..., 4:8] = qa[-1]
-    u_last = np.moveaxis(IK.unflip(q, axis), axis, 0)[-1]
-    out[0, ..., 8] = np.where(IK.vdot(u_last, qa[-1]) < 0, -1, 1)
-    out[0, ..., 9] = (IK.vdot(qa[1:], qa[:-1]) == 0).any(axis=0) if len(qa) > 1 else False
+    u_last = np.moveaxis(_interp_kernels.unflip(q, axis), axis, 0)[-1]
+    out[0, ..., 8] = np.where(_interp_kernels.vdot(u_last, qa[-1]) < 0, -1, 1)
+    out[0, ..., 9] = (_interp_kernels.vdot(qa[1:], qa[:-1]) == 0).any(axis=0) if len(qa) > 1 else False
     return np.moveaxis(out, 0, axis)
 
 
@@ -464,21 +488,21 @@ def _unflip_carries(s, axis):
     g = np.ones(sa.shape[:-1], s.dtype)
     last_sign = sa[0, ..., 8]                 # final sign of chunk 0's last quaternion
     for j in range(1, len(sa)):                # a loop over chunks, not elements
-        d = IK.vdot(sa[j, ..., 0:4], sa[j - 1, ..., 4:8])
+        d = _interp_kernels.vdot(sa[j, ..., 0:4], sa[j - 1, ..., 4:8])
         g[j] = np.where(d == 0, 1, np.where(d < 0, -last_sign, last_sign))
         last_sign = np.where(sa[j, ..., 9] != 0, sa[j, ..., 8], g[j] * sa[j, ..., 8])
     return np.moveaxis(g, 0, axis)
 
 
 def _unflip_apply(q, g, axis):
-    u = IK.unflip(q, axis)
+    u = _interp_kernels.unflip(q, axis)
     if (g > 0).all():   # nothing to carry into this chunk
         return u
     qa = np.moveaxis(q, axis, 0)
     n = qa.shape[0]
     carried = np.ones(qa.shape[:-1], bool)   # before the chunk's first zero dot product
     if n > 1:
-        carried[1:] = np.logical_and.accumulate(IK.vdot(qa[1:], qa[:-1]) != 0, axis=0)
+        carried[1:] = np.logical_and.accumulate(_interp_kernels.vdot(qa[1:], qa[:-1]) != 0, axis=0)
     factor = np.where(carried, np.moveaxis(g, axis, 0), 1).astype(u.dtype)
     return u * np.moveaxis(factor, 0, axis)[..., None]
 
@@ -513,10 +537,14 @@ def unflip(q, axis=0):
     q = _quat(q, "q")
     nb = q.ndim - 1
     axis = batch_axis(axis, q.shape[:-1])
-    dtype = Kn.result_dtype(q.dtype)
+    if any(np.isnan(q.chunks[axis])):
+        raise ValueError(f"expected q with known chunk sizes along axis {axis}, got {q.shape}; "
+                         "call q.compute_chunk_sizes() first")
+    dtype = _kernels.result_dtype(q.dtype)
     nblocks = len(q.chunks[axis])
     if nblocks == 1 or 0 in q.shape:
-        return q.map_blocks(IK.unflip, axis, dtype=dtype, meta=np.empty((0,) * q.ndim, dtype))
+        return q.map_blocks(partial(_checked, _interp_kernels.unflip, ("q",), axis=axis), dtype=dtype,
+                            meta=np.empty((0,) * q.ndim, dtype))
     chunks = q.chunks[:axis] + ((1,) * nblocks,) + q.chunks[axis + 1:-1]
     summary = q.map_blocks(_unflip_summary, axis, dtype=dtype, chunks=chunks + ((10,),),
                            meta=np.empty((0,) * q.ndim, dtype))
@@ -533,7 +561,7 @@ def unflip(q, axis=0):
 
 def _chordal_sum(q, w):
     """Σ w q qᵀ / |q|² over a whole block (float64, shape (1, ..., 1, 4, 4))."""
-    q64 = q.astype(np.float64, copy=False)
+    q64 = _finite(q, "q").astype(np.float64, copy=False)
     scale = np.broadcast_to(w, q.shape[:-1]) / np.einsum("...i,...i->...", q64, q64)
     flat = q64.reshape(-1, 4)
     k = (flat * scale.reshape(-1, 1)).T @ flat
@@ -542,7 +570,7 @@ def _chordal_sum(q, w):
 
 def _dominant(k, dtype):
     _, vectors = np.linalg.eigh(k)
-    return Cv.canonical(vectors[..., -1]).astype(dtype)
+    return _convert.canonical(vectors[..., -1]).astype(dtype)
 
 
 def mean(q, weights=None):
@@ -550,7 +578,8 @@ def mean(q, weights=None):
 
     A blockwise reduction: each chunk gives its 4x4 sum, Dask sums those in a
     tree, and one 4x4 eigenvector problem gives the mean (canonical sign,
-    w >= 0), as `QuatArray.mean`.  Nothing but 4x4 matrices leaves a worker.
+    w >= 0), as `Rotation.mean`.  Nothing but 4x4 matrices leaves a worker.
+    NaN or inf in `q` or `weights` raises a `ValueError` when its chunk is computed.
 
     Parameters
     ----------

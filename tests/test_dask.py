@@ -1,6 +1,7 @@
 """quatarray.dask equals the in-memory API on chunked data; the Zarr path of the CLI; clear errors."""
 
 import importlib
+import json
 import os
 import pickle
 import sys
@@ -248,15 +249,142 @@ def test_track_and_tasks_pickle_small(rng):
     assert len(pickle.dumps(qd.slerp(keys[:4], keys[4:8], da.ones(4, chunks=2)).__dask_graph__())) < 20_000
 
 
-def test_local_cluster_two_processes(rng, tmp_path):
+@pytest.fixture(scope="module")
+def s3():
+    """An S3-protocol server (moto's server mode, real HTTP) on a free port of 127.0.0.1 only,
+    and the storage_options that reach a fresh bucket on it through s3fs."""
+    server_mod = pytest.importorskip("moto.server", reason="moto[server] is not installed (the test extra: "
+                                                            "pip install -e '.[test]')")
+    pytest.importorskip("s3fs", reason="s3fs is not installed (the test extra: pip install -e '.[test]')")
+    pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import logging
+
+    import s3fs
+    logging.getLogger("werkzeug").setLevel(logging.ERROR)
+    server = server_mod.ThreadedMotoServer(ip_address="127.0.0.1", port=0, verbose=False)
+    server.start()
+    try:
+        host, port = server.get_host_and_port()
+        assert host == "127.0.0.1"
+        options = {"key": "testing", "secret": "testing", "endpoint_url": f"http://127.0.0.1:{port}",
+                   "client_kwargs": {"region_name": "eu-west-1"}}
+        s3fs.S3FileSystem(**options).mkdir("quatarray-test")
+        yield options
+    finally:
+        server.stop()
+
+
+def _s3_objects(options, prefix):
+    import s3fs
+    fs = s3fs.S3FileSystem(skip_instance_cache=True, **options)
+    return sorted(p[len(prefix) + 1:] for p in fs.ls(prefix, detail=False))
+
+
+def _s3_input(rng, url, options, k=30, batch=(2,)):
+    import zarr
+    times = np.cumsum(rng.uniform(0.1, 1, k))
+    keys = unit(rng, (k,) + batch, np.float32)
+    g = zarr.open_group(url, mode="w", storage_options=options)
+    g["times"] = times
+    g.create_array("keys", data=keys, chunks=(10,) + batch + (4,))
+    return times, keys
+
+
+def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
+    """The command line's Zarr path against an S3-protocol server: store in, store out, times from a
+    store, an existing output refused without --force, no temporary prefix left behind."""
+    import zarr
+
+    from quatarray.formats import zarr as _zarr
+    from quatarray.cli import main
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 2 * 64)     # several chunks (and windows) to write
+    monkeypatch.setattr(_zarr, "WINDOW_CHUNKS", 2)
+    times, keys = _s3_input(rng, "s3://quatarray-test/cli/in.zarr", s3)
+    flags = [arg for k, v in s3.items() for arg in ("--storage-option", f"{k}={json.dumps(v) if isinstance(v, dict) else v}")]
+    out = "s3://quatarray-test/cli/out.zarr"
+    args = ["resample", "s3://quatarray-test/cli/in.zarr", "-o", out, "--method", "squad", "--quiet", *flags]
+    assert main(args + ["--fps", "20"]) == 0, capsys.readouterr().err
+    got = zarr.open_group(out, mode="r", storage_options=s3)
+    t = got["times"][...]
+    np.testing.assert_array_equal(t, quatarray.formats.fps_times(times[0], times[-1], 20))
+    np.testing.assert_array_equal(got["keys"][...], np.asarray(Track(times, keys, method="squad")(t)))
+    assert _s3_objects(s3, "quatarray-test/cli") == ["in.zarr", "out.zarr"]
+    assert main(args + ["--fps", "5"]) == 2
+    assert f"{out}: exists; give --force to replace it\n" in capsys.readouterr().err     # the CLI's words
+    assert main(args + ["--times", "s3://quatarray-test/cli/out.zarr", "--force"]) == 2
+    assert f"{out}: is the times store; Zarr outputs are written while" in capsys.readouterr().err
+    assert main(["resample", "s3://quatarray-test/cli/out.zarr", "-o", "s3://quatarray-test/cli/again.zarr",
+                 "--times", "s3://quatarray-test/cli/in.zarr", "--extrapolate", "clamp", "--quiet", *flags]) == 0
+    again = zarr.open_group("s3://quatarray-test/cli/again.zarr", mode="r", storage_options=s3)
+    np.testing.assert_array_equal(again["keys"][...], np.asarray(Track(t, got["keys"][...], extrapolate="clamp")(times)))
+    assert main(args + ["--fps", "5", "--force"]) == 0
+    assert zarr.open_group(out, mode="r", storage_options=s3)["times"].shape == (len(
+        quatarray.formats.fps_times(times[0], times[-1], 5)),)
+    assert _s3_objects(s3, "quatarray-test/cli") == ["again.zarr", "in.zarr", "out.zarr"]
+
+
+def test_s3_quatarray_dask(s3, rng):
+    """quatarray.dask on chunks read from and written to an S3-protocol server with dask's
+    from_zarr / to_zarr and storage_options."""
+    times, keys = _s3_input(rng, "s3://quatarray-test/qd/in.zarr", s3, batch=())
+    track = Track(times, keys, method="squad")
+    t = da.linspace(times[0], times[-1], 500, chunks=128)
+    qd.evaluate(track, t).to_zarr("s3://quatarray-test/qd/out.zarr", component="keys", storage_options=s3)
+    back = da.from_zarr("s3://quatarray-test/qd/out.zarr", component="keys", storage_options=s3)
+    assert back.chunks[0] == (128, 128, 128, 116)
+    np.testing.assert_array_equal(back.compute(), np.asarray(track(t.compute())))
+    stored = da.from_zarr("s3://quatarray-test/qd/in.zarr", component="keys", storage_options=s3)
+    np.testing.assert_allclose(qd.mean(stored).compute(), quats(Rotation.from_quat(keys, scalar_first=True).mean()),
+                               rtol=0, atol=8 * np.finfo(np.float32).eps)
+
+
+def test_object_store_output_appears_metadata_last(rng, monkeypatch):
+    """On an object store (memory:// here) the output is written under a temporary prefix and
+    copied under the target chunks first, each array's zarr.json after its chunks, the group's last;
+    a failure leaves nothing."""
+    import fsspec
+    import zarr
+
+    from quatarray.formats import zarr as _zarr
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 16)
+    times, keys = _s3_input(rng, "memory://qa-order/in.zarr", None, batch=())
+    fs = fsspec.filesystem("memory")
+    copied = []
+    real = type(fs).copy
+
+    def copy(self, path1, path2, *args, **kwargs):
+        copied.extend([path2] if isinstance(path2, str) else path2)
+        return real(self, path1, path2, *args, **kwargs)
+
+    monkeypatch.setattr(type(fs), "copy", copy)
+    _zarr.resample_zarr("memory://qa-order/in.zarr", "memory://qa-order/out.zarr", fps=9, progress=False)
+    names = [p.split("/out.zarr/", 1)[1] for p in copied]
+    assert names[-1] == "zarr.json" and names.index("keys/zarr.json") > max(
+        i for i, n in enumerate(names) if n.startswith("keys/c/"))
+    assert sorted(fs.ls("/qa-order", detail=False)) == ["/qa-order/in.zarr", "/qa-order/out.zarr"]
+    out = zarr.open_group("memory://qa-order/out.zarr", mode="r")
+    np.testing.assert_array_equal(out["keys"][...], np.asarray(Track(times, keys)(out["times"][...])))
+    fs.pipe("/qa-order/in.zarr/keys/c/1/0", b"garbage")          # fails while writing
+    with pytest.raises(ValueError, match="cannot read array 'keys'"):
+        _zarr.resample_zarr("memory://qa-order/in.zarr", "memory://qa-order/bad.zarr", fps=9, progress=False)
+    assert sorted(fs.ls("/qa-order", detail=False)) == ["/qa-order/in.zarr", "/qa-order/out.zarr"]
+    fs.rm("/qa-order", recursive=True)
+
+
+def test_local_cluster_two_processes_writing_to_s3(rng, s3):
+    """Two worker processes, as the hosts of a cluster would: quatarray.dask's tasks, and the
+    Zarr path's chunks written by the workers to the S3-protocol server."""
     distributed = pytest.importorskip("distributed", reason="distributed is not installed (the dask extra)")
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import zarr
+
     from quatarray.formats import resample_zarr
     times = np.cumsum(rng.uniform(0.1, 1, 30))
     keys = unit(rng, (30, 2), np.float64)
     track = Track(times, keys, method="squad")
     t = rng.uniform(times[0], times[-1], 200)
     q = _flippy(rng, 40, 2, np.float64)
+    g = zarr.open_group("s3://quatarray-test/cluster/in.zarr", mode="w", storage_options=s3)
+    g["times"], g["keys"] = times, keys
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True, dashboard_address=None,
                                   silence_logs=40) as cluster, distributed.Client(cluster) as client:
         lazy = [qd.evaluate(track, da.from_array(t, chunks=30)),
@@ -265,17 +393,24 @@ def test_local_cluster_two_processes(rng, tmp_path):
                 qd.slerp(da.from_array(q[:-1], chunks=(6, 2, 4)), q[1:], 0.3),
                 da.zeros(8, chunks=2).map_blocks(lambda b: np.full(b.shape, quatarray.get_num_threads()), dtype=int)]
         got = client.compute(lazy, sync=True)
-        assert len(client.scheduler_info()["workers"]) == 2
-        # the CLI's Zarr path on the cluster (--scheduler ADDRESS): workers write the chunks
-        g = zarr.open_group(str(tmp_path / "in.zarr"), mode="w")
-        g["times"], g["keys"] = times, keys
-        assert resample_zarr(str(tmp_path / "in.zarr"), str(tmp_path / "out.zarr"), times=t, method="squad",
-                             scheduler=cluster.scheduler_address, progress=False) == (30, 200)
-    np.testing.assert_allclose(zarr.open_group(str(tmp_path / "out.zarr"), mode="r")["keys"][...],
-                               np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
+        pids = set(client.run(os.getpid).values())
+        assert len(pids) == 2 and os.getpid() not in pids      # two processes, not this one
+        # the CLI's Zarr path on the cluster (--scheduler ADDRESS); the workers write the chunks
+        assert resample_zarr("s3://quatarray-test/cluster/in.zarr", "s3://quatarray-test/cluster/out.zarr",
+                             times=t, method="squad", scheduler=cluster.scheduler_address, progress=False,
+                             storage_options=s3) == (30, 200)
+        # and the active Client is used when no scheduler is named, with distributed's progress
+        assert resample_zarr("s3://quatarray-test/cluster/in.zarr", "s3://quatarray-test/cluster/out2.zarr",
+                             times=t, method="squad", progress=True, storage_options=s3) == (30, 200)
+        tasks = client.run(lambda dask_worker: len(dask_worker.state.log))
+        assert all(n > 0 for n in tasks.values())
+    for name in ("out", "out2"):
+        stored = zarr.open_group(f"s3://quatarray-test/cluster/{name}.zarr", mode="r", storage_options=s3)
+        np.testing.assert_allclose(stored["keys"][...], np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
     np.testing.assert_allclose(got[0], np.asarray(track(t)), rtol=0, atol=32 * np.finfo(float).eps)
     np.testing.assert_array_equal(got[1], np.asarray(qi.unflip(q)))
-    np.testing.assert_allclose(got[2], quats(Rotation.from_quat(q, scalar_first=True).mean()), rtol=0, atol=100 * np.finfo(float).eps)
+    np.testing.assert_allclose(got[2], quats(Rotation.from_quat(q, scalar_first=True).mean()), rtol=0,
+                               atol=100 * np.finfo(float).eps)
     np.testing.assert_allclose(got[3], np.asarray(qi.slerp(q[:-1], q[1:], 0.3)), rtol=0, atol=32 * np.finfo(float).eps)
     assert set(got[4]) == {1}
 
@@ -307,6 +442,59 @@ def test_bad_shapes_and_types(rng):
         qd.mean(da.zeros((0, 4)))
     with pytest.raises(ValueError, match="weights"):
         qd.mean(da.ones((5, 4)), -np.ones(5)).compute()
+
+
+@pytest.mark.parametrize("name, call, chunkwise", [
+    ("p", lambda q: qd.multiply(q, q[:1]), True),
+    ("q", lambda q: qd.multiply(q[:1], q), True),
+    ("q0", lambda q: qd.slerp(q, q[:1], 0.3), True),
+    ("q1", lambda q: qd.squad(q[:1], q[:1], q[:1], q, 0.3), True),
+    ("t", lambda q: qd.slerp(q[:1], q[:1], da.where(da.isnan(q[:, 1]), np.nan, 0.3)), True),
+    ("q", lambda q: qd.normalize(q), True),
+    ("q", lambda q: qd.as_matrix(q), True),
+    ("rotvec", lambda q: qd.from_rotvec(q[:, :3]), True),
+    ("q", lambda q: qd.unflip(q), False),         # every chunk's sign depends on the chunks before
+    ("q", lambda q: qd.unflip(q.rechunk({0: -1})), False),
+    ("q", lambda q: qd.mean(q), False),
+], ids=["multiply-p", "multiply-q", "slerp", "squad", "slerp-t", "normalize", "as_matrix", "from_rotvec", "unflip",
+        "unflip-1", "mean"])
+def test_nan_refused_per_chunk_when_computed(rng, name, call, chunkwise):
+    """NaN and inf are refused as by the in-memory API (a ValueError naming the argument) when
+    the chunk holding them is computed; building the graph computes nothing."""
+    q = unit(rng, (6,), np.float64)
+    q[4, 1] = np.nan
+    lazy = call(da.from_array(q, chunks=(2, 4)))
+    with pytest.raises(ValueError, match=f"expected finite values in {name}, got nan or inf"):
+        lazy.compute(scheduler="synchronous")
+    if chunkwise:       # the chunks without NaN compute
+        assert np.isfinite(lazy[:2].compute(scheduler="synchronous")).all()
+
+
+def test_unknown_chunk_sizes(rng, scheduler):
+    """Boolean indexing leaves chunk sizes unknown (NaN): elementwise functions work on them,
+    broadcasting them against known sizes asks for compute_chunk_sizes()."""
+    q = rng.normal(size=(20, 4))
+    mask = q[:, 0] > 0
+    x = da.from_array(q, chunks=(6, 4))
+    y = x[x[:, 0] > 0]
+    assert np.isnan(y.shape[0])
+    sel = QuatArray(q[mask])
+
+    def check(lazy, expected, dtype):     # the shape is known once computed
+        np.testing.assert_allclose(lazy.compute(), np.asarray(expected), **tol(dtype))
+
+    check(qd.normalize(y), sel.normalized(), np.float64)
+    check(qd.multiply(y, y), sel * sel, np.float64)
+    check(qd.multiply(y, np.array([0.0, 0, 0, 1])), sel * QuatArray([0.0, 0, 0, 1]), np.float64)
+    check(qd.slerp(qd.normalize(y), np.array([1.0, 0, 0, 0]), 0.25),
+          qi.slerp(sel.normalized(), QuatArray([1.0, 0, 0, 0]), 0.25), np.float64)
+    np.testing.assert_allclose(qd.mean(y).compute(), quats(Rotation.from_quat(q[mask], scalar_first=True).mean()),
+                               rtol=0, atol=64 * np.finfo(float).eps)
+    with pytest.raises(ValueError, match=r"expected p with known chunk sizes.*p\.compute_chunk_sizes\(\)"):
+        qd.multiply(y, x)
+    with pytest.raises(ValueError, match=r"known chunk sizes along axis 0.*q\.compute_chunk_sizes\(\)"):
+        qd.unflip(y)
+    check(qd.unflip(y.compute_chunk_sizes()), qi.unflip(q[mask]), np.float64)
 
 
 @pytest.mark.parametrize("call", [
@@ -406,9 +594,17 @@ def test_zarr_cli_failure_leaves_no_output(store, capsys):
     assert "cannot write .bvh from .zarr input" in capsys.readouterr().err
     assert main(["resample", str(tmp / "nothere.zarr"), "-o", str(dst), "--fps", "2"]) == 2
     assert "nothere.zarr" in capsys.readouterr().err
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(dst), "--times", str(tmp / "nothere.zarr")]) == 2
+    assert f"{tmp / 'nothere.zarr'}: No such file or directory" in capsys.readouterr().err
+    (tmp / "bad.zarr").mkdir()
+    (tmp / "bad.zarr" / "zarr.json").write_text("{")
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(dst), "--times", str(tmp / "bad.zarr")]) == 2
+    assert "bad.zarr: not a Zarr array or group of times (its metadata (zarr.json) is not valid JSON" in \
+        capsys.readouterr().err
+    assert sorted(os.listdir(tmp)) == ["bad.zarr", "in.zarr", "t.txt"]
 
 
-def test_zarr_cli_replaces_existing_store_and_shows_progress(store, monkeypatch, capsys):
+def test_zarr_existing_output_needs_force_and_progress_shows(store, capsys):
     import zarr
 
     from quatarray.formats import zarr as _zarr
@@ -416,10 +612,142 @@ def test_zarr_cli_replaces_existing_store_and_shows_progress(store, monkeypatch,
     dst = str(tmp / "out.zarr")
     _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=1, progress=False)
     assert capsys.readouterr().err == ""
-    _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=True)
+    with pytest.raises(FileExistsError, match="exists; give force=True to replace it"):
+        _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=False)
+    assert zarr.open_group(dst, mode="r")["times"].shape[0] == len(quatarray.formats.fps_times(times[0], times[-1], 1))
+    _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=3, progress=True, force=True)
     assert "100% Completed" in capsys.readouterr().err
     assert zarr.open_group(dst, mode="r")["times"].shape[0] == len(quatarray.formats.fps_times(times[0], times[-1], 3))
     assert sorted(os.listdir(tmp)) == ["in.zarr", "out.zarr"]
+
+
+def test_zarr_input_is_never_its_output(store, capsys):
+    """Even with --force: a store cannot be replaced atomically while it is read."""
+    from quatarray.cli import main
+    tmp, times, _ = store
+    before = sorted(os.listdir(tmp / "in.zarr"))
+    os.symlink(tmp / "in.zarr", tmp / "link.zarr")
+    for out, force in [("in.zarr", []), ("in.zarr", ["--force"]), ("in.zarr/", ["--force"]), ("link.zarr", ["--force"])]:
+        assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", *force]) == 2
+        err = capsys.readouterr().err
+        assert f"{tmp / out}: is the input; Zarr outputs are written while the input is read" in err, err
+    assert sorted(os.listdir(tmp / "in.zarr")) == before
+    assert sorted(os.listdir(tmp)) == ["in.zarr", "link.zarr"]
+
+
+def test_zarr_messages_name_the_users_path(store, capsys):
+    """Never a temporary ``.part`` name: a missing folder, a regular file at OUT.zarr."""
+    from quatarray.cli import main
+    from quatarray.formats import zarr as _zarr
+    tmp, times, _ = store
+    src = str(tmp / "in.zarr")
+    out = tmp / "nodir" / "o8.zarr"
+    assert main(["resample", src, "-o", str(out), "--fps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {out}: No such file or directory") and ".part" not in err
+    (tmp / "file.zarr").write_text("not a store")
+    for force in ([], ["--force"]):     # a file is never replaced by a store
+        assert main(["resample", src, "-o", str(tmp / "file.zarr"), "--fps", "2", *force]) == 2
+        err = capsys.readouterr().err
+        assert err == f"quatarray: error: {tmp / 'file.zarr'}: exists and is not a Zarr store (a directory)\n"
+    assert (tmp / "file.zarr").read_text() == "not a store"
+    with pytest.raises(FileExistsError, match="exists and is not a Zarr store"):
+        _zarr.resample_zarr(src, str(tmp / "file.zarr"), fps=2, force=True)
+    assert sorted(os.listdir(tmp)) == ["file.zarr", "in.zarr"]
+
+
+@pytest.mark.filterwarnings("ignore:The data type")    # zarr on fixed-length strings
+@pytest.mark.parametrize("damage, message", [
+    ("complex", "expected 'keys' of real numbers, got dtype complex128"),
+    ("strings", "expected 'keys' of real numbers, got dtype"),
+    ("group", "expected 'keys' to be an array, got a group"),
+    ("no keys", "missing array 'keys' (found arrays: times)"),
+    ("group json", "not a Zarr group with arrays 'times' and 'keys' (its metadata (zarr.json) is not valid JSON"),
+    ("array json", "cannot open array 'keys': its metadata (zarr.json) is not valid JSON"),
+    ("chunk", "cannot read array 'keys' at (slice(10, 20, 1)"),
+])
+def test_zarr_bad_stores_give_clear_errors(tmp_path, damage, message, capsys):
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    from quatarray.cli import main
+    src = tmp_path / "in.zarr"
+    g = zarr.open_group(str(src), mode="w")
+    g["times"] = np.arange(30.0)
+    keys = np.tile([1.0, 0, 0, 0], (30, 1))
+    if damage == "complex":
+        g["keys"] = keys.astype(complex)
+    elif damage == "strings":
+        g["keys"] = keys.astype(str)
+    elif damage == "group":
+        g.create_group("keys")
+    elif damage != "no keys":
+        g.create_array("keys", data=keys, chunks=(10, 4), compressors=zarr.codecs.ZstdCodec())
+    if damage == "group json":
+        (src / "zarr.json").write_text('{"zarr_format": 3, "node_type": "gro')
+    elif damage == "array json":
+        (src / "keys" / "zarr.json").write_text("{bad")
+    elif damage == "chunk":
+        (src / "keys" / "c" / "1" / "0").write_bytes(b"garbage" * 9)
+    assert main(["resample", str(src), "-o", str(tmp_path / "out.zarr"), "--fps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {src}: ") and message in err, err
+    assert "Traceback" not in err and sorted(os.listdir(tmp_path)) == ["in.zarr"]
+
+
+def test_zarr_huge_output_is_refused_or_built_window_by_window(store, monkeypatch, capsys):
+    """--fps 1e12 is refused before any writing when the disk cannot hold it, and the task graph
+    is built a window of chunks at a time: its size does not grow with the number of queries."""
+    import zarr
+    from dask.callbacks import Callback
+
+    from quatarray.formats import zarr as _zarr
+    from quatarray.cli import main
+    tmp, times, keys = store
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / "out.zarr"), "--fps", "1e12"]) == 2
+    err = capsys.readouterr().err
+    assert "out.zarr: the output needs" in err and "GB free" in err
+    assert sorted(os.listdir(tmp)) == ["in.zarr"]
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 3 * 8)      # 8 queries x 3 tracks a chunk
+    monkeypatch.setattr(_zarr, "WINDOW_CHUNKS", 4)
+    largest = {}
+    for fps in (8, 64):     # 7 and 49 chunks
+        graphs = []
+        with Callback(start=lambda dsk: graphs.append(len(dsk))):
+            dst = str(tmp / f"out{fps}.zarr")
+            _, n = _zarr.resample_zarr(str(tmp / "in.zarr"), dst, fps=fps, progress=False)
+        assert len(graphs) == 1 + -(-n // (8 * 4)), graphs       # reading the keys, then one per window
+        largest[fps] = max(graphs)
+        out = zarr.open_group(dst, mode="r")
+        np.testing.assert_array_equal(out["keys"][...], np.asarray(Track(times, keys)(out["times"][...])))
+    assert largest[64] == largest[8], largest
+
+
+def test_zarr_storage_options_need_a_url(store):
+    from quatarray.formats import zarr as _zarr
+    tmp, _, _ = store
+    with pytest.raises(ValueError, match="expected a store URL .* for storage_options"):
+        _zarr.resample_zarr(str(tmp / "in.zarr"), str(tmp / "out.zarr"), fps=2, storage_options={"anon": True})
+
+
+def test_zarr_memory_url_through_the_cli(store, capsys):
+    """Any fsspec URL zarr opens: memory:// here (in this process), with --storage-option parsed."""
+    import zarr
+
+    from quatarray.cli import main
+    tmp, times, keys = store
+    src = zarr.open_group("memory://qa-cli/in.zarr", mode="w")
+    src["times"], src["keys"] = times, keys
+    out = "memory://qa-cli/out.zarr"
+    assert main(["resample", "memory://qa-cli/in.zarr", "-o", out, "--fps", "5", "--quiet",
+                 "--storage-option", "skip_instance_cache=true"]) == 0
+    got = zarr.open_group(out, mode="r")
+    np.testing.assert_array_equal(got["keys"][...], np.asarray(Track(times, keys)(got["times"][...])))
+    import fsspec
+    fs = fsspec.filesystem("memory")
+    assert sorted(p.rsplit("/", 1)[-1] for p in fs.ls("/qa-cli", detail=False)) == ["in.zarr", "out.zarr"]   # no .part left
+    assert main(["resample", quatarray.formats.example_path("arm.csv"), "-o", str(tmp / "o.csv"), "--fps", "5",
+                 "--storage-option", "anon=true"]) == 2
+    assert "storage options apply to Zarr stores (.zarr) only" in capsys.readouterr().err
+    fs.rm("/qa-cli", recursive=True)
 
 
 @pytest.mark.parametrize("t0, t1, fps", [(0.0, 999_999_999.0, 1.0), (0.0, 4.2, 30.0), (0.0, 127 / 30, 30.0),
@@ -430,106 +758,47 @@ def test_zarr_fps_grid_is_io_fps_times(t0, t1, fps):
     from quatarray.formats import zarr as _zarr
     from quatarray.formats import fps_steps, fps_times
 
-    t, _ = _zarr._query_times(np.array([t0, t1]), fps, None, 1 << 20)
-    assert t.shape == (fps_steps(t0, t1, fps) + 1,)
-    if t.shape[0] < 10**6:
-        assert np.array_equal(t.compute(), fps_times(t0, t1, fps))
+    queries = _zarr._Queries(np.array([t0, t1]), fps, None, None)
+    n = queries.size
+    assert n == fps_steps(t0, t1, fps) + 1
+    if n < 10**6:
+        assert np.array_equal(queries.window(0, n, 1 << 20).compute(), fps_times(t0, t1, fps))
+        assert np.array_equal(queries.window(5, n, 7).compute(), fps_times(t0, t1, fps)[5:])
     else:
-        assert t[-1].compute() == t1 and t[-2].compute() < t1
+        assert queries.window(n - 2, n, 4).compute()[1] == t1 and queries.window(n - 2, n, 4).compute()[0] < t1
 
 
-# --------------------------------------------------------------------------- the Zarr output's chunk writer
-
-def _chunk_files(root):
-    return {os.path.relpath(os.path.join(d, f), root): open(os.path.join(d, f), "rb").read()
-            for d, _, fs in os.walk(root) for f in fs if f != "zarr.json"}
-
-
-@pytest.mark.parametrize("blosc", [None, ("lz4", 1, "shuffle"), ("zstd", 3, "bitshuffle")])
-@pytest.mark.parametrize("dtype", DTYPES)
-@pytest.mark.parametrize("shape, chunks", [((1000, 4), (256, 4)),          # 4096-byte multiples (float32), ragged end
-                                           ((700, 3, 4), (300, 3, 4)),     # an unaligned tail in every chunk
-                                           ((5, 4), (8, 4))])              # one chunk, larger than the array
-def test_raw_chunks_are_the_files_zarr_writes(tmp_path, rng, dtype, shape, chunks, blosc):
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
-    from zarr.codecs import BloscCodec
-
-    from quatarray.formats.zarr import RawChunks
-    data = rng.normal(size=shape).astype(dtype)
-    data[:len(data) // 2] = np.round(data[:len(data) // 2])   # something for a compressor to find
-    compressors = None if blosc is None else BloscCodec(cname=blosc[0], clevel=blosc[1], shuffle=blosc[2])
-    made = {}
-    for name in ("zarr", "ours"):
-        root = str(tmp_path / name)
-        a = zarr.open_group(root, mode="w").create_array("keys", shape=shape, chunks=chunks, dtype=dtype,
-                                                         compressors=compressors)
-        if name == "zarr":
-            a[...] = data
-        else:
-            da.store(da.from_array(data, chunks=chunks), RawChunks(a, root), lock=False, scheduler="threads")
-        made[name] = _chunk_files(root)
-        np.testing.assert_array_equal(zarr.open_group(root, mode="r")["keys"][...], data)
-    assert made["ours"] == made["zarr"] and len(made["ours"]) == -(-shape[0] // chunks[0])
+def test_no_zarr_internals_in_the_package():
+    """Zarr through its public API only: no private modules or names anywhere in quatarray/."""
+    import re
+    root = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "quatarray")
+    private = re.compile(r"zarr\.core\b|zarr\.\w+\._|\bzarr\._|encode_chunk_key|chunk_key_encoding|\.serializer\b|"
+                         r"\bcname\.value\b|\.metadata\.|\bfrom zarr\.(core|abc|api|storage\._|codecs\._)")
+    found = []
+    for folder, _, files in os.walk(root):
+        for name in files:
+            if name.endswith(".py"):
+                path = os.path.join(folder, name)
+                for number, line in enumerate(open(path, encoding="utf-8"), 1):
+                    if private.search(line):
+                        found.append(f"{os.path.relpath(path, root)}:{number}: {line.strip()}")
+    assert not found, "\n".join(found)
+    assert private.search("from zarr.core.metadata import ArrayV3Metadata")      # the scan can fail
+    assert private.search("keys.encode_chunk_key((0, 1))")
 
 
-def test_raw_chunks_fall_back_to_plain_writes(tmp_path, rng, monkeypatch):
-    """Where O_DIRECT is refused (tmpfs at open; a device's alignment at write), the same bytes
-    are written plainly."""
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
-    import errno
-
-    from quatarray.formats import zarr as _zarr
-    data = rng.normal(size=(2048, 4)).astype(np.float32)
-    real_open, real_write = os.open, os.write
-    direct = getattr(os, "O_DIRECT", 0)
-    for refuse in ("open", "write"):
-        seen = []
-
-        def fake_open(path, flags, mode=0o777, *args, refuse=refuse, seen=seen, **kw):
-            if os.sep + "c" + os.sep in os.fspath(path):   # a chunk file (zarr's own files pass)
-                seen.append(flags & direct)
-                if refuse == "open" and flags & direct:
-                    raise OSError(errno.EINVAL, "Invalid argument")
-            return real_open(path, flags, mode, *args, **kw)
-
-        def fake_write(fd, data, refuse=refuse):
-            if refuse == "write" and direct and _fcntl_flags(fd) & direct:
-                raise OSError(errno.EINVAL, "Invalid argument")
-            return real_write(fd, data)
-
-        monkeypatch.setattr(_zarr.os, "open", fake_open)
-        monkeypatch.setattr(_zarr.os, "write", fake_write)
-        root = str(tmp_path / refuse)
-        a = zarr.open_group(root, mode="w").create_array("keys", shape=data.shape, chunks=(1024, 4),
-                                                         dtype=np.float32, compressors=None)
-        w = _zarr.RawChunks(a, root)
-        w[0:1024, 0:4] = data[:1024]
-        w[1024:2048, 0:4] = data[1024:]
-        monkeypatch.undo()
-        np.testing.assert_array_equal(zarr.open_group(root, mode="r")["keys"][...], data)
-        if direct:   # O_DIRECT asked for once per chunk (then plainly where refused at open)
-            assert sum(1 for f in seen if f) == 2
-
-
-def _fcntl_flags(fd):
-    import fcntl
-    return fcntl.fcntl(fd, fcntl.F_GETFL)
-
-
-def test_raw_chunks_refuse_what_they_cannot_write(tmp_path):
-    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
-    from quatarray.formats.zarr import RawChunks
-    g = zarr.open_group(str(tmp_path / "s.zarr"), mode="w")
-    packed = g.create_array("packed", shape=(10, 4), chunks=(5, 4), dtype=np.float32)   # zstd by default
-    with pytest.raises(ValueError, match="expected a Zarr v3 array with codec bytes"):
-        RawChunks(packed, str(tmp_path / "s.zarr"))
-    raw = g.create_array("raw", shape=(10, 4), chunks=(5, 4), dtype=np.float32, compressors=None)
-    w = RawChunks(raw, str(tmp_path / "s.zarr"))
-    with pytest.raises(ValueError, match="expected one whole chunk"):
-        w[2:7, 0:4] = np.zeros((5, 4))
-    # a store removed under a late write is not created again
-    import shutil
-    shutil.rmtree(tmp_path / "s.zarr")
-    with pytest.raises(FileNotFoundError):
-        w[0:5, 0:4] = np.zeros((5, 4))
-    assert os.listdir(tmp_path) == []
+def test_readme_dask_example_runs_twice_with_progress(capsys):
+    """The README's example writes into a temporary directory (so it runs again), shows progress;
+    run here at 10⁵ queries instead of 10⁷."""
+    pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    import re
+    readme = open(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "README.md"),
+                  encoding="utf-8").read()
+    code = re.search(r"## Beyond memory.*?```python\n(.*?)```", readme, re.S).group(1)
+    assert "10**7" in code and "TemporaryDirectory" in code and "ProgressBar" in code
+    code = code.replace("10**7", "10**5").replace("2**20", "2**14")
+    for _ in range(2):
+        namespace = {}
+        exec(compile(code, "README.md", "exec"), namespace)
+        assert "100% Completed" in capsys.readouterr().out
+        assert namespace["q"].shape == (10**5, 4) and not os.path.exists(namespace["folder"])

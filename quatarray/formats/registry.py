@@ -33,6 +33,7 @@ class Request:
     force: bool = False
     scheduler: str = None
     progress: bool = None
+    storage_options: dict = None
 
     def grid(self, t0, t1, per_frame, onto=None):
         """The query times: the given ones, or ``t0 + k / fps`` up to `t1` (size checked first; a time
@@ -100,7 +101,8 @@ def _resample_gltf(src, dst, kind_in, kind_out, request):
 def _resample_zarr(src, dst, kind_in, kind_out, request):
     return zarr.resample_zarr(src, dst, fps=request.fps, times=request.times, method=request.method or "slerp",
                               extrapolate=request.extrapolate, scheduler=request.scheduler,
-                              progress=request.progress)
+                              progress=request.progress, force=request.force,
+                              storage_options=request.storage_options)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,7 +170,7 @@ def _same_file(src, dst):
 
 
 def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False,
-                  precision=None, force=False, scheduler=None, progress=None):
+                  precision=None, force=False, scheduler=None, progress=None, storage_options=None):
     """Read `src`, resample it and write `dst`; formats follow the extensions.
 
     Parameters
@@ -200,8 +202,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         let a ``.gltf`` output's ``.bin`` replace an existing file.  A Zarr
         store, written chunk by chunk while its input is read, is never
         written over its input.
-    scheduler, progress
-        Zarr stores only: see `quatarray.formats.resample_zarr`.
+    scheduler, progress, storage_options
+        Zarr stores only (a local path or a URL zarr opens, such as
+        ``s3://bucket/run.zarr``): see `quatarray.formats.resample_zarr`.
 
     Returns
     -------
@@ -239,6 +242,8 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         raise ValueError("give exactly one of fps and times")
     if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
         raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
+    if storage_options and family != "Zarr":
+        raise FormatError("storage options apply to Zarr stores (.zarr) only", dst)
     if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
         if FORMATS[kind_out].directory:
             raise FileExistsError(errno.EEXIST, f"exists and is not a {FORMATS[kind_out].name} store (a directory)",
@@ -258,5 +263,6 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         times = None if times is None else np.asarray(times, np.float64)
     if method is None and family != "glTF":
         method = "slerp"
-    request = Request(fps, times, method, extrapolate, scalar_last, precision, force, scheduler, progress)
+    request = Request(fps, times, method, extrapolate, scalar_last, precision, force, scheduler, progress,
+                      storage_options)
     return FORMATS[kind_in].resample(src, dst, kind_in, kind_out, request)

@@ -1,42 +1,72 @@
-"""``quatarray resample`` on Zarr stores, chunk by chunk with Dask.
+"""``quatarray resample`` on Zarr stores, chunk by chunk with Dask, through zarr's public API.
 
-A store is a ``.zarr`` directory (a Zarr group) holding ``times`` (K,) and
-``keys`` (K, *batch, 4), scalar-first, like the NPZ layout.  The keys are
-read into memory when small (one `Track` for every chunk of queries), else
-kept as a Dask array chunked along the tracks.  Query times come from
-``--fps`` (generated lazily, never held whole) or a times file (a ``.zarr``
-store or array holding ``times``, read chunk by chunk, or a text file).
-The output store is written into a temporary directory beside the target
-and renamed onto it when complete.  Memory stays bounded by a few chunks
-per worker thread, whatever the number of queries.
+A store is a Zarr group holding ``times`` (K,) and ``keys`` (K, *batch, 4),
+scalar-first, like the NPZ layout.  It may be anything zarr opens: a local
+path, or a URL (``memory://``, ``s3://``, ``gs://``, any fsspec protocol)
+with ``storage_options`` for its filesystem (credentials, endpoint).  The
+keys are read into memory when small (one `Track` for every chunk of
+queries), else kept as a Dask array chunked along the tracks.  Query times
+come from ``fps`` (generated lazily) or a times file (a Zarr store or
+array holding ``times``, read chunk by chunk, or a text file).
+
+Chunks are read with `zarr.open_group` and `dask.array.from_array` and
+written by `dask.array.store` into arrays made by zarr's ``create_array``:
+zarr alone knows its byte layout.  The queries are computed a window of
+`WINDOW_CHUNKS` chunks at a time, so the task graph (and memory) stays
+bounded whatever the number of queries.
+
+The output appears only when complete:
+
+* on a local disk, it is written into a temporary directory beside the
+  target and renamed onto it;
+* an object store has no rename, so it is written under a temporary
+  prefix beside the target, whose objects are then copied (a server-side
+  copy on S3 and GCS: no data goes through the client) under the target,
+  the chunks first and the ``zarr.json`` metadata last, the group's own
+  last of all, and the temporary prefix is removed.  A reader sees no
+  group until its metadata arrives, after every chunk.  Copying costs a
+  second write on the server; writing the metadata last in place would
+  not, but zarr's public API writes an array's metadata when it is
+  created, and a half-written array would be readable (as fill values)
+  meanwhile.
+
+Replacing an existing store needs ``force`` (a file where the store
+should be is never replaced); on an object store the old store is removed
+first (its metadata first, so that it never looks half-present).  The input store is
+never replaced, even with ``force``: neither way is atomic for a store
+that is still being read.
 """
 
 import contextlib
 import errno
-import mmap
 import os
 import shutil
 import sys
 import tempfile
-import threading
-from math import prod
+import uuid
+from functools import partial
 
 import numpy as np
+
+from .keyframes import fps_steps, read_times
+from .text import FormatError, check_query, option
 
 #: Quaternions per output chunk: 2**21 of them are 32 MiB in float32.
 CHUNK_QUATS = 1 << 21
 
-#: O_DIRECT writes go in multiples of this many bytes (the largest common logical block).
-ALIGN = 4096
-
 #: Keys up to this size are read into memory and interpolated by one Track.
 MEMORY_KEYS = 64 << 20
+
+#: Output chunks per Dask computation: one window's graph is built, computed and dropped before
+#: the next, so memory does not grow with the number of queries (10**12 would be 477,000 chunks).
+WINDOW_CHUNKS = 512
 
 
 def _need():
     """Import the optional dependencies of Zarr stores, or say how to install them."""
     try:
         import dask.array  # noqa: F401
+        import fsspec  # noqa: F401
         import zarr  # noqa: F401
     except ImportError as exc:
         raise ImportError(f"Zarr stores need the optional dependencies dask[array] and zarr ({exc}): "
@@ -44,69 +74,242 @@ def _need():
 
 
 def is_zarr(path):
-    """True if `path` names a Zarr store (a ``.zarr`` suffix)."""
+    """True if `path` names a Zarr store (a ``.zarr`` suffix, local path or URL)."""
     return os.fspath(path).rstrip("/\\").lower().endswith(".zarr")
 
 
-def _open_group(path, what):
+# --------------------------------------------------------------------------- where a store is
+
+class _Location:
+    """A store given by the user: a local path, or a URL and its filesystem's options."""
+
+    def __init__(self, store, storage_options):
+        import fsspec
+        self.name = os.fspath(store)
+        self.url = "://" in self.name or "::" in self.name
+        self.options = dict(storage_options or {}) if self.url else None
+        if self.url:
+            self.fs, self.path = fsspec.core.url_to_fs(self.name, **self.options)
+            self.path = self.path.rstrip("/")
+            self.local = "file" in np.atleast_1d(self.fs.protocol)
+        else:
+            self.fs, self.path, self.local = None, os.path.abspath(self.name), True
+        if self.local and self.url:
+            self.path = os.path.abspath(self.path)
+
+    def key(self):
+        """What two locations of the same store have in common."""
+        if self.local:
+            return ("file", os.path.realpath(self.path))
+        return (tuple(np.atleast_1d(self.fs.protocol)), self.path)
+
+    def exists(self):
+        return os.path.lexists(self.path) if self.local else self.fs.exists(self.path)
+
+    def store(self, path=None):
+        """Arguments of `zarr.open_group` for this store (or for `path` on its filesystem)."""
+        path = self.path if path is None else path
+        if self.local:
+            return {"store": path}
+        return {"store": self.fs.unstrip_protocol(path), "storage_options": self.options}
+
+
+def _locations(storage_options, **stores):
+    """`_Location` of each named store; `storage_options` must apply to at least one URL."""
+    found = {k: _Location(v, storage_options) for k, v in stores.items() if v is not None}
+    if storage_options and not any(loc.url for loc in found.values()):
+        raise ValueError("expected a store URL (such as s3://bucket/out.zarr or memory://out.zarr) for "
+                         f"storage_options to apply to, got the local paths {', '.join(loc.name for loc in found.values())}")
+    return found
+
+
+# --------------------------------------------------------------------------- reading
+
+def _open_group(loc, what):
     import zarr
-    from .text import FormatError
+
     try:
-        return zarr.open_group(os.fspath(path), mode="r")
+        return zarr.open_group(mode="r", **loc.store())
     except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
-        if not os.path.exists(path):
-            raise FileNotFoundError(2, "No such file or directory", os.fspath(path)) from None
-        raise FormatError(f"not a Zarr group with {what} ({type(exc).__name__}: {exc})", path) from None
+        if not loc.exists():
+            raise FileNotFoundError(errno.ENOENT, "No such file or directory", loc.name) from None
+        raise FormatError(f"not a Zarr group with {what} ({_reason(exc)})", loc.name) from None
 
 
-def _array(group, name, path):
+def _reason(exc):
+    """Why zarr could not read something, in words."""
+    import json
+    if isinstance(exc, json.JSONDecodeError):
+        return f"its metadata (zarr.json) is not valid JSON: {exc}"
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _node(group, name, loc):
+    """Array `name` of `group`, real-valued, or a `FormatError` saying what is there instead."""
+    import zarr
+
+    try:
+        if name not in group:
+            found = ", ".join(sorted(group.array_keys())) or "none"
+            raise FormatError(f"missing array {name!r} (found arrays: {found})", loc.name)
+        node = group[name]
+    except FormatError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a corrupt zarr.json below the group
+        raise FormatError(f"cannot open array {name!r}: {_reason(exc)}", loc.name) from None
+    if not isinstance(node, zarr.Array):
+        raise FormatError(f"expected {name!r} to be an array, got a {type(node).__name__.lower()}", loc.name)
+    if np.dtype(node.dtype).kind not in "biuf":
+        raise FormatError(f"expected {name!r} of real numbers, got dtype {node.dtype}", loc.name)
+    return node
+
+
+class _Chunks:
+    """Rows ``start:stop`` of a zarr array, for `dask.array.from_array`; a chunk zarr cannot
+    decode raises a `FormatError` naming the store, the array and the rows."""
+
+    def __init__(self, array, name, where, start=0, stop=None):
+        self.array, self.name, self.where = array, name, where
+        self.start = start
+        stop = array.shape[0] if stop is None else stop
+        self.shape = (stop - start,) + tuple(array.shape[1:])
+        self.dtype = np.dtype(array.dtype)
+        self.ndim = len(self.shape)
+
+    def __getitem__(self, key):
+        key = key if isinstance(key, tuple) else (key,)
+        first = key[0] if key else slice(None)
+        if isinstance(first, slice):
+            lo, hi, step = first.indices(self.shape[0])
+            first = slice(self.start + lo, self.start + hi, step)
+        key = (first,) + key[1:]
+        try:
+            return self.array[key]
+        except Exception as exc:  # noqa: BLE001 - codecs raise RuntimeError, ValueError, ...
+            raise FormatError(f"cannot read array {self.name!r} at {key}: {type(exc).__name__}: {exc}",
+                              self.where) from None
+
+
+def _dask(array, name, where, chunks=None, start=0, stop=None):
     import dask.array as da
-    from .text import FormatError
-    if name not in group:
-        raise FormatError(f"missing array {name!r} (found {', '.join(sorted(group.array_keys())) or 'none'})", path)
-    return da.from_zarr(group[name])
+    source = _Chunks(array, name, where, start, stop)
+    return da.from_array(source, chunks=chunks or array.chunks, asarray=True, fancy=False, lock=False,
+                         meta=np.empty((0,) * source.ndim, source.dtype))
 
 
-def read_store(path):
-    """``(times, keys)`` of a Zarr store: times in memory, keys a Dask array."""
-    from .text import FormatError
-    group = _open_group(path, "arrays 'times' and 'keys'")
-    times = np.asarray(group["times"][...] if "times" in group else _array(group, "times", path), np.float64)
-    keys = _array(group, "keys", path)
+def read_store(path, *, storage_options=None):
+    """``(times, keys)`` of a Zarr store: times in memory, keys a Dask array.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A local path or a URL zarr opens (``memory://``, ``s3://``, ...).
+    storage_options : dict, optional
+        Options of the URL's filesystem (fsspec), e.g. credentials.
+
+    Examples
+    --------
+    >>> import numpy as np, zarr
+    >>> from quatarray.formats.zarr import read_store
+    >>> g = zarr.open_group("memory://doc-read.zarr", mode="w")
+    >>> g["times"] = np.array([0.0, 1.0]); g["keys"] = np.eye(4)[:2]
+    >>> times, keys = read_store("memory://doc-read.zarr")
+    >>> times, keys.shape
+    (array([0., 1.]), (2, 4))
+    """
+    _need()
+    return _read(_Location(path, storage_options))
+
+
+def _read(loc):
+    group = _open_group(loc, "arrays 'times' and 'keys'")
+    times = _node(group, "times", loc)
+    keys = _node(group, "keys", loc)
+    times = np.asarray(_Chunks(times, "times", loc.name)[...], np.float64)
     if times.ndim != 1 or not len(times):
-        raise FormatError(f"expected times of shape (K,) with K >= 1, got {times.shape}", path)
+        raise FormatError(f"expected times of shape (K,) with K >= 1, got {times.shape}", loc.name)
     if keys.ndim < 2 or keys.shape[0] != len(times) or keys.shape[-1] != 4:
-        raise FormatError(f"expected keys of shape ({len(times)}, ..., 4) to match times, got {keys.shape}", path)
-    return times, keys
+        raise FormatError(f"expected keys of shape ({len(times)}, ..., 4) to match times, got {keys.shape}",
+                          loc.name)
+    return times, _dask(keys, "keys", loc.name)
 
 
-def _query_times(key_times, fps, times, rows):
-    """Query times as a Dask array chunked by `rows`, and whether they may leave the key range."""
-    import dask.array as da
-    from .keyframes import fps_steps, read_times
-    if fps is not None:
-        t0, t1 = float(key_times[0]), float(key_times[-1])
-        n = fps_steps(t0, t1, fps)     # the same count and values as keyframes.fps_times
-        return da.minimum(t0 + da.arange(n + 1, chunks=rows, dtype=np.float64) / fps, t1), False
-    if isinstance(times, (str, os.PathLike)) and is_zarr(times):
-        import zarr
-        node = zarr.open(os.fspath(times), mode="r")
-        arr = node["times"] if isinstance(node, zarr.Group) else node
-        return da.from_zarr(arr).astype(np.float64).rechunk(rows), True
-    if isinstance(times, (str, os.PathLike)):
-        times = read_times(times)
-    return da.from_array(np.asarray(times, np.float64), chunks=rows), True
+class _Queries:
+    """The query times, built a window of rows at a time."""
+
+    def __init__(self, key_times, fps, times, loc):
+        self.fps, self.array = fps, None
+        if fps is not None:
+            self.t0, self.t1 = float(key_times[0]), float(key_times[-1])
+            self.size = fps_steps(self.t0, self.t1, fps) + 1   # the same count and values as fps_times
+            return
+        if loc is not None:
+            import zarr
+            try:
+                node = zarr.open(mode="r", **loc.store())
+            except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
+                if not loc.exists():
+                    raise FileNotFoundError(errno.ENOENT, "No such file or directory", loc.name) from None
+                raise FormatError(f"not a Zarr array or group of times ({_reason(exc)})", loc.name) from None
+            self.array = _node(node, "times", loc) if isinstance(node, zarr.Group) else node
+            self.where = loc.name
+            if self.array.ndim != 1 or np.dtype(self.array.dtype).kind not in "biuf":
+                raise FormatError(f"expected times of real numbers, shape (N,), got {self.array.dtype} "
+                                  f"{self.array.shape}", loc.name)
+            self.size = self.array.shape[0]
+            return
+        self.memory = np.asarray(read_times(times) if isinstance(times, (str, os.PathLike)) else times, np.float64)
+        self.size = len(self.memory)
+
+    def window(self, start, stop, rows):
+        """Query times ``start:stop`` as a Dask array chunked by `rows`."""
+        import dask.array as da
+        if self.fps is not None:
+            k = da.arange(start, stop, chunks=rows, dtype=np.float64)
+            return da.minimum(self.t0 + k / self.fps, self.t1)
+        if self.array is not None:
+            return _dask(self.array, "times", self.where, (rows,), start, stop).astype(np.float64)
+        return da.from_array(self.memory[start:stop], chunks=rows)
+
+
+# --------------------------------------------------------------------------- writing
+
+@contextlib.contextmanager
+def _atomic(loc, force):
+    """Yield the `_Location`-style zarr arguments of a temporary store; move it onto `loc` on success,
+    remove it on failure.  OS errors name the user's store, never the temporary one."""
+    if loc.local:
+        context = _atomic_dir(loc.path, loc.name, force)
+    else:
+        context = _atomic_prefix(loc, force)
+    try:
+        with context as store:
+            yield store
+    except OSError as exc:
+        if exc.filename is None or ".part" in os.fspath(exc.filename):
+            raise type(exc)(exc.errno, exc.strerror or str(exc), loc.name) from None
+        raise
+
+
+def _refuse_existing(exists, name, force):
+    if exists and not force:
+        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", name)
 
 
 @contextlib.contextmanager
-def _atomic_dir(path):
+def _atomic_dir(path, name, force):
     """A temporary directory beside `path`, renamed onto `path` on success, removed on failure."""
-    path = os.path.abspath(os.fspath(path))
-    tmp = tempfile.mkdtemp(dir=os.path.dirname(path), prefix=f".{os.path.basename(path)}.", suffix=".part")
+    folder = os.path.dirname(path)
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(errno.ENOENT, "No such file or directory (its folder does not exist)", name)
+    if os.path.lexists(path) and not os.path.isdir(path):    # never replace a file by a store
+        raise FileExistsError(errno.EEXIST, "exists and is not a Zarr store (a directory)", name)
+    _refuse_existing(os.path.lexists(path), name, force)
+    tmp = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
     try:
-        yield tmp
-        if os.path.isdir(path):   # replace an existing store: move it aside first, then drop it
-            old = tempfile.mkdtemp(dir=os.path.dirname(path), prefix=f".{os.path.basename(path)}.", suffix=".old")
+        yield {"store": tmp}
+        if os.path.lexists(path):   # a store there: move it aside first, then drop it
+            old = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".old")
             os.replace(path, os.path.join(old, "store"))
             os.replace(tmp, path)
             shutil.rmtree(old, ignore_errors=True)
@@ -117,22 +320,79 @@ def _atomic_dir(path):
         raise
 
 
+@contextlib.contextmanager
+def _atomic_prefix(loc, force):
+    """A temporary prefix beside `loc` on its object store, copied under `loc` on success (the
+    metadata last) and removed either way."""
+    fs = loc.fs
+    _refuse_existing(fs.exists(loc.path), loc.name, force)
+    parent, _, base = loc.path.rpartition("/")
+    tmp = f"{parent}/.{base}.{uuid.uuid4().hex[:8]}.part"
+    try:
+        yield loc.store(tmp)
+        objects = sorted(fs.find(tmp))
+        if fs.exists(loc.path):
+            _remove(fs, loc.path)
+        # chunks, then each array's zarr.json, then the group's: readers see all or nothing
+        order = sorted(objects, key=lambda p: (p.endswith("zarr.json"), p == f"{tmp}/zarr.json"))
+        data = [p for p in order if not p.endswith("zarr.json")]
+        if data:
+            fs.copy(data, [loc.path + p[len(tmp):] for p in data])
+        for p in order[len(data):]:
+            fs.copy(p, loc.path + p[len(tmp):])
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            fs.rm(tmp, recursive=True)
+
+
+def _remove(fs, path):
+    """Remove a store from an object store, its group metadata first."""
+    with contextlib.suppress(FileNotFoundError):
+        fs.rm(f"{path}/zarr.json")
+    fs.rm(path, recursive=True)
+
+
+def _space_check(loc, nbytes):
+    """Refuse an output that the local disk cannot hold, before any writing."""
+    if not loc.local:
+        return
+    folder = os.path.dirname(loc.path)
+    if not os.path.isdir(folder):
+        return    # reported by _atomic_dir
+    free = shutil.disk_usage(folder).free
+    if nbytes > free:
+        raise ValueError(f"{loc.name}: the output needs {nbytes / 1e9:.3g} GB, and its disk has "
+                         f"{free / 1e9:.3g} GB free (try a lower --fps or fewer --times)")
+
+
 def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate="raise",
-                  scheduler=None, progress=None):
+                  scheduler=None, progress=None, force=False, storage_options=None):
     """Resample the keyframes of Zarr store `src` into Zarr store `dst`, chunk by chunk.
 
     Parameters
     ----------
     src, dst : str or os.PathLike
-        ``.zarr`` directories; `dst` appears only when complete.
+        Stores zarr opens: local paths or URLs (``memory://``, ``s3://``,
+        ``gs://``, any fsspec protocol).  `dst` appears only when complete
+        (see the module's notes); an existing `dst` is replaced only with
+        `force`, and never when it is `src`.
     fps, times, method, extrapolate
-        As `quatarray.cli.resample_file`; `times` may also be a ``.zarr``
+        As `quatarray.formats.resample_file`; `times` may also be a Zarr
         store (or array) of query times, read chunk by chunk.
     scheduler : str, optional
-        Address of a running ``distributed`` scheduler; default Dask's local
-        threaded scheduler.  The workers must see `src` and `dst`.
+        Address of a running ``distributed`` scheduler.  Default: the
+        active ``distributed.Client`` if there is one, else Dask's local
+        threads.  The workers must reach `src` and `dst`.
     progress : bool, optional
-        Show a progress bar on stderr; default: when stderr is a terminal.
+        Show a progress bar on stderr (Dask's ``ProgressBar``, or
+        ``distributed.progress`` on a cluster); default: when stderr is a
+        terminal.
+    force : bool, default False
+        Replace an existing `dst`.
+    storage_options : dict, optional
+        Options of the URLs' filesystems (credentials, ``endpoint_url``,
+        ...), as zarr and fsspec take them; they apply to every store
+        given as a URL.
 
     Returns
     -------
@@ -141,72 +401,96 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from quatarray.formats import resample_zarr
-    >>> import os, tempfile, zarr
-    >>> tmp = tempfile.mkdtemp()
-    >>> g = zarr.open_group(os.path.join(tmp, "in.zarr"), mode="w")
+    >>> import numpy as np, zarr
+    >>> from quatarray.formats.zarr import resample_zarr
+    >>> g = zarr.open_group("memory://doc-in.zarr", mode="w")
     >>> g["times"] = np.array([0.0, 1.0]); g["keys"] = np.array([[1.0, 0, 0, 0], [0, 0, 0, 1]])
-    >>> resample_zarr(os.path.join(tmp, "in.zarr"), os.path.join(tmp, "out.zarr"), fps=4, progress=False)
+    >>> resample_zarr("memory://doc-in.zarr", "memory://doc-out.zarr", fps=4, progress=False, force=True)
     (2, 5)
-    >>> np.round(zarr.open_group(os.path.join(tmp, "out.zarr"), mode="r")["keys"][2], 6)
+    >>> np.round(zarr.open_group("memory://doc-out.zarr", mode="r")["keys"][2], 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
     _need()
-    import dask
     import dask.array as da
     import zarr
     from zarr.codecs import BloscCodec
 
     from .. import dask as qd
-    from .text import check_query
     from ..interpolate import Track
     if (fps is None) == (times is None):
         raise ValueError("give exactly one of fps and times")
-    key_times, keys = read_store(src)
+    times_store = times if isinstance(times, (str, os.PathLike)) and is_zarr(times) else None
+    where = _locations(storage_options, src=src, dst=dst, times=times_store)
+    loc_in, loc_out = where["src"], where["dst"]
+    for what, loc in (("input", loc_in), ("times store", where.get("times"))):
+        if loc is not None and loc.key() == loc_out.key():
+            raise ValueError(f"{loc_out.name}: is the {what}; Zarr outputs are written while the {what} is "
+                             "read, so they cannot replace it (even when forced): write elsewhere, then rename")
+    key_times, keys = _read(loc_in)
     check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
     rows = max(1, CHUNK_QUATS // max(1, int(np.prod(batch))))
-    if rows >= 256:   # whole multiples of 4096 bytes per chunk, for O_DIRECT
-        rows -= rows % 256
-    t, may_leave = _query_times(key_times, fps, times, rows)
+    queries = _Queries(key_times, fps, times, where.get("times"))
+    n = queries.size
+    window = rows * WINDOW_CHUNKS
     if keys.nbytes <= MEMORY_KEYS:
-        track = Track(key_times, keys.compute(), method=method, extrapolate=extrapolate)
-        out = qd.evaluate(track, t)
+        interpolate = partial(qd.evaluate, Track(key_times, keys.compute(), method=method, extrapolate=extrapolate))
     else:
-        out = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)(t)
-    if may_leave and extrapolate == "raise" and t.size:   # one pass over the times before any writing
-        check_query(key_times, np.array(dask.compute(t.min(), t.max())), extrapolate)
+        interpolate = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)
+    dtype = interpolate(queries.window(0, min(n, 1), 1)).dtype     # lazy: nothing computed
+    _space_check(loc_out, n * (8 + 4 * dtype.itemsize * int(np.prod(batch))))
+    if extrapolate == "raise" and fps is None and n:   # one pass over the times before any writing
+        low, high = np.inf, -np.inf
+        for start in range(0, n, window):
+            t = queries.window(start, min(n, start + window), rows)
+            low, high = np.minimum(low, t.min()), np.maximum(high, t.max())
+        check_query(key_times, np.array(da.compute(low, high)), extrapolate)
     show = sys.stderr.isatty() if progress is None else progress
-    with _atomic_dir(dst) as tmp:
-        group = zarr.open_group(tmp, mode="w")
+    with _atomic(loc_out, force) as tmp, _runner(scheduler, show) as run:
+        group = zarr.open_group(mode="w", **tmp)
         # quaternions are float noise to a compressor (zstd saves ~10% of the bytes and costs
         # ~40% of the throughput): stored raw; times compress well with a byte shuffle, and
         # LZ4 does it at memory speed
-        zt = group.create_array("times", shape=t.shape, chunks=(rows,), dtype=np.float64,
+        zt = group.create_array("times", shape=(n,), chunks=(rows,), dtype=np.float64,
                                 compressors=BloscCodec(cname="lz4", clevel=1, shuffle="shuffle"))
-        zk = group.create_array("keys", shape=out.shape, chunks=(rows,) + out.shape[1:], dtype=out.dtype,
+        zk = group.create_array("keys", shape=(n,) + batch + (4,), chunks=(rows,) + batch + (4,), dtype=dtype,
                                 compressors=None)
-        out = out.rechunk((rows,) + out.shape[1:])
-        store = da.store([t, out], [RawChunks(zt, tmp), RawChunks(zk, tmp)], lock=False, compute=False)
-        _run(store, scheduler, show)
-    return len(key_times), int(t.shape[0])
+        for start in range(0, n, window):
+            stop = min(n, start + window)
+            t = queries.window(start, stop, rows)
+            out = interpolate(t).rechunk((rows,) + batch + (4,))
+            region = slice(start, stop)
+            run(da.store([t, out], [zt, zk], regions=[(region,), (region,) + (slice(None),) * (len(batch) + 1)],
+                         lock=False, compute=False))
+    return len(key_times), n
 
 
-def _run(graph, scheduler, show):
-    """Compute `graph` on a distributed scheduler or the local threads, with a progress bar if `show`."""
-    import dask
-    if scheduler is not None:
+@contextlib.contextmanager
+def _runner(scheduler, show):
+    """A function that computes a graph: on the distributed scheduler at `scheduler`, on the active
+    ``distributed.Client``, or on local threads; with a progress bar if `show`."""
+    client = None
+    if scheduler is None and "distributed" in sys.modules:
+        from distributed import default_client
+        with contextlib.suppress(ValueError):
+            client = default_client()
+    if scheduler is not None or client is not None:
         from distributed import Client, progress
-        with Client(scheduler) as client:
-            futures = client.compute(graph)
-            if show:
-                progress(futures)
-            client.gather(futures)
+        with contextlib.ExitStack() as stack:
+            if client is None:
+                client = stack.enter_context(Client(scheduler))
+
+            def run(graph):
+                future = client.compute(graph)
+                if show:
+                    progress(future)
+                client.gather(future)
+            yield run
         return
     # our own pool, so that on an error, Ctrl-C or SIGTERM the chunks being written are finished
-    # (and no more started) before `_atomic_dir` removes the temporary store: a write landing
-    # after the removal would create the directory again
+    # (and no more started) before the temporary store is removed: a write landing after the
+    # removal would create it again
+    import dask
     from concurrent.futures import ThreadPoolExecutor
     from dask.system import CPU_COUNT
     workers = dask.config.get("num_workers", None) or CPU_COUNT
@@ -216,135 +500,9 @@ def _run(graph, scheduler, show):
             if show:
                 from dask.diagnostics import ProgressBar
                 stack.enter_context(ProgressBar(out=sys.stderr))
-            dask.compute(graph, scheduler="threads", pool=pool, num_workers=workers)
+
+            def run(graph):
+                dask.compute(graph, scheduler="threads", pool=pool, num_workers=workers)
+            yield run
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-
-
-class RawChunks:
-    """A `dask.array.store` target that writes the chunks of a Zarr v3 array itself.
-
-    The files hold what zarr would write for such an array (codec ``bytes``,
-    little-endian, then optionally ``blosc`` with numcodecs' Blosc as zarr's
-    BloscCodec uses it; the array's chunk key encoding; edge chunks padded
-    with the fill value to the full chunk shape), so zarr reads them.
-    Uncompressed chunks are written with ``O_DIRECT`` where the filesystem
-    takes it (Linux; not tmpfs), from a page-aligned buffer per thread,
-    falling back to plain writes for the rest.  Measured on the 2-CPU KVM
-    machine: 50 chunks of 32 MiB took 5.7 s of system CPU through the page
-    cache (230 MB/s, a core taken from the computation) and 0.24 s with
-    ``O_DIRECT`` (800 MB/s); a 16 GB output also no longer evicts the page
-    cache.  Compressed chunks skip zarr's write path (an event-loop thread,
-    hops to worker threads): for a 16 MiB chunk of times, 21 ms per chunk
-    there against about 5 ms here.
-
-    Every `__setitem__` key must be exactly one chunk (the source is chunked
-    like the array).  Directories are made below the array's own directory
-    only, so a write after the store was removed fails instead of creating it
-    again.
-
-    >>> import numpy as np, os, tempfile, zarr
-    >>> from quatarray.formats.zarr import RawChunks
-    >>> root = tempfile.mkdtemp()
-    >>> a = zarr.open_group(root, mode="w").create_array("keys", shape=(5, 4), chunks=(3, 4),
-    ...                                                   dtype=np.float32, compressors=None)
-    >>> w = RawChunks(a, root)
-    >>> w[0:3, 0:4] = np.ones((3, 4)); w[3:5, 0:4] = np.full((2, 4), 2.0)
-    >>> zarr.open_array(os.path.join(root, "keys"), mode="r")[:, 0]
-    array([1., 1., 1., 2., 2.], dtype=float32)
-    """
-
-    _local = threading.local()
-
-    def __init__(self, array, root):
-        from zarr.codecs import BloscCodec, BytesCodec
-        meta = array.metadata
-        serializer, compressors = getattr(array, "serializer", None), tuple(getattr(array, "compressors", ()))
-        if (getattr(meta, "zarr_format", None) != 3 or not isinstance(serializer, BytesCodec) or array.filters
-                or len(compressors) > 1 or not all(isinstance(c, BloscCodec) for c in compressors)
-                or str(getattr(serializer.endian, "value", serializer.endian)) not in ("little", "None")):
-            raise ValueError("expected a Zarr v3 array with codec bytes (little-endian) and at most a blosc "
-                             f"compressor, got {getattr(meta, 'codecs', meta)}")
-        self.dir = os.path.join(os.fspath(root), *array.path.split("/"))
-        self.chunks = tuple(int(c) for c in array.chunks)
-        self.dtype = np.dtype(array.dtype).newbyteorder("<")
-        self.fill = array.fill_value
-        self.keys = meta.chunk_key_encoding
-        self.blosc = None
-        if compressors:   # the same numcodecs Blosc that zarr's BloscCodec encodes with
-            from numcodecs import Blosc
-            c = compressors[0]
-            shuffle = {"noshuffle": 0, "shuffle": 1, "bitshuffle": 2}[getattr(c.shuffle, "value", c.shuffle)]
-            self.blosc = Blosc(cname=getattr(c.cname, "value", c.cname), clevel=c.clevel, shuffle=shuffle,
-                               blocksize=c.blocksize, typesize=c.typesize or self.dtype.itemsize)
-
-    def __setitem__(self, key, value):
-        value = np.asarray(value)
-        coords = []
-        for k, c, n in zip(key, self.chunks, value.shape):
-            start = k.start or 0
-            if start % c or n > c:
-                raise ValueError(f"expected one whole chunk of {self.chunks}, got the region {key}")
-            coords.append(start // c)
-        nbytes = prod(self.chunks) * self.dtype.itemsize
-        buf = self._buffer(nbytes)
-        chunk = np.frombuffer(buf, self.dtype, prod(self.chunks)).reshape(self.chunks)
-        if value.shape != self.chunks:   # an edge chunk: stored whole, padded with the fill value
-            chunk[...] = self.fill
-        chunk[tuple(slice(0, n) for n in value.shape)] = value
-        path = self.dir
-        *folders, name = self.keys.encode_chunk_key(tuple(coords)).split("/")
-        for part in folders:
-            path = os.path.join(path, part)
-            with contextlib.suppress(FileExistsError):
-                os.mkdir(path)
-        data = memoryview(buf)[:nbytes]
-        if self.blosc is not None:
-            data = memoryview(self.blosc.encode(chunk))
-        _write(os.path.join(path, name), data, direct=self.blosc is None)
-
-    @classmethod
-    def _buffer(cls, nbytes):
-        """This thread's page-aligned buffer of at least `nbytes` (kept for the next chunk)."""
-        buf = getattr(cls._local, "buf", None)
-        if buf is None or len(buf) < nbytes:
-            buf = cls._local.buf = mmap.mmap(-1, max(nbytes, 1))
-        return buf
-
-
-def _write(path, data, direct=True):
-    """Write `data` to a new file at `path`.  With `direct` (`data` in a page-aligned buffer), its
-    whole multiples of `ALIGN` bytes with O_DIRECT where the system and the filesystem take it,
-    the rest plainly."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
-    direct = getattr(os, "O_DIRECT", 0) if direct else 0
-    head = len(data) - len(data) % ALIGN if direct else 0
-    fd = None
-    if head:
-        try:
-            fd = os.open(path, flags | direct, 0o666)
-        except OSError as exc:   # tmpfs and some others refuse O_DIRECT
-            if exc.errno != errno.EINVAL:
-                raise
-    if fd is None:
-        fd, head = os.open(path, flags, 0o666), 0
-    try:
-        done = 0
-        while done < len(data):
-            if head and done >= head:   # the unaligned tail: plain writes
-                head = _plain(fd, direct)
-            try:
-                done += os.write(fd, data[done:head or len(data)])
-            except OSError as exc:
-                if not head or exc.errno != errno.EINVAL:
-                    raise
-                head = _plain(fd, direct)   # alignment the device refuses: plain writes from here
-    finally:
-        os.close(fd)
-
-
-def _plain(fd, direct):
-    """Clear O_DIRECT on `fd`; returns 0 (no aligned head left)."""
-    import fcntl
-    fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~direct)
-    return 0
