@@ -71,6 +71,9 @@ def _batch_axis(axis, nb, name="axis", extra=0):
     n = nb + extra
     if not isinstance(axis, (int, np.integer)):
         raise TypeError(f"expected {name} to be an int (a batch axis), got {type(axis).__name__}")
+    if not n:   # [0, -1] would be an empty range: say what is missing instead
+        raise ValueError(f"expected a QuatArray with at least one batch axis for {name}={axis}, got a single "
+                         f"quaternion (shape (4,), no batch axis; its only axis holds the components)")
     if not -n <= axis < n:
         raise ValueError(f"expected {name} in [{-n}, {n - 1}] (a batch axis of a batch with {nb} axes), got {axis}")
     return int(axis) % n

@@ -355,6 +355,8 @@ class RigidTransform:
                 n = n[0]
             elif n.ndim != 0:
                 raise ValueError("Array exponent must be a scalar")
+        if not np.isfinite(n):
+            raise ValueError(f"expected a finite exponent n, got {float(n)}")
         if n == 0:
             return RigidTransform.identity(shape=self.shape)
         if n == -1:
@@ -385,8 +387,12 @@ class RigidTransform:
         if weights is None:
             tm = np.mean(t, axis=axes)
         else:
+            total = np.sum(w, axis=axes)
+            if not np.all(total > 0):   # scipy: ZeroDivisionError; 0/0 would be a NaN translation
+                raise ValueError("expected weights with a positive sum over the averaged axes, "
+                                 "got weights that sum to zero")
             w = w.astype(t.dtype, copy=False)[..., None]
-            tm = np.sum(t * w, axis=axes) / np.sum(w, axis=axes)
+            tm = np.sum(t * w, axis=axes) / total[..., None].astype(t.dtype, copy=False)
         return type(self)._from_parts(qm.reshape(tm.shape[:-1] + (4,)), tm, tm.ndim == 1)
 
     # ------------------------------------------------------------------ container

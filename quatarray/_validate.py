@@ -147,7 +147,10 @@ def batch_shape(num, shape):
     if num is not None and shape is not None:
         raise ValueError("Only one of `num` or `shape` can be specified: expected num or shape, got both")
     if num is not None:
-        if not isinstance(num, (int, np.integer)) or num < 0:
+        if not isinstance(num, (int, np.integer)):
+            # scipy's type error (its `num` is a typed int argument), with our wording's what-came
+            raise TypeError(f"Argument 'num' has incorrect type (expected int, got {type(num).__name__})")
+        if num < 0:
             raise ValueError(f"expected num to be a non-negative int, got {num!r}")
         return (int(num),)
     if shape is None:
