@@ -35,6 +35,8 @@ _TO_LAST = [1, 2, 3, 0, 5, 6, 7, 4]
 def _promote(x):
     """scipy's promotion: float32 and float64 kept, other real input as float64."""
     a = np.asarray(x)
+    if not a.dtype.isnative:   # big-endian input: the same values, native (scipy accepts it)
+        a = a.astype(a.dtype.newbyteorder("="))
     if a.dtype == np.float32 or a.dtype == np.float64:
         return a
     if a.dtype.kind not in "biuf":

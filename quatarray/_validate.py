@@ -58,6 +58,8 @@ def float_array(x, name, last=None, dtype=None):
         except (ValueError, TypeError) as exc:
             raise ValueError(f"expected {name} to be array_like of real numbers, got {type(x).__name__} ({exc})") from None
     kind = a.dtype.kind
+    if not a.dtype.isnative:   # big-endian input on a little-endian machine: the same values, native
+        a = a.astype(a.dtype.newbyteorder("="))
     if kind == "f":
         if a.dtype.itemsize not in (4, 8):
             a = a.astype(np.float64)

@@ -62,3 +62,76 @@ def test_multiply_reduce_of_a_single_quaternion_says_it_has_no_batch_axis():
         np.multiply.reduce(QuatArray([1.0, 0, 0, 0]), axis=0)
     # a batch of one still reduces
     assert np.array_equal(np.asarray(np.multiply.reduce(QuatArray([[1.0, 0, 0, 0]]), axis=0)), [1.0, 0, 0, 0])
+
+
+# --- big-endian input: accepted wherever scipy accepts it, the same values ---------------
+
+import quatarray as qa  # noqa: E402
+
+RT = RigidTransform
+R = Rotation
+QA = QuatArray
+_rng = np.random.default_rng(0)
+q = _rng.standard_normal((5, 4))
+v = _rng.standard_normal((5, 3))
+m = Rotation.random(5, rng=1).as_matrix()
+t = np.linspace(0, 1, 5)
+BIG_ENDIAN_CALLS = {
+ 'from_quat': lambda B: R.from_quat(B(q)).as_quat(),
+ 'from_rotvec': lambda B: R.from_rotvec(B(v)).as_quat(),
+ 'from_rotvec1': lambda B: R.from_rotvec(B(v[0])).as_quat(),
+ 'from_mrp': lambda B: R.from_mrp(B(v)).as_quat(),
+ 'from_mrp1': lambda B: R.from_mrp(B(v[0])).as_quat(),
+ 'from_matrix': lambda B: R.from_matrix(B(m)).as_quat(),
+ 'from_euler': lambda B: R.from_euler('xyz', B(v)).as_quat(),
+ 'from_davenport': lambda B: R.from_davenport(B(np.eye(3)), 'extrinsic', B(v)).as_quat(),
+ 'apply': lambda B: R.from_quat(q).apply(B(v)),
+ 'apply1': lambda B: R.from_quat(q[0]).apply(B(v[0])),
+ 'pow': lambda B: (R.from_quat(q)**B(np.array(0.3))).as_quat(),
+ 'mean w': lambda B: R.from_quat(q).mean(weights=B(np.ones(5))).as_quat(),
+ 'align': lambda B: R.align_vectors(B(v), B(v[::-1]))[0].as_quat(),
+ 'QA': lambda B: np.asarray(QA(B(q))),
+ 'QA matrix': lambda B: QA(B(q)).as_matrix(),
+ 'QA rotvec': lambda B: QA(B(q)).as_rotvec(),
+ 'QA euler': lambda B: QA(B(q)).as_euler('xyz'),
+ 'QA mrp': lambda B: QA(B(q)).as_mrp(),
+ 'QA norm': lambda B: QA(B(q)).norm(),
+ 'QA normalized': lambda B: np.asarray(QA(B(q)).normalized()),
+ 'QA mul': lambda B: np.asarray(QA(B(q))*QA(B(q))),
+ 'QA log': lambda B: np.asarray(QA(B(q)).log()),
+ 'QA exp': lambda B: np.asarray(QA(B(q)).exp()),
+ 'QA pow': lambda B: np.asarray(QA(B(q))**0.5),
+ 'QA rotate': lambda B: QA(B(q)).rotate(B(v)),
+ 'slerp': lambda B: np.asarray(qa.slerp(QA(B(q[:4])), QA(B(q[1:])), B(t[:4]))),
+ 'Track': lambda B: np.asarray(qa.Track(B(t), QA(B(q)))(B(t*0.9))),
+ 'Track sp': lambda B: np.asarray(qa.Track(B(t), QA(B(q)), method='spline')(B(t*0.9))),
+ 'Spline': lambda B: qa.RotationSpline(B(t), R.from_quat(B(q)))(B(t*0.9)).as_quat(),
+ 'Slerp': lambda B: qa.Slerp(B(t), R.from_quat(B(q)))(B(t*0.9)).as_quat(),
+ 'RT comp': lambda B: RT.from_components(B(v), R.from_quat(B(q))).as_matrix(),
+ 'RT matrix': lambda B: RT.from_matrix(B(RT.from_components(v, R.from_quat(q)).as_matrix())).as_matrix(),
+ 'RT exp': lambda B: RT.from_exp_coords(B(np.hstack([v,v]))).as_matrix(),
+ 'RT dq': lambda B: RT.from_dual_quat(B(np.hstack([q,q]))).as_matrix(),
+ 'RT apply': lambda B: RT.from_translation(v).apply(B(v)),
+ 'unflip': lambda B: np.asarray(qa.unflip(QA(B(q)))),
+ 'squad': lambda B: np.asarray(qa.squad(QA(B(q[:2])),QA(B(q[1:3])),QA(B(q[2:4])),QA(B(q[3:5])), B(t[:2]))),
+ 'nlerp': lambda B: np.asarray(qa.nlerp(QA(B(q[:4])), QA(B(q[1:])), B(t[:4]))),
+ 'lerp': lambda B: np.asarray(qa.lerp(QA(B(q[:4])), QA(B(q[1:])), B(t[:4]))),
+}
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+@pytest.mark.parametrize("dt", ["f8", "f4"])
+@pytest.mark.parametrize("name", sorted(BIG_ENDIAN_CALLS))
+def test_big_endian_input_gives_the_native_result(name, dt):
+    call = BIG_ENDIAN_CALLS[name]
+    native = np.asarray(call(lambda a: np.asarray(a).astype("<" + dt)))
+    swapped = np.asarray(call(lambda a: np.asarray(a).astype(">" + dt)))
+    assert swapped.dtype.isnative and np.array_equal(native, swapped)
+
+
+def test_big_endian_examples_match_scipy():
+    ones = np.ones(3, ">f8")
+    assert np.allclose(Rotation.from_rotvec(ones).as_quat(), ScipyRotation.from_rotvec(ones).as_quat(), atol=1e-15)
+    assert np.allclose(Rotation.from_mrp(ones).as_quat(), ScipyRotation.from_mrp(ones).as_quat(), atol=1e-15)
+    q4 = np.ones((2, 4), ">f8")
+    assert np.allclose(QuatArray(q4).as_matrix(), ScipyRotation.from_quat(q4).as_matrix(), atol=1e-15)
