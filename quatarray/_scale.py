@@ -24,7 +24,7 @@ import numpy as np
 from . import _blocks
 
 __all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "outside",
-           "unscale", "true_norm"]
+           "unscale", "true_norm", "BIG_VECTOR", "shrink_vectors"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 
@@ -40,6 +40,10 @@ LOW = {d: r[0] for d, r in _RANGE.items()}
 
 HIGH = {d: r[1] for d, r in _RANGE.items()}
 """Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
+
+BIG_VECTOR = {d: float(np.ldexp(np.finfo(d).max, -4)) for d in _RANGE}
+"""Largest |component| of a vector rotated as it is, per dtype: the rotation formulas form
+sums of up to five terms of the vector's size (`shrink_vectors`)."""
 
 
 def fits(n2):
@@ -148,6 +152,33 @@ def guarded_sqnorm(q):
     n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
     guard(q, n2)
     return n2
+
+
+def shrink_vectors(v):
+    """Scale the vectors of a components-first block (a scratch copy) whose largest |component|
+    exceeds `BIG_VECTOR` by 2**-e in place, e the exponent of that component, so that the
+    rotation formulas' intermediate sums cannot overflow; the others are left as they are
+    (so each vector gives the same bits whatever the block around it).
+
+    Returns e (batch shape, int32, 0 where not scaled), or None when no vector is that
+    large: the common path, two reductions.  Multiply the result by 2**e (`unscale`).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import shrink_vectors
+    >>> v = np.array([[1e308, 1.0], [0.0, 2.0], [0.0, 3.0]])
+    >>> e = shrink_vectors(v); e.tolist(), v[:, 1].tolist()
+    ([1024, 0], [1.0, 2.0, 3.0])
+    """
+    if not v.size:
+        return None
+    big = BIG_VECTOR[v.dtype]
+    if v.max() <= big and v.min() >= -big:
+        return None
+    m = np.max(np.abs(v), axis=0)
+    _, e = np.frexp(m)
+    e = np.where(m > big, e, 0).astype(np.int32)
+    np.ldexp(v, -e, out=v)
+    return e
 
 
 def unscale(x, e, power=1):

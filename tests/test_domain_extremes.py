@@ -135,3 +135,68 @@ def test_big_endian_examples_match_scipy():
     assert np.allclose(Rotation.from_mrp(ones).as_quat(), ScipyRotation.from_mrp(ones).as_quat(), atol=1e-15)
     q4 = np.ones((2, 4), ">f8")
     assert np.allclose(QuatArray(q4).as_matrix(), ScipyRotation.from_quat(q4).as_matrix(), atol=1e-15)
+
+
+# --- vectors near the float maximum ----------------------------------------------------------
+
+def _big_vectors(rng, shape, big, fraction):
+    """Vectors of norm `fraction` of the float maximum: random directions, and the axes."""
+    v = rng.standard_normal(shape + (3,))
+    v /= np.linalg.norm(v, axis=-1, keepdims=True)
+    flat = v.reshape(-1, 3)
+    flat[:6] = np.concatenate([np.eye(3), -np.eye(3)])[:len(flat)]
+    return v * (big * fraction)
+
+
+def _reference_apply(q, v, t=None, inverse=False):
+    """scipy's rotation of v scaled down by an exact power of two, scaled back up."""
+    k = 2.0 ** 600 if np.dtype(v.dtype) == np.float64 else 2.0 ** 64
+    q64, v64 = np.asarray(q, np.float64), np.asarray(v, np.float64) / k
+    t64 = None if t is None else np.asarray(t, np.float64) / k
+    if t is None:
+        res = ScipyRotation.from_quat(q64, scalar_first=True).apply(v64, inverse=inverse)
+    else:
+        res = ScipyRigidTransform.from_components(t64, ScipyRotation.from_quat(q64, scalar_first=True)).apply(
+            v64, inverse=inverse)
+    return res * k
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shapes", [((), ()), ((), (7,)), ((7,), ()), ((7,), (7,)), ((300,), (300,))],
+                         ids=["one-one", "one-many", "many-one", "many-many", "long"])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_apply_rotates_vectors_near_the_float_maximum(dtype, shapes, inverse):
+    rng = np.random.default_rng(5)
+    big = float(np.finfo(dtype).max)
+    q = rng.standard_normal(shapes[0] + (4,)).astype(dtype)
+    v = _big_vectors(rng, shapes[1], big, 0.97).astype(dtype)
+    ours = Rotation.from_quat(q, scalar_first=True).apply(v, inverse=inverse)
+    ref = _reference_apply(q, v, inverse=inverse)
+    assert ours.dtype == dtype and np.isfinite(ours).all()
+    assert np.max(np.abs(ours - ref)) <= 8 * np.finfo(dtype).eps * big
+    if not inverse:
+        res = QuatArray(q).rotate(v)
+        assert np.isfinite(res).all() and np.max(np.abs(res - ref)) <= 8 * np.finfo(dtype).eps * big
+
+
+def test_apply_issue_example_matches_scipy():
+    expected = ScipyRotation.from_quat([0, 0, 1, 0]).apply([1e308, 0, 0])
+    assert np.array_equal(Rotation.from_quat([0, 0, 1, 0]).apply([1e308, 0, 0]), expected)
+    assert np.array_equal(QuatArray([0.0, 0, 0, 1]).rotate([1e308, 0, 0]), expected)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("n", [None, 5, 600], ids=["one", "short", "fused"])
+@pytest.mark.parametrize("inverse", [False, True])
+def test_rigid_transform_applies_to_vectors_near_the_float_maximum(dtype, n, inverse):
+    rng = np.random.default_rng(6)
+    big = float(np.finfo(dtype).max)
+    shape = () if n is None else (n,)
+    q = rng.standard_normal(shape + (4,)).astype(dtype)
+    v = _big_vectors(rng, shape, big, 0.7).astype(dtype)
+    t = _big_vectors(rng, shape, big, 0.25).astype(dtype)
+    tf = RigidTransform.from_components(t, Rotation.from_quat(q, scalar_first=True))
+    ours = tf.apply(v, inverse=inverse)
+    ref = _reference_apply(q, v, t, inverse=inverse)
+    assert np.isfinite(ours).all()
+    assert np.max(np.abs(ours - ref)) <= 8 * np.finfo(dtype).eps * big
