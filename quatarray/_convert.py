@@ -171,7 +171,7 @@ def _k_as_matrix(q, o, unit=False):
             np.add(xx, yy, out=b)
             np.subtract(a, b, out=o[8])
         else:
-            s = np.divide(2.0, _scale.guarded_sqnorm(q))
+            s = np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
             np.multiply(x, s, out=xs)
             np.multiply(y, s, out=ys)
             np.multiply(z, s, out=zs)
@@ -207,7 +207,7 @@ def as_matrix(q, unit=False):
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``M @ v`` rotates the column vector ``v``.  Zero quaternions give NaN.
+        ``M @ v`` rotates the column vector ``v``.  A zero quaternion raises `ValueError`.
 
     Examples
     --------
@@ -441,9 +441,9 @@ def _vector_norm(q):
     np.multiply(q[0], q[0], out=n2)
     n2 += v2
     if not _scale.fits(n2):
-        _scale.guard(q, n2)
+        _scale.guard(q, n2, zero=True)
         _scale.sum_squares(q, v2, 1)
-    return np.sqrt(v2, out=v2)
+    return _scale.small_norms(q[1:], v2)   # |v| also where |v|² underflows (angles down to subnormal)
 
 
 def _k_as_rotvec(q, o, factor):
@@ -582,7 +582,7 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
-    n = np.sqrt(_scale.guarded_sqnorm(q))
+    n = np.sqrt(_scale.guarded_sqnorm(q, zero=True))
     w, x, y, z = q
     k = 1.0 / (n + np.abs(w))
     k = np.where(w < 0, -k, k)

@@ -480,7 +480,7 @@ class Rotation:
                 t = finite(t.astype(np.result_type(t.dtype, q.dtype), copy=False), "the exponent n")
                 return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * t[..., None]))
             n = float(t)
-        if not math.isfinite(n):
+        if not np.isfinite(n):
             raise ValueError(f"expected a finite exponent n, got {n}")
         if n == 0:
             return type(self).identity(shape=q.shape[:-1], dtype=q.dtype)

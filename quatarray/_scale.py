@@ -23,10 +23,12 @@ import numpy as np
 
 from . import _blocks
 
-__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "outside",
-           "unscale", "true_norm", "BIG_VECTOR", "shrink_vectors"]
+__all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
+           "outside", "unscale", "true_norm", "BIG_VECTOR", "shrink_vectors", "small_norms"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
+ZERO = "expected non-zero quaternions, got a zero quaternion (it is no rotation)"
+"""The conversions' error for the zero quaternion (`guard` with ``zero=True``)."""
 
 _RANGE = {}
 for _d in (np.float32, np.float64):
@@ -109,14 +111,15 @@ def rescale(q, only=None):
     return e
 
 
-def guard(q, n2, start=0):
+def guard(q, n2, start=0, zero=False):
     """The squared norms `n2` of a block, made safe: if they do not all `fit`,
     rescale `q` in place (`rescale`) and recompute them into `n2`.
 
     Returns the exponents applied (None when nothing was rescaled: the
     common path).  NaN or infinite components raise
     `ValueError` (the API's policy for non-finite input), found at no cost
-    on the common path.  `start` = 1 when `n2` holds the squared norms of
+    on the common path; so does a zero quaternion with `zero` (conversions
+    to rotations: `ZERO`).  `start` = 1 when `n2` holds the squared norms of
     the vector parts only (the whole quaternion is rescaled all the same).
     """
     if fits(n2):
@@ -125,6 +128,8 @@ def guard(q, n2, start=0):
         raise ValueError(NONFINITE)
     e = rescale(q, outside(n2))
     sum_squares(q, n2, start)
+    if zero and not (n2 if start == 0 else np.max(np.abs(q), axis=0)).all():
+        raise ValueError(ZERO)
     return e
 
 
@@ -146,11 +151,12 @@ def true_norm(v, out):
     return e
 
 
-def guarded_sqnorm(q):
+def guarded_sqnorm(q, zero=False):
     """Squared norms of a block's scratch copy `q` (in a row of the thread's
-    scratch), rescaling `q` in place where they would over- or underflow."""
+    scratch), rescaling `q` in place where they would over- or underflow
+    (`guard`: with `zero`, a zero quaternion raises `ZERO`)."""
     n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    guard(q, n2)
+    guard(q, n2, zero=zero)
     return n2
 
 
@@ -179,6 +185,28 @@ def shrink_vectors(v):
     e = np.where(m > big, e, 0).astype(np.int32)
     np.ldexp(v, -e, out=v)
     return e
+
+
+def small_norms(v, n2):
+    """Correct `n2` = |v|² in place where it lost its digits to underflow (below `LOW`), for a
+    components-first block `v` (not modified), and return ``|v|`` in it: each such vector's
+    norm is taken after scaling it by a power of two.  Vectors with ordinary |v|² keep their
+    ``sqrt(n2)`` (the same bits whatever the block around them).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import small_norms
+    >>> v = np.array([[3e-200, 3.0], [4e-200, 4.0]])
+    >>> small_norms(v, (v * v).sum(axis=0)).tolist()
+    [5e-200, 5.0]
+    """
+    small = n2 < LOW[n2.dtype] if n2.size and n2.min() < LOW[n2.dtype] else None
+    np.sqrt(n2, out=n2)
+    if small is not None:
+        s = v[:, small]
+        _, e = np.frexp(np.max(np.abs(s), axis=0))
+        np.ldexp(s, -e, out=s)
+        n2[small] = np.ldexp(np.sqrt(sum_squares(s, np.empty(s.shape[1:], s.dtype))), e)
+    return n2
 
 
 def unscale(x, e, power=1):

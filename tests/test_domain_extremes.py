@@ -200,3 +200,95 @@ def test_rigid_transform_applies_to_vectors_near_the_float_maximum(dtype, n, inv
     ref = _reference_apply(q, v, t, inverse=inverse)
     assert np.isfinite(ours).all()
     assert np.max(np.abs(ours - ref)) <= 8 * np.finfo(dtype).eps * big
+
+
+# --- tiny angles, tiny quaternions, the zero quaternion --------------------------------------
+
+TINY64 = [1e-150, 1e-158, 1e-160, 1e-200, 1e-300, 1e-310, 5e-324]
+TINY32 = [1e-18, 1e-20, 1e-30, 1e-38, 1e-40, 1e-45]
+
+
+def _tiny_cases():
+    return [(np.float64, s) for s in TINY64] + [(np.float32, s) for s in TINY32]
+
+
+def _mp_rotvec_z(s, w=1.0):
+    """mpmath: the rotation vector of the quaternion (w, 0, 0, s), 2 atan2(s, w) about z."""
+    import mpmath
+    mpmath.mp.dps = 50
+    return float(2 * mpmath.atan2(mpmath.mpf(s), mpmath.mpf(w)))
+
+
+@pytest.mark.parametrize("dtype,s", _tiny_cases())
+def test_tiny_rotation_vectors_are_kept(dtype, s):
+    s = dtype(s)
+    quat = np.array([0, 0, s, 1], dtype)
+    expected = _mp_rotvec_z(float(s))
+    rtol = 4 * np.finfo(dtype).eps
+    for r in (Rotation.from_quat(quat), Rotation.from_quat(np.tile(quat, (3, 1)))):
+        got = np.asarray(r.as_rotvec()).reshape(-1, 3)
+        assert got.dtype == dtype
+        np.testing.assert_allclose(got[:, 2], expected, rtol=rtol, atol=0)
+        assert not got[:, :2].any()
+        np.testing.assert_allclose(np.asarray(r.magnitude()).reshape(-1), expected, rtol=rtol, atol=0)
+    assert np.asarray(QuatArray(np.array([1, 0, 0, s], dtype)).as_rotvec())[2] > 0
+    if dtype == np.float64:   # scipy keeps them too
+        np.testing.assert_allclose(Rotation.from_quat(quat).as_rotvec(),
+                                   ScipyRotation.from_quat(quat).as_rotvec(), rtol=rtol, atol=0)
+
+
+@pytest.mark.parametrize("dtype,s", [c for c in _tiny_cases() if c[1] > (1e-300 if c[0] == np.float64 else 1e-37)])
+@pytest.mark.parametrize("n", [2, 3, 0.5])
+def test_powers_of_tiny_rotations_are_not_the_identity(dtype, s, n):
+    s = dtype(s)
+    quat = np.array([0, 0, s, 1], dtype)
+    expected = n * _mp_rotvec_z(float(s))   # the angle times n (well within [0, π])
+    for r in (Rotation.from_quat(quat), Rotation.from_quat(np.tile(quat, (3, 1)))):
+        got = np.asarray((r ** n).as_rotvec()).reshape(-1, 3)
+        np.testing.assert_allclose(got[:, 2], expected, rtol=8 * np.finfo(dtype).eps, atol=0)
+
+
+@pytest.mark.parametrize("dtype,scales", [(np.float64, [1e-163, 2e-162, 1e-160, 1e-157, 1e-154, 1e-300]),
+                                          (np.float32, [1e-22, 1e-21, 1e-20, 1e-19, 1e-37])])
+@pytest.mark.parametrize("batched", [False, True])
+def test_tiny_quaternions_are_stored_unit(dtype, scales, batched):
+    rng = np.random.default_rng(8)
+    unit = rng.standard_normal((len(scales), 4))
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    quats = (unit * np.array(scales)[:, None]).astype(dtype)
+    rs = [Rotation.from_quat(quats)] if batched else [Rotation.from_quat(q) for q in quats]
+    got = np.concatenate([np.asarray(r.as_quat()).reshape(-1, 4) for r in rs])
+    np.testing.assert_allclose(np.linalg.norm(got.astype(np.float64), axis=1), 1, rtol=0,
+                               atol=4 * np.finfo(dtype).eps)
+    matrices = np.concatenate([np.asarray(r.as_matrix()).reshape(-1, 3, 3) for r in rs])
+    expected = ScipyRotation.from_quat(unit).as_matrix()
+    np.testing.assert_allclose(matrices, expected, rtol=0, atol=8 * np.finfo(dtype).eps)
+
+
+def test_tiny_quaternion_issue_example_is_the_identity():
+    np.testing.assert_array_equal(Rotation.from_quat([0, 0, 0, 2e-162]).as_matrix(), np.eye(3))
+
+
+ZERO_CONVERSIONS = {
+    "as_matrix": lambda q: q.as_matrix(),
+    "as_rotvec": lambda q: q.as_rotvec(),
+    "as_rotvec degrees": lambda q: q.as_rotvec(degrees=True),
+    "as_mrp": lambda q: q.as_mrp(),
+    "as_euler": lambda q: q.as_euler("xyz"),
+    "as_euler zxz": lambda q: q.as_euler("ZXZ"),
+    "as_davenport": lambda q: q.as_davenport(np.eye(3), "extrinsic"),
+}
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("batch", [None, 1, 5, 70000], ids=["one", "batch1", "batch5", "long"])
+@pytest.mark.parametrize("name", sorted(ZERO_CONVERSIONS))
+def test_every_conversion_of_the_zero_quaternion_raises_one_clear_error(name, batch, dtype):
+    if batch is None:
+        q = QuatArray(np.zeros(4, dtype))
+    else:
+        a = np.tile(np.array([0.5, 0.5, 0.5, 0.5], dtype), (batch, 1))
+        a[batch // 2] = 0
+        q = QuatArray(a)
+    with pytest.raises(ValueError, match=r"^expected non-zero quaternions, got a zero quaternion \(it is no rotation\)$"):
+        ZERO_CONVERSIONS[name](q)
