@@ -514,6 +514,18 @@ def _k_from_rotvec(r, q, factor):
         np.multiply(x, d, out=q[1])
         np.multiply(y, d, out=q[2])
         np.multiply(z, d, out=q[3])
+        if e is not None and not np.isfinite(theta).all():
+            _huge_rotvecs(r, q, e, ~np.isfinite(theta), factor)
+
+
+def _huge_rotvecs(r, q, e, huge, factor):
+    """`_k_from_rotvec` where |r| itself overflows (components near the float maximum, the
+    angle beyond it) but the half angle |r|/2 does not: from `r` as scaled by 2**-e."""
+    rs = r[:, huge]
+    ns = np.sqrt(_scale.sum_squares(rs, np.empty(rs.shape[1:], rs.dtype)))
+    half = np.ldexp(ns * (0.5 * factor), e[huge])
+    q[0, huge] = np.cos(half)
+    q[1:, huge] = rs * (np.sin(half) / ns)
 
 
 def from_rotvec(rotvec, degrees=False):

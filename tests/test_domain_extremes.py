@@ -292,3 +292,22 @@ def test_every_conversion_of_the_zero_quaternion_raises_one_clear_error(name, ba
         q = QuatArray(a)
     with pytest.raises(ValueError, match=r"^expected non-zero quaternions, got a zero quaternion \(it is no rotation\)$"):
         ZERO_CONVERSIONS[name](q)
+
+
+@pytest.mark.parametrize("v", [[1.7e308, 1.7e308, 0], [1.7e308, -1.7e308, 1.7e308], [-1e308, 1.6e308, 0]])
+@pytest.mark.parametrize("batched", [False, True])
+def test_rotation_vectors_whose_norm_overflows(v, batched):
+    """|v| beyond the float maximum, |v|/2 within it: the rotation by fl(|v|) about v/|v|, which is
+    the square of the rotation by v/2 (an ordinary input; float angles this large carry no digits
+    below 2π, so that is the expected value, not the 50-digit one)."""
+    v = np.array(v)
+    r = Rotation.from_rotvec(np.tile(v, (3, 1)) if batched else v)
+    half = Rotation.from_rotvec(v / 2)
+    q = np.asarray(r.as_quat()).reshape(-1, 4)
+    assert np.isfinite(q).all()
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1, rtol=0, atol=4e-16)
+    axis = v * 2.0 ** -600 / np.linalg.norm(v * 2.0 ** -600)
+    np.testing.assert_allclose(np.cross(q[:, :3], axis), 0, atol=1e-15)   # the axis of v
+    assert np.all((r.inv() * (half * half)).magnitude() < 4e-15)
+    for degrees in (False, True):   # in degrees the angle is finite, the ordinary path
+        assert np.isfinite(Rotation.from_rotvec(v, degrees=degrees).as_quat()).all()
