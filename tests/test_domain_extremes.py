@@ -311,3 +311,65 @@ def test_rotation_vectors_whose_norm_overflows(v, batched):
     assert np.all((r.inv() * (half * half)).magnitude() < 4e-15)
     for degrees in (False, True):   # in degrees the angle is finite, the ordinary path
         assert np.isfinite(Rotation.from_rotvec(v, degrees=degrees).as_quat()).all()
+
+
+# --- rigid transforms of extreme size ----------------------------------------------------------
+
+def _mp_power_translation(rotvec, n):
+    """50-digit translation of T**n for T = (rotvec, [1, 0, 0]): V(nφ) n V(φ)⁻¹ t."""
+    import mpmath as mp
+    mp.mp.dps = 50
+    phi, t = mp.matrix(rotvec), mp.matrix([1, 0, 0])
+
+    def left_jacobian(p):
+        th = mp.norm(p)
+        k = mp.matrix([[0, -p[2], p[1]], [p[2], 0, -p[0]], [-p[1], p[0], 0]])
+        return mp.eye(3) + (1 - mp.cos(th)) / th**2 * k + (th - mp.sin(th)) / th**3 * k * k
+
+    res = left_jacobian(phi * n) * (mp.lu_solve(left_jacobian(phi), t) * n)
+    return np.array([float(x) for x in res])
+
+
+@pytest.mark.parametrize("n", [1e6, -3.5, 0.5, 1e-6])
+@pytest.mark.parametrize("size", [1e300, 1e200, 1e-300])
+def test_rigid_transform_power_with_extreme_translations(n, size):
+    """Against 50 digits (the power is linear in the translation: the reference is for 1, scaled);
+    scipy is 2.5e-9 off at n = 1e-6, so it is not the reference here."""
+    rotvec = [0.3, 0.2, 0.1]
+    ours = RigidTransform.from_components([size, 0, 0], Rotation.from_rotvec(rotvec)) ** n
+    ref = _mp_power_translation(rotvec, n)
+    assert np.isfinite(ours.translation).all()
+    np.testing.assert_allclose(ours.translation / size, ref, rtol=0, atol=4e-15 * np.abs(ref).max())
+    assert (ours.rotation.inv() * Rotation.from_rotvec(np.multiply(rotvec, n))).magnitude() < 1e-9
+
+
+def test_rigid_transform_power_issue_example_matches_scipy():
+    rot = [0.3, 0.2, 0.1]
+    ours = (RigidTransform.from_components([1e300, 0, 0], Rotation.from_rotvec(rot)) ** 1e6).translation
+    theirs = (ScipyRigidTransform.from_components([1e300, 0, 0], ScipyRotation.from_rotvec(rot)) ** 1e6).translation
+    np.testing.assert_allclose(ours, theirs, rtol=1e-9)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_exp_coords_round_trip_at_extreme_translations(dtype):
+    rng = np.random.default_rng(3)
+    big = float(np.finfo(dtype).max)
+    sizes = [big / 8, 1e30, 1.0, 1e-30, float(np.finfo(dtype).tiny)]
+    t = np.array([s * d for s in sizes for d in np.eye(3)], dtype)
+    q = Rotation.random(len(t), rng=rng).as_quat().astype(dtype)
+    tf = RigidTransform.from_components(t, Rotation.from_quat(q))
+    coords = tf.as_exp_coords()
+    back = RigidTransform.from_exp_coords(coords)
+    assert np.isfinite(coords).all()
+    scale = np.abs(t).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(back.translation / scale, t / scale, rtol=0, atol=64 * np.finfo(dtype).eps)
+
+
+@pytest.mark.parametrize("k", [1e-300, 1e-200, 1e-160, 1e-100, 1e100, 1e200, 1e300])
+def test_from_dual_quat_is_invariant_under_scaling(k):
+    dq = np.array([0, 0, 0, 1.0, 1.0, 0, 0, 0])   # scalar last: identity rotation, dual x = 1
+    expected = ScipyRigidTransform.from_dual_quat(dq).as_matrix()
+    for arg in (dq * k, np.tile(dq * k, (3, 1))):
+        got = RigidTransform.from_dual_quat(arg).as_matrix()
+        np.testing.assert_allclose(got.reshape(-1, 4, 4), np.broadcast_to(expected, got.reshape(-1, 4, 4).shape),
+                                   rtol=0, atol=1e-15)
