@@ -305,7 +305,7 @@ def test_rotation_vectors_whose_norm_overflows(v, batched):
     half = Rotation.from_rotvec(v / 2)
     q = np.asarray(r.as_quat()).reshape(-1, 4)
     assert np.isfinite(q).all()
-    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1, rtol=0, atol=4e-16)
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1, rtol=0, atol=16 * np.finfo(float).eps)
     axis = v * 2.0 ** -600 / np.linalg.norm(v * 2.0 ** -600)
     np.testing.assert_allclose(np.cross(q[:, :3], axis), 0, atol=1e-15)   # the axis of v
     assert np.all((r.inv() * (half * half)).magnitude() < 4e-15)
@@ -373,3 +373,124 @@ def test_from_dual_quat_is_invariant_under_scaling(k):
         got = RigidTransform.from_dual_quat(arg).as_matrix()
         np.testing.assert_allclose(got.reshape(-1, 4, 4), np.broadcast_to(expected, got.reshape(-1, 4, 4).shape),
                                    rtol=0, atol=1e-15)
+
+
+# --- RotationSpline and Track(method="spline") at extreme time spacings ----------------------
+
+from quatarray import RotationSpline  # noqa: E402
+from scipy.spatial.transform import RotationSpline as ScipyRotationSpline  # noqa: E402
+
+EXTREME_TIMES = np.array([0, 1e-9, 2e-9, 1e9, 2e9, 3e9])
+
+
+@pytest.mark.parametrize("dtype,times", [
+    (np.float32, EXTREME_TIMES), (np.float64, EXTREME_TIMES), (np.float32, np.arange(5.0)),
+    (np.float64, np.arange(5.0)), (np.float32, np.array([0, 1e-30, 2e-30, 1e30])),
+    (np.float64, np.array([0, 1e-300, 2e-300, 1e300]))])
+def test_identical_keys_give_the_key_exactly_at_every_time(dtype, times):
+    key = Rotation.from_rotvec([0.3, 0.2, 0.1]).as_quat().astype(dtype)
+    keys = Rotation.from_quat(np.tile(key, (len(times), 1)))
+    spline = RotationSpline(times, keys)
+    t = np.concatenate([np.linspace(times[0], times[-1], 301), times, [3.9e8, times[1] / 3]])
+    q = spline(t).as_quat()
+    assert q.dtype == dtype
+    np.testing.assert_array_equal(q, np.broadcast_to(keys[0].as_quat(), q.shape))
+    assert not spline(t, 1).any() and not spline(t, 2).any()
+    inside = t[(t >= times[0]) & (t <= times[-1])]
+    track = Track(times, keys, method="spline")
+    np.testing.assert_array_equal(np.asarray(track(inside)),
+                                  np.broadcast_to(keys[0].as_quat(scalar_first=True), inside.shape + (4,)))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("c", [1e-300, 1e-150, 1e-9, 1e9, 1e150, 1e300])
+def test_spline_is_invariant_under_scaling_of_the_times(dtype, c):
+    """Scaling every key time by c scales the spline's time: scipy at spacing 1 is the expected
+    value (scipy itself gives NaN at 1e-300)."""
+    if dtype == np.float32:   # float32 key times: within its range
+        c = min(max(c, 1e-30), 1e30)
+    rng = np.random.default_rng(11)
+    times = np.cumsum(rng.uniform(0.5, 2.0, 6)) - 0.5
+    keys = Rotation.from_rotvec(rng.uniform(-0.8, 0.8, (6, 3))).as_quat()
+    ref = ScipyRotationSpline(times, ScipyRotation.from_quat(keys))
+    ours = RotationSpline(times * c, Rotation.from_quat(keys.astype(dtype)))
+    t = np.linspace(times[0] - 0.2, times[-1] + 0.2, 40)
+    q, qr = ours(t * c).as_quat(), ref(t).as_quat()
+    eps = np.finfo(dtype).eps
+    assert np.isfinite(q).all()
+    np.testing.assert_allclose(np.abs(np.sum(q * qr, axis=1)), 1, rtol=0, atol=64 * eps)
+    np.testing.assert_allclose(ours(t * c, 1) * dtype(c), ref(t, 1), rtol=0, atol=1e3 * eps)
+    if float(np.finfo(dtype).tiny) < c * c < float(np.finfo(dtype).max):   # accelerations ~ 1/c² within the float range
+        np.testing.assert_allclose(ours(t * c, 2) * dtype(c) * dtype(c), ref(t, 2), rtol=0, atol=1e4 * eps)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_spline_at_mixed_spacings_follows_a_constant_rotation(dtype):
+    """Keys of a constant angular velocity at spacings from 1e-9 to 1e9: the spline is that
+    rotation exp(ω t) (a cubic rotation vector with no acceleration solves its equations), so
+    its value at every time is known exactly; float32 (whose |q| went from 0.57 to 119 here)
+    and float64 both follow it."""
+    omega = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5]) * 3e-10
+    keys = Rotation.from_rotvec((EXTREME_TIMES[:, None] * omega).astype(dtype))
+    t = np.concatenate([np.linspace(0, 3e9, 200), np.linspace(0, 2e-9, 50)])
+    q = RotationSpline(EXTREME_TIMES, keys)(t)
+    eps = np.finfo(dtype).eps
+    np.testing.assert_allclose(np.linalg.norm(q.as_quat().astype(np.float64), axis=1), 1, rtol=0, atol=8 * eps)
+    expected = ScipyRotation.from_rotvec(t[:, None] * omega)
+    np.testing.assert_allclose(q.as_matrix(), expected.as_matrix(), rtol=0, atol=64 * eps)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_spline_refuses_non_finite_times_as_scipy(bad):
+    keys = Rotation.from_rotvec(np.eye(3) * 0.5)
+    scipy_keys = ScipyRotation.from_rotvec(np.eye(3) * 0.5)
+    if np.isnan(bad):
+        with pytest.raises(ValueError):
+            ScipyRotationSpline([0, bad, 2], scipy_keys)
+    with pytest.raises(ValueError, match="expected finite values in times, got nan or inf at index"):
+        RotationSpline([0, bad, 2], keys)
+    with pytest.raises(ValueError, match="expected finite values in times"):
+        Track([0, bad, 2], keys, method="spline")
+    spline = RotationSpline([0, 1, 2], keys)
+    with pytest.raises(ValueError):
+        ScipyRotationSpline([0, 1, 2], scipy_keys)(bad)
+    for order in (0, 1, 2):
+        with pytest.raises(ValueError, match=r"expected finite values in times, got nan or inf at index \(1,\)"):
+            spline([0.5, bad], order)
+        with pytest.raises(ValueError, match="expected finite values in times"):
+            spline(bad, order)
+    with pytest.raises(ValueError, match="expected finite values in t"):
+        Track([0, 1, 2], keys, method="spline", extrapolate="extend")(bad)
+
+
+def _random_tracks(n, rng):
+    """4-key tracks of uniform random rotations at spacings from 1e-3 to 1e3 (where scipy's
+    fixed-point iteration diverges for about 1 in 5)."""
+    for _ in range(n):
+        yield (np.cumsum(np.concatenate([[0], 10 ** rng.uniform(-3, 3, 3)])),
+               Rotation.random(4, rng=rng))
+
+
+def test_spline_of_large_rotations_at_uneven_spacings_is_unit_or_refused():
+    rng = np.random.default_rng(0)
+    refused = 0
+    for times, keys in _random_tracks(300, rng):
+        try:
+            spline = RotationSpline(times, keys)
+        except ValueError as exc:
+            assert "expected keys and times that a C² rotation spline can join" in str(exc)
+            refused += 1
+            continue
+        t = np.concatenate([np.linspace(times[0], times[-1], 60), times])
+        q = spline(t).as_quat()
+        assert np.isfinite(q).all()
+        np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1, rtol=0, atol=16 * np.finfo(float).eps)
+        # it passes through its keys
+        assert (spline(times).inv() * keys).magnitude().max() < 1e-9
+        # and its angular acceleration is continuous at the interior keys (C²)
+        inner = times[1:-1]
+        gap = np.maximum(inner * 1e-12, 1e-12 * np.diff(times).min())
+        before, after = spline(inner - gap, 2), spline(inner + gap, 2)
+        scale = 1 + np.abs(spline(times, 2)).max()
+        assert np.abs(before - after).max() < 1e-4 * scale
+    assert refused <= 3
