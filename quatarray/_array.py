@@ -24,6 +24,7 @@ comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 
 import numpy as np
 
+from . import _blocks
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
@@ -725,12 +726,20 @@ refuses nan and inf in its kernel; `isnan` and `isfinite` test for them)."""
 
 
 def _ordered_product(a, axis):
-    """Product a[0] a[1] ... a[n-1] along batch `axis` by pairwise halving (log n vectorised steps)."""
+    """Product a[0] a[1] ... a[n-1] along batch `axis` by pairwise halving (log n vectorised steps).
+
+    A long axis is halved in aligned chunks of a power of two (each about one block) and then
+    the chunks' products: the same pairs in the same order as halving it whole, with a few
+    blocks of extra memory instead of half the input."""
     a = np.moveaxis(a, axis, 0)
     if a.shape[0] == 0:
         res = np.zeros(a.shape[1:], a.dtype)
         res[..., 0] = 1
         return res
+    per = max(1, a[0].size // 4)
+    chunk = 1 << max(1, (_blocks.block_size(a.dtype) // per).bit_length() - 1)
+    if a.shape[0] > chunk:
+        a = np.stack([_ordered_product(a[i:i + chunk], 0) for i in range(0, a.shape[0], chunk)])
     while a.shape[0] > 1:
         n = a.shape[0]
         head = K.multiply(a[0:n - 1:2], a[1:n:2])

@@ -435,7 +435,7 @@ def _rotation_rows(G, s, O):
         theta += tmp
     theta -= 1
     off = _UNIT_TOL[O.dtype]
-    if not (theta.max() <= off and theta.min() >= -off):
+    if theta.size and not (theta.max() <= off and theta.min() >= -off):
         bad = ~(np.abs(theta) <= off)
         Q[:, bad] /= np.sqrt(theta[bad] + 1)
     np.copyto(O, Q)                           # the only write to the (strided) output

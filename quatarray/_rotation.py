@@ -592,7 +592,7 @@ class Rotation:
                              f"rotation along axis {axes}, got shape {batch}")
         w = None
         if weights is not None:
-            w = float_array(weights, "weights").astype(np.float64)
+            w = float_array(weights, "weights").astype(np.float64, copy=False)
             if (w < 0).any():
                 raise ValueError("`weights` must be non-negative.")
             if not np.isfinite(w).all():

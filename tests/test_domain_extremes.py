@@ -494,3 +494,72 @@ def test_spline_of_large_rotations_at_uneven_spacings_is_unit_or_refused():
         scale = 1 + np.abs(spline(times, 2)).max()
         assert np.abs(before - after).max() < 1e-4 * scale
     assert refused <= 3
+
+
+# --- memory: at most 1.5x the output plus a few blocks ------------------------------------------
+
+import tracemalloc  # noqa: E402
+
+from quatarray import _blocks, unflip  # noqa: E402
+
+FEW_BLOCKS = 8 * 25 * 8 * _blocks.block_size(np.float64)   # 8 blocks of the spline's 25-row table
+"""A few blocks of scratch (per-thread rows, gathered tables), in bytes: about 52 MB."""
+
+
+def _extra_peak(call):
+    """Peak memory allocated during `call()` beyond what was allocated before, in bytes."""
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        result = call()
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    del result
+    return peak - before
+
+
+@pytest.fixture(scope="module")
+def million():
+    rng = np.random.default_rng(13)
+    q = rng.standard_normal((2_000_000, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_reductions_to_one_rotation_take_a_few_blocks(million, dtype):
+    q = million.astype(dtype)
+    r = Rotation.from_quat(q, scalar_first=True)
+    w = np.linspace(0, 1, len(q))
+    budget = 16 * 4 * 8 * _blocks.block_size(np.float64)   # 16 blocks of quaternions: 16 MB
+    assert _extra_peak(lambda: r.mean()) < budget
+    assert _extra_peak(lambda: r.mean(weights=w)) < budget
+    qa_ = QuatArray(q)
+    assert _extra_peak(lambda: np.multiply.reduce(qa_, axis=0)) < budget
+    # the blocked sums are the same mean as scipy's
+    assert (r.mean().inv() * Rotation.from_quat(ScipyRotation.from_quat(
+        q.astype(np.float64), scalar_first=True).mean().as_quat())).magnitude() < 1e-6
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_long_operations_take_at_most_one_and_a_half_outputs(million, dtype):
+    q = million[:1_000_000].astype(dtype)
+    out = q.nbytes
+    rng = np.random.default_rng(14)
+    angles = rng.uniform(-1.5, 1.5, (len(q), 3)).astype(dtype)
+    matrices = Rotation.from_quat(q, scalar_first=True).as_matrix()
+    spline = RotationSpline(np.arange(64.0), Rotation.from_quat(q[:64], scalar_first=True))
+    t = np.linspace(0, 63, len(q))
+    qa_ = QuatArray(q)
+    calls = {
+        "unflip": lambda: unflip(qa_),
+        "from_euler": lambda: Rotation.from_euler("xyz", angles),
+        "from_matrix": lambda: Rotation.from_matrix(matrices),
+        "spline": lambda: spline(t),
+    }
+    for name, call in calls.items():
+        extra = _extra_peak(call)
+        assert extra <= 1.5 * out + FEW_BLOCKS, (name, extra / out)
+    assert _extra_peak(calls["unflip"]) <= 1.1 * out + 4 * 4 * 8 * _blocks.block_size(np.float64)
