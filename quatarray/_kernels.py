@@ -629,7 +629,7 @@ def rotate_block(q, u, o, wsign):
     w, x, y, z = q            # q is the block's scratch copy: w may be negated in place
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
-    e = _scale.shrink_vectors(u)   # u is the block's scratch copy; vectors near the float maximum
+    e = _scale.shrink_vectors(u, n2)   # u is the block's scratch copy; vectors near the float maximum
     ux, uy, uz = u                 # are scaled down by a power of two, and the result back up
     s = np.divide(2.0, n2, out=n2)
     with _blocks.scratch().frame() as work:

@@ -160,14 +160,21 @@ def guarded_sqnorm(q, zero=False):
     return n2
 
 
-def shrink_vectors(v):
+def shrink_vectors(v, n2=None):
     """Scale the vectors of a components-first block (a scratch copy) whose largest |component|
     exceeds `BIG_VECTOR` by 2**-e in place, e the exponent of that component, so that the
     rotation formulas' intermediate sums cannot overflow; the others are left as they are
-    (so each vector gives the same bits whatever the block around it).
+    (so each vector gives the same bits whatever the block around them).
+
+    With `n2`, the squared norms of the quaternions the vectors are rotated by: the test is
+    on the vector's largest |component| times max(|q|, 1/|q|), the size of the cross
+    products vec × v and of their quotients by |q|² for a quaternion that is not unit; and
+    a vector rotated by a quaternion with |q|² outside [1/4, 4] is always scaled (to
+    [1/2, 1)), so that those products neither overflow nor leave the normal range below.
 
     Returns e (batch shape, int32, 0 where not scaled), or None when no vector is that
-    large: the common path, two reductions.  Multiply the result by 2**e (`unscale`).
+    large: the common path, two reductions (four with `n2`).  Multiply the result by 2**e
+    (`unscale`).
 
     >>> import numpy as np
     >>> from quatarray._scale import shrink_vectors
@@ -178,11 +185,20 @@ def shrink_vectors(v):
     if not v.size:
         return None
     big = BIG_VECTOR[v.dtype]
-    if v.max() <= big and v.min() >= -big:
+    grow = 1.0
+    if n2 is not None:
+        lo, hi = float(n2.min()), float(n2.max())
+        grow = float(np.sqrt(max(hi, 1.0 / lo if lo > 0 else np.inf, 1.0)))
+    if grow <= 2.0 and v.max() * grow <= big and v.min() * grow >= -big:
         return None
-    m = np.max(np.abs(v), axis=0)
-    _, e = np.frexp(m)
-    e = np.where(m > big, e, 0).astype(np.int32)
+    size = np.max(np.abs(v), axis=0)
+    scale = size > big
+    if n2 is not None:
+        with np.errstate(over="ignore", divide="ignore"):
+            f = np.sqrt(np.maximum(n2, 1.0 / n2))
+        scale |= (f > 2.0) | (size * f > big)
+    _, e = np.frexp(size)
+    e = np.where(scale, e, 0).astype(np.int32)
     np.ldexp(v, -e, out=v)
     return e
 

@@ -563,3 +563,118 @@ def test_long_operations_take_at_most_one_and_a_half_outputs(million, dtype):
         extra = _extra_peak(call)
         assert extra <= 1.5 * out + FEW_BLOCKS, (name, extra / out)
     assert _extra_peak(calls["unflip"]) <= 1.1 * out + 4 * 4 * 8 * _blocks.block_size(np.float64)
+
+
+# --- the sweep: magnitudes 1e-300..1e300 (float64), 1e-35..1e35 (float32) ------------------------
+
+from hypothesis import given  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+EXPONENT = {np.float64: 300.0, np.float32: 35.0}
+
+
+def _directions(seed, n):
+    d = np.random.default_rng(seed).standard_normal((n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _sized_quats(seed, n, exponent):
+    """Random rotations as quaternions of norm 10**exponent."""
+    q = np.random.default_rng(seed).standard_normal((n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True) * 10.0 ** exponent
+
+
+def _check_unit(q, dtype):
+    q = np.asarray(q, np.float64)
+    assert np.isfinite(q).all()
+    np.testing.assert_allclose(np.linalg.norm(q, axis=-1), 1, rtol=0, atol=16 * np.finfo(dtype).eps)
+
+
+def _norms(v):
+    """|v| per row, each row scaled by its largest component first (no over- or underflow)."""
+    v = np.atleast_2d(np.asarray(v, np.float64))
+    m = np.abs(v).max(axis=-1, keepdims=True)
+    m[m == 0] = 1
+    return np.linalg.norm(v / m, axis=-1) * m[:, 0]
+
+
+def _check_vectors(got, expected_norms, dtype):
+    """Finite, and of the expected norms where they are normal numbers."""
+    assert np.isfinite(np.asarray(got)).all()
+    norms = _norms(got)
+    normal = expected_norms > float(np.finfo(dtype).tiny) / np.finfo(dtype).eps
+    np.testing.assert_allclose(norms[normal], expected_norms[normal], rtol=64 * np.finfo(dtype).eps)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@given(seed=st.integers(0, 2**32 - 1), qexp=st.floats(-1, 1), vexp=st.floats(-1, 1),
+       n=st.sampled_from([1, 7, 300]))
+def test_sweep_apply(dtype, seed, qexp, vexp, n):
+    e = EXPONENT[dtype]
+    q = _sized_quats(seed, n, qexp * e).astype(dtype)
+    # vectors of norm 10**(vexp e), kept below the float maximum (their rotations' norms)
+    size = min(10.0 ** (vexp * e), 0.9 * float(np.finfo(dtype).max))
+    v = (_directions(seed + 1, n) * size).astype(dtype)
+    expected = _norms(v)
+    r = Rotation.from_quat(q, scalar_first=True)
+    _check_unit(r.as_quat(), dtype)
+    for inverse in (False, True):
+        _check_vectors(r.apply(v, inverse=inverse), expected, dtype)
+        _check_vectors(r[0].apply(v[0], inverse=inverse), expected[:1], dtype)
+        _check_vectors(r[0].apply(v, inverse=inverse), expected, dtype)
+    _check_vectors(QuatArray(q).rotate(v), expected, dtype)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@given(seed=st.integers(0, 2**32 - 1), texp=st.floats(-1, 1), spread=st.floats(0, 3),
+       qexp=st.floats(-1, 1), angle=st.floats(0, 3), k=st.integers(2, 6))
+def test_sweep_rotation_spline(dtype, seed, texp, spread, qexp, angle, k):
+    """Keys of any magnitude at spacings 10**(texp e) spread over 10**±spread: unit rotations
+    and finite rates, or the ValueError that says the spline cannot join these keys."""
+    e = EXPONENT[dtype]
+    rng = np.random.default_rng(seed)
+    dt = 10.0 ** (texp * (e - 4) + rng.uniform(-spread, spread, k - 1))
+    times = np.concatenate([[0.0], np.cumsum(dt)])
+    rotvecs = _directions(seed + 2, k) * rng.uniform(0, angle, (k, 1))
+    unit = Rotation.from_rotvec(rotvecs).as_quat()
+    keys = Rotation.from_quat((unit * 10.0 ** (qexp * e)).astype(dtype))
+    t = np.concatenate([times, rng.uniform(times[0], times[-1], 20), times[-1] + dt[-1] * rng.uniform(0, 0.5, 3)])
+    for build in (lambda: RotationSpline(times, keys), lambda: Track(times, keys, method="spline", extrapolate="extend")):
+        try:
+            spline = build()
+        except ValueError as exc:
+            assert "expected keys and times that a C² rotation spline can join" in str(exc)
+            return
+        q = spline(t)
+        _check_unit(q.as_quat() if isinstance(q, Rotation) else q, dtype)
+    rates = RotationSpline(times, keys)(t, 1)
+    assert rates.dtype == dtype and not np.isnan(rates).any()
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@given(seed=st.integers(0, 2**32 - 1), texp=st.floats(-1, 1), qexp=st.floats(-1, 1), vexp=st.floats(-1, 1),
+       power=st.sampled_from([0.5, -0.25, 2.0, 3.0, -1.5, 1e-6]), n=st.sampled_from([1, 5, 300]))
+def test_sweep_rigid_transform(dtype, seed, texp, qexp, vexp, power, n):
+    e = EXPONENT[dtype]
+    big = float(np.finfo(dtype).max)
+    t = (_directions(seed, n) * min(10.0 ** (texp * e), big / 8)).astype(dtype)
+    v = (_directions(seed + 1, n) * min(10.0 ** (vexp * e), big / 8)).astype(dtype)
+    q = _sized_quats(seed + 2, n, qexp * e).astype(dtype)
+    tf = RigidTransform.from_components(t, Rotation.from_quat(q, scalar_first=True))
+    _check_unit(tf.rotation.as_quat(), dtype)
+    m = tf.as_matrix()
+    assert np.isfinite(m).all()
+    for inverse in (False, True):
+        assert np.isfinite(tf.apply(v, inverse=inverse)).all()
+    dq = tf.as_dual_quat()
+    # the same dual quaternions scaled by 10**(qexp e), as far as their largest component allows
+    dq_scale = min(10.0 ** (qexp * e), big / 2 / float(np.abs(dq).max()))
+    for other in (tf.inv(), tf * tf.inv(), tf ** power,
+                  RigidTransform.from_exp_coords(tf.as_exp_coords()),
+                  RigidTransform.from_dual_quat(dq), RigidTransform.from_dual_quat(dq * dtype(dq_scale))):
+        _check_unit(other.rotation.as_quat(), dtype)
+        assert np.isfinite(other.translation).all()
+    # the exponential coordinates and the dual quaternion give the transform back
+    scale = np.maximum(np.abs(t).max(axis=-1, keepdims=True), float(np.finfo(dtype).tiny)).astype(np.float64)
+    back = RigidTransform.from_exp_coords(tf.as_exp_coords()).translation.astype(np.float64)
+    assert np.all(np.abs(back - t) <= 1e3 * np.finfo(dtype).eps * scale + 2 * float(np.finfo(dtype).smallest_subnormal))
