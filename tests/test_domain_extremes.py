@@ -538,9 +538,10 @@ def test_reductions_to_one_rotation_take_a_few_blocks(million, dtype):
     assert _extra_peak(lambda: r.mean(weights=w)) < budget
     qa_ = QuatArray(q)
     assert _extra_peak(lambda: np.multiply.reduce(qa_, axis=0)) < budget
-    # the blocked sums are the same mean as scipy's
-    assert (r.mean().inv() * Rotation.from_quat(ScipyRotation.from_quat(
-        q.astype(np.float64), scalar_first=True).mean().as_quat())).magnitude() < 1e-6
+    # the blocked sums are the same mean as scipy's (random rotations: nearly equal eigenvalues,
+    # a gap of about 1/sqrt(n), so the eigenvector moves by about eps sqrt(n) / gap)
+    theirs = Rotation.from_quat(ScipyRotation.from_quat(q.astype(np.float64), scalar_first=True).mean().as_quat())
+    assert (r.mean().inv() * theirs).magnitude() < {np.float32: 2e-5, np.float64: 1e-9}[dtype]
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
