@@ -24,6 +24,7 @@ comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 
 import numpy as np
 
+from . import _blocks
 from . import _convert as C
 from . import _euler as E
 from . import _kernels as K
@@ -71,6 +72,9 @@ def _batch_axis(axis, nb, name="axis", extra=0):
     n = nb + extra
     if not isinstance(axis, (int, np.integer)):
         raise TypeError(f"expected {name} to be an int (a batch axis), got {type(axis).__name__}")
+    if not n:   # [0, -1] would be an empty range: say what is missing instead
+        raise ValueError(f"expected a QuatArray with at least one batch axis for {name}={axis}, got a single "
+                         f"quaternion (shape (4,), no batch axis; its only axis holds the components)")
     if not -n <= axis < n:
         raise ValueError(f"expected {name} in [{-n}, {n - 1}] (a batch axis of a batch with {nb} axes), got {axis}")
     return int(axis) % n
@@ -747,12 +751,20 @@ refuses nan and inf in its kernel; `isnan` and `isfinite` test for them)."""
 
 
 def _ordered_product(a, axis):
-    """Product a[0] a[1] ... a[n-1] along batch `axis` by pairwise halving (log n vectorised steps)."""
+    """Product a[0] a[1] ... a[n-1] along batch `axis` by pairwise halving (log n vectorised steps).
+
+    A long axis is halved in aligned chunks of a power of two (each about one block) and then
+    the chunks' products: the same pairs in the same order as halving it whole, with a few
+    blocks of extra memory instead of half the input."""
     a = np.moveaxis(a, axis, 0)
     if a.shape[0] == 0:
         res = np.zeros(a.shape[1:], a.dtype)
         res[..., 0] = 1
         return res
+    per = max(1, a[0].size // 4)
+    chunk = 1 << max(1, (_blocks.block_size(a.dtype) // per).bit_length() - 1)
+    if a.shape[0] > chunk:
+        a = np.stack([_ordered_product(a[i:i + chunk], 0) for i in range(0, a.shape[0], chunk)])
     while a.shape[0] > 1:
         n = a.shape[0]
         head = K.multiply(a[0:n - 1:2], a[1:n:2])

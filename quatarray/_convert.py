@@ -171,7 +171,7 @@ def _k_as_matrix(q, o, unit=False):
             np.add(xx, yy, out=b)
             np.subtract(a, b, out=o[8])
         else:
-            s = np.divide(2.0, _scale.guarded_sqnorm(q))
+            s = np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
             np.multiply(x, s, out=xs)
             np.multiply(y, s, out=ys)
             np.multiply(z, s, out=zs)
@@ -207,7 +207,7 @@ def as_matrix(q, unit=False):
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``M @ v`` rotates the column vector ``v``.  Zero quaternions give NaN.
+        ``M @ v`` rotates the column vector ``v``.  A zero quaternion raises `ValueError`.
 
     Examples
     --------
@@ -441,9 +441,9 @@ def _vector_norm(q):
     np.multiply(q[0], q[0], out=n2)
     n2 += v2
     if not _scale.fits(n2):
-        _scale.guard(q, n2)
+        _scale.guard(q, n2, zero=True)
         _scale.sum_squares(q, v2, 1)
-    return np.sqrt(v2, out=v2)
+    return _scale.small_norms(q[1:], v2)   # |v| also where |v|² underflows (angles down to subnormal)
 
 
 def _k_as_rotvec(q, o, factor):
@@ -514,6 +514,18 @@ def _k_from_rotvec(r, q, factor):
         np.multiply(x, d, out=q[1])
         np.multiply(y, d, out=q[2])
         np.multiply(z, d, out=q[3])
+        if e is not None and not np.isfinite(theta).all():
+            _huge_rotvecs(r, q, e, ~np.isfinite(theta), factor)
+
+
+def _huge_rotvecs(r, q, e, huge, factor):
+    """`_k_from_rotvec` where |r| itself overflows (components near the float maximum, the
+    angle beyond it) but the half angle |r|/2 does not: from `r` as scaled by 2**-e."""
+    rs = r[:, huge]
+    ns = np.sqrt(_scale.sum_squares(rs, np.empty(rs.shape[1:], rs.dtype)))
+    half = np.ldexp(ns * (0.5 * factor), e[huge])
+    q[0, huge] = np.cos(half)
+    q[1:, huge] = rs * (np.sin(half) / ns)
 
 
 def from_rotvec(rotvec, degrees=False):
@@ -582,7 +594,7 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
-    n = np.sqrt(_scale.guarded_sqnorm(q))
+    n = np.sqrt(_scale.guarded_sqnorm(q, zero=True))
     w, x, y, z = q
     k = 1.0 / (n + np.abs(w))
     k = np.where(w < 0, -k, k)

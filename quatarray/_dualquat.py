@@ -59,7 +59,7 @@ def normalize(dq):
     A zero real part becomes the identity rotation (the dual part is kept), as in scipy.
     """
     r, d = _parts(dq)
-    n = np.linalg.norm(r, axis=-1, keepdims=True)
+    n = Kn.norm(r)[..., None]   # |r| also where its square over- or underflows
     zero = n == 0
     if zero.any():
         r = np.where(zero, np.array([1, 0, 0, 0], r.dtype), r)

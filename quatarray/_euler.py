@@ -187,6 +187,8 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
             # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²), which the
             # two sums give for one more pass: blocks of extreme magnitude are rescaled
             if attempt or _scale.fits(np.add(r, u, out=mid)):
+                if attempt and not np.add(r, u, out=mid).all():
+                    raise ValueError(_scale.ZERO)
                 break
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)

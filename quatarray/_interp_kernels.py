@@ -514,17 +514,23 @@ def unflip(q, axis):
         return q.astype(dtype, copy=True)
     # float32: summed in float64 (exact products), so that rotations close to π
     # apart get the sign of their exact dot product, as `hemisphere` gives slerp
-    d = vdot(qa[1:], qa[:-1]) if dtype != np.float32 else vdot(qa[1:].astype(np.float64), qa[:-1])
+    if dtype != np.float32:
+        d = vdot(qa[1:], qa[:-1])
+    else:   # `vdot`'s order, each product cast to float64 as NumPy computes it (no float64 copy of q)
+        d = np.multiply(qa[1:, ..., 0], qa[:-1, ..., 0], dtype=np.float64)
+        for k in (1, 2, 3):
+            d += np.multiply(qa[1:, ..., k], qa[:-1, ..., k], dtype=np.float64)
     step = np.ones(qa.shape[:-1], np.int8)
-    step[1:][d < 0] = -1
-    c = np.cumprod(step, axis=0, dtype=np.int8)           # sign with no restarts
+    np.copyto(step[1:], -1, where=d < 0)
     zero = np.zeros(qa.shape[:-1], bool)
-    zero[1:] = d == 0
+    np.equal(d, 0, out=zero[1:])
+    del d                                                 # (memory: the dot products are done)
+    c = np.cumprod(step, axis=0, dtype=np.int8, out=step)  # sign with no restarts, in place
     if zero.any():
         idx = np.arange(n).reshape((n,) + (1,) * (qa.ndim - 2))
         last = np.maximum.accumulate(np.where(zero, idx, 0), axis=0)
         c = c * np.take_along_axis(c, last, axis=0)         # restart at the last zero
-    out = qa * c[..., None].astype(dtype)
+    out = np.multiply(qa, c[..., None], dtype=dtype)      # the int8 signs cast per block, no copy
     return np.moveaxis(out, 0, axis) if axis else out
 
 

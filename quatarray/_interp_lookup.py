@@ -96,4 +96,6 @@ class SegmentIndex:
             return None
         starts = np.searchsorted(t, self.times, side="left")        # first query at or after each key
         counts = np.diff(starts, prepend=0, append=t.size)
-        return np.repeat(np.arange(-1, len(self.times), dtype=np.intp), counts)
+        # int32 segment numbers where they fit: half the memory of a long query array's index
+        kind = np.int32 if len(self.times) < 2 ** 31 - 1 else np.intp
+        return np.repeat(np.arange(-1, len(self.times), dtype=kind), counts)

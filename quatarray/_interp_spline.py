@@ -84,6 +84,25 @@ def acceleration_term(rotvecs, rotvecs_dot):
             + k3[..., None].astype(dt) * dccp)
 
 
+def acceleration_jacobian(rotvecs, rotvecs_dot):
+    """The derivative of `acceleration_term` in ``dr/dt`` (a quadratic form): (..., 3, 3)."""
+    n = np.linalg.norm(rotvecs, axis=-1)
+    s = _safe(n)
+    big = n > _SMALL
+    sn, cs = np.sin(s), np.cos(s)
+    dt = rotvecs.dtype
+    k1 = np.where(big, (-s * sn - 2 * (cs - 1)) / s ** 4, 1 / 12 - n ** 2 / 180).astype(dt)[..., None, None]
+    k2 = np.where(big, (-2 * s + 3 * sn - s * cs) / s ** 5, -1 / 60 + n ** 2 / 12604).astype(dt)[..., None, None]
+    k3 = np.where(big, (s - sn) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None, None]
+    dp = np.sum(rotvecs * rotvecs_dot, axis=-1)[..., None, None]
+    cp = np.cross(rotvecs, rotvecs_dot)
+    ccp = np.cross(rotvecs, cp)
+    sk = _skew(rotvecs)
+    outer = (lambda a: a[..., :, None] * rotvecs[..., None, :])
+    return (k1 * (outer(cp) + dp * sk) + k2 * (outer(ccp) + dp * (sk @ sk))
+            + k3 * (_skew(rotvecs_dot) @ sk - _skew(cp)))
+
+
 def _mv(m, v):
     return np.einsum("...ij,...j->...i", m, v)
 
@@ -186,41 +205,100 @@ def block_tridiagonal_solve(lower, diag, upper, rhs):
 
 
 def relative_rotvecs(keys):
-    """Rotation vectors of ``keys[i]* keys[i+1]``, shape (K - 1, *batch, 3)."""
-    rel = Kn.multiply(Kn.conjugate(keys[:-1]), keys[1:])
+    """Rotation vectors of ``keys[i]* keys[i+1]``, shape (K - 1, *batch, 3).
+
+    The product's vector part is grouped as ``(w_i v_j - w_j v_i) - v_i × v_j``,
+    which is exactly 0 for equal keys (the general product's rounding leaves
+    about 1e-17 there, which the spline's rates carry over long segments:
+    equal keys must give the key itself at every time).
+    """
+    p, q = keys[:-1], keys[1:]
+    rel = np.empty(p.shape, keys.dtype)
+    rel[..., 0] = p[..., 0] * q[..., 0] + np.sum(p[..., 1:] * q[..., 1:], axis=-1)
+    rel[..., 1:] = p[..., :1] * q[..., 1:] - q[..., :1] * p[..., 1:]
+    rel[..., 1:] -= np.cross(p[..., 1:], q[..., 1:])
     return C.as_rotvec(rel)
 
 
 def _solve_rates(dt, rates, rotvecs):
-    """Interior rates (scipy's system) by fixed-point iteration on the quadratic term."""
+    """Interior rates (scipy's system) by fixed-point iteration on the quadratic term.
+
+    Each interior equation is scipy's multiplied by the harmonic spacing
+    ``g = h k / (h + k)`` of its two segments (h before, k after): the
+    diagonal becomes 4, the neighbours' blocks ``2 A k / (h + k)`` and
+    ``2 A h / (h + k)``, and every right-hand side term is a rotation vector
+    over a spacing (never over its square or cube), so spacings from 1e-300
+    to 1e300, and ratios between neighbours as large, neither overflow nor
+    lose the diagonal dominance the solve relies on.  The solution is
+    scipy's; only the rounding differs.
+    """
     dtype = rotvecs.dtype
     first = rates[0].copy()
     a = rate_to_rotvec_dot(rotvecs)
     a_inv = rotvec_dot_to_rate(rotvecs)
+    h, k = dt[:-1], dt[1:]
+    with np.errstate(over="ignore"):   # h / k = inf: the weight 0
+        wh = 1 / (1 + h / k)           # g / h = k / (h + k)
+        wk = 1 / (1 + k / h)           # g / k = h / (h + k)
+    wh, wk = wh[..., None], wk[..., None]
     dtb = dt[..., None]
-    d = 4 * (1 / dt[:-1] + 1 / dt[1:])
-    shape = (len(d),) + rotvecs.shape[1:-1] + (3, 3)
-    diag = np.broadcast_to(d[..., None, None] * np.eye(3, dtype=dtype), shape).copy()
+    shape = (len(h),) + rotvecs.shape[1:-1] + (3, 3)
+    diag = np.broadcast_to(4 * np.eye(3, dtype=dtype), shape).copy()
     lower = np.zeros_like(diag)
     upper = np.zeros_like(diag)
-    lower[1:] = 2 * a_inv[1:-1] / dtb[1:-1, ..., None]
-    upper[:-1] = 2 * a[1:-1] / dtb[1:-1, ..., None]
-    b0 = 6 * (rotvecs[:-1] / dtb[:-1] ** 2 + rotvecs[1:] / dtb[1:] ** 2)
-    b0[0] -= 2 / dtb[0] * _mv(a_inv[0], first)
-    b0[-1] -= 2 / dtb[-1] * _mv(a[-1], rates[-1])
+    lower[1:] = 2 * a_inv[1:-1] * wh[1:, ..., None]
+    upper[:-1] = 2 * a[1:-1] * wk[:-1, ..., None]
+    b0 = 6 * (wh * (rotvecs[:-1] / dtb[:-1]) + wk * (rotvecs[1:] / dtb[1:]))
+    b0[0] -= 2 * wh[0] * _mv(a_inv[0], first)
+    b0[-1] -= 2 * wk[-1] * _mv(a[-1], rates[-1])
     tol = TOL[np.dtype(dtype)]
     levels = block_tridiagonal_factor(lower, diag, upper)
-    for _ in range(MAX_ITER):
-        rotvecs_dot = _mv(a, rates)
-        rhs = b0 - acceleration_term(rotvecs[:-1], rotvecs_dot[:-1])
-        new = block_tridiagonal_apply(levels, rhs)
-        delta = np.abs(new - rates[:-1])
-        rates[:-1] = new
-        if np.all(delta < tol * (1 + np.abs(new))):
-            break
+    with np.errstate(over="ignore", invalid="ignore"):   # a diverging iteration: Newton's below
+        for _ in range(MAX_ITER):
+            # the quadratic term of the rate after each segment, over its spacing: h Q(ṙ) = Q(h ṙ) / h
+            rotvecs_dot = _mv(a[:-1], rates[:-1]) * dtb[:-1]
+            rhs = b0 - wh * (acceleration_term(rotvecs[:-1], rotvecs_dot) / dtb[:-1])
+            new = block_tridiagonal_apply(levels, rhs)
+            delta = np.abs(new - rates[:-1])
+            rates[:-1] = new
+            if np.all(delta < tol * (1 + np.abs(new))):
+                break
+        else:
+            # scipy's fixed point has not settled in MAX_ITER steps (large rotations between
+            # keys; at uneven spacings it diverges): Newton's method on the same equations,
+            # from the linear solution, to the spline scipy's iteration would converge to
+            rates[:-1] = _newton(lower, upper, b0, a, wh, dtb, rotvecs, block_tridiagonal_apply(levels, b0), tol)
     rotvecs_dot = _mv(a, rates)
     rates = np.concatenate([first[None], rates[:-1]])
     return rates, rotvecs_dot
+
+
+NEWTON_ITER = 30
+
+
+def _newton(lower, upper, b0, a, wh, dtb, rotvecs, x, tol):
+    """Solve ``lower x₋ + 4 x + upper x₊ + wh Q(r, h A x) / h = b0`` (the scaled rate
+    equations of `_solve_rates`) by Newton's method from `x`: the quadratic term's
+    derivative is block diagonal, so each step is one block-tridiagonal solve.
+
+    Raises ValueError if it does not converge (no spline through such keys at such times)."""
+    eye4 = 4 * np.eye(3, dtype=x.dtype)
+    h, r, av = dtb[:-1], rotvecs[:-1], a[:-1]
+    for _ in range(NEWTON_ITER):
+        d = _mv(av, x) * h
+        f = 4 * x + wh * (acceleration_term(r, d) / h) - b0
+        f[1:] += _mv(lower[1:], x[:-1])
+        f[:-1] += _mv(upper[:-1], x[1:])
+        jac = eye4 + wh[..., None] * (acceleration_jacobian(r, d) @ av)
+        step = block_tridiagonal_solve(lower, jac, upper, f)
+        x = x - step
+        if not np.isfinite(x).all():
+            break
+        if np.all(np.abs(step) < tol * (1 + np.abs(x))):
+            return x
+    raise ValueError("expected keys and times that a C² rotation spline can join: its rate equations "
+                     "have no solution that Newton's method finds (large rotations between keys at very "
+                     "uneven time spacings; scipy's iteration diverges there too)")
 
 
 def coefficients(times, keys):
@@ -236,24 +314,47 @@ def coefficients(times, keys):
     Returns
     -------
     ndarray, shape (4, K - 1, *batch, 3)
-        ``c[0] s³ + c[1] s² + c[2] s + c[3]`` with ``s = t - times[i]``
-        (``c[3] = 0``), as scipy's ``PPoly`` coefficients.
+        ``c[0] u³ + c[1] u² + c[2] u + c[3]`` in the segment's own time
+        ``u = (t - times[i]) / (times[i + 1] - times[i])`` in [0, 1]
+        (``c[3] = 0``): scipy's ``PPoly`` coefficients times ``dt³``, ``dt²``,
+        ``dt``, so that no spacing is cubed (1e-300 or 1e300 would leave
+        the float range) and every segment's coefficients are of the size
+        of its rotation.
+
+    Raises
+    ------
+    ValueError
+        Where the spacing is so small that a key's rate leaves the float range.
     """
     dtype = keys.dtype
     rotvecs = relative_rotvecs(keys)
-    dt = np.diff(times).astype(dtype).reshape((-1,) + (1,) * (keys.ndim - 2))
+    dt = np.diff(times)
+    # spacings in a unit of time near their geometric middle (a power of two: exact), so that
+    # float32 keys take float64 times of any spacing; the coefficients do not depend on the unit
+    _, e = np.frexp(np.sqrt(dt.min()) * np.sqrt(dt.max()))
+    with np.errstate(over="ignore", under="ignore"):   # spacings beyond the keys' range: refused below
+        dt = np.ldexp(dt, -e).astype(dtype).reshape((-1,) + (1,) * (keys.ndim - 2))
     dtb = dt[..., None]
-    rates = rotvecs / dtb
+    with np.errstate(over="ignore"):
+        rates = rotvecs / dtb
     if len(keys) == 2:
         rotvecs_dot = rates
     else:
         rates, rotvecs_dot = _solve_rates(dt, rates, rotvecs)
     coeff = np.zeros((4,) + rotvecs.shape, dtype)
-    coeff[0] = (-2 * rotvecs + dtb * rates + dtb * rotvecs_dot) / dtb ** 3
-    coeff[1] = (3 * rotvecs - 2 * dtb * rates - dtb * rotvecs_dot) / dtb ** 2
-    coeff[2] = rates
+    start, end = dtb * rates, dtb * rotvecs_dot          # the rates in the segment's own time
+    coeff[0] = -2 * rotvecs + start + end
+    coeff[1] = 3 * rotvecs - 2 * start - end
+    coeff[2] = start
+    if not np.isfinite(coeff).all():
+        raise ValueError("the spline's angular rates at the keys did not come out finite: expected key "
+                         "times far enough apart for the rotations between them (times spaced above "
+                         f"about {np.finfo(dtype).tiny / np.finfo(dtype).eps:.0e} for a quarter turn), "
+                         "or keys that a spline can join (its rate equations diverged)")
     return coeff
 
+
+_UNIT_TOL = {np.dtype(d): 16 * float(np.finfo(d).eps) for d in (np.float32, np.float64)}
 
 ROWS = 25   # key q (4), q (0, c_k) for k = 0, 1, 2 (12), c_0, c_1, c_2 (9)
 _TINY = {np.dtype(np.float64): 1e-300, np.dtype(np.float32): 1e-30}
@@ -324,7 +425,20 @@ def _rotation_rows(G, s, O):
     V *= tmp
     Q = G[0:4]
     Q *= cos_half
-    np.add(V, Q, out=O)                       # the only write to the (strided) output
+    Q += V
+    # unit to rounding, except where the cubic's large coefficients (fast turns between
+    # keys, over 1e5 rad per segment) cancel in r(s) differently from its products q (0, c_k):
+    # only such elements are divided by their norm (the others keep their bits)
+    np.multiply(Q[0], Q[0], out=theta)
+    for k in (1, 2, 3):
+        np.multiply(Q[k], Q[k], out=tmp)
+        theta += tmp
+    theta -= 1
+    off = _UNIT_TOL[O.dtype]
+    if theta.size and not (theta.max() <= off and theta.min() >= -off):
+        bad = ~(np.abs(theta) <= off)
+        Q[:, bad] /= np.sqrt(theta[bad] + 1)
+    np.copyto(O, Q)                           # the only write to the (strided) output
 
 
 def _rate_rows(G, s, order, O):
@@ -359,13 +473,20 @@ def evaluate(index, times, tab, t, order, batch):
         tb = t[sm]
         i = index.find(tb) if found is None else found[sm].copy()
         np.clip(i, 0, K1 - 1, out=i)
-        s = np.subtract(tb, np.take(times, i, mode="clip")).astype(dtype, copy=False)[:, None]
+        t0 = np.take(times, i)
+        span = np.take(times, i + 1) - t0
+        # the segment's own time (in float64, then the table's dtype): see `coefficients`
+        s = (np.subtract(tb, t0) / span).astype(dtype, copy=False)[:, None]
         G = TR.gather(tab, i, sb)
         O = soa(out[sm, sb])
         if order == 0:
             _rotation_rows(G, s, O)
         else:
             _rate_rows(G, s, order, O)
+            span = span.astype(dtype, copy=False)[:, None]
+            O /= span                              # d/dt = d/du / dt (and twice for order 2,
+            if order == 2:                         # not by dt², which may leave the range)
+                O /= span
 
     _blocks.run(block, TR.qt_blocks(M, B), M * B)
     return out.reshape(t.shape + tuple(batch) + (width,))

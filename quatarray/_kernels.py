@@ -618,16 +618,19 @@ def rotate(q, v, inverse=False):
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
     res = np.empty(batch + (3,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        _blocks.blockwise(_rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
+        _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
 
 
-def _rotate_block(q, u, o, wsign):
+def rotate_block(q, u, o, wsign):
+    """`rotate`'s block kernel: components-first scratch copies q (4, *s) and u (3, *s), which
+    it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q)."""
     n2 = _scale.guarded_sqnorm(q)
     w, x, y, z = q            # q is the block's scratch copy: w may be negated in place
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
-    ux, uy, uz = u
+    e = _scale.shrink_vectors(u, n2)   # u is the block's scratch copy; vectors near the float maximum
+    ux, uy, uz = u                 # are scaled down by a power of two, and the result back up
     s = np.divide(2.0, n2, out=n2)
     with _blocks.scratch().frame() as work:
         tx, ty, tz, m, r, v = work.rows(6, n2.shape, o.dtype)
@@ -646,3 +649,4 @@ def _rotate_block(q, u, o, wsign):
             np.multiply(c, d, out=m)
             v -= m
             np.add(r, v, out=o[k])
+    _scale.unscale(o, e)

@@ -24,6 +24,7 @@ from . import _convert as C
 from . import _dualquat as DQ
 from . import _kernels as Kn
 from . import _motion as MO
+from . import _scale
 from ._rotation import Rotation
 
 __all__ = ["RigidTransform"]
@@ -35,6 +36,8 @@ _TO_LAST = [1, 2, 3, 0, 5, 6, 7, 4]
 def _promote(x):
     """scipy's promotion: float32 and float64 kept, other real input as float64."""
     a = np.asarray(x)
+    if not a.dtype.isnative:   # big-endian input: the same values, native (scipy accepts it)
+        a = a.astype(a.dtype.newbyteorder("="))
     if a.dtype == np.float32 or a.dtype == np.float64:
         return a
     if a.dtype.kind not in "biuf":
@@ -57,13 +60,43 @@ def _quat_of(rotation, name="rotation"):
     return np.asarray(rotation.as_quat(scalar_first=True))
 
 
-def _left_jacobian_coeffs(theta):
-    """(1-cos θ)/θ² and (θ-sin θ)/θ³, by series near zero where the quotients cancel."""
-    small = theta < 1e-3
-    th = np.where(small, 1.0, theta)
-    a = np.where(small, 0.5 - theta**2 / 24 + theta**4 / 720, (1 - np.cos(th)) / th**2)
-    b = np.where(small, 1 / 6 - theta**2 / 120 + theta**4 / 5040, (th - np.sin(th)) / th**3)
-    return a, b
+def _axis_angle(phi):
+    """(θ, k) of rotation vectors (..., 3): θ = |φ| (..., 1) and the unit axis k (0 where θ = 0),
+    each vector scaled by a power of two first, so that no square over- or underflows.
+    θ is inf where |φ| itself overflows."""
+    m = np.max(np.abs(phi), axis=-1, keepdims=True)
+    e = np.frexp(m)[1]
+    s = np.ldexp(phi, -e)
+    n = np.sqrt(np.sum(s * s, axis=-1, keepdims=True))
+    with np.errstate(over="ignore"):
+        theta = np.ldexp(n, e)
+    return theta.astype(phi.dtype, copy=False), (s / np.where(n > 0, n, 1)).astype(phi.dtype, copy=False)
+
+
+def _shrink(v):
+    """Translations (..., 3) whose largest component exceeds `_scale.BIG_VECTOR` scaled by
+    2**-e (e their exponent, 0 for the others; None when there are none), so that the
+    left Jacobian's sums of up to four such terms cannot overflow: (scaled, e)."""
+    m = np.max(np.abs(v), axis=-1, keepdims=True)
+    big = m > _scale.BIG_VECTOR[v.dtype]
+    if not big.any():
+        return v, None
+    e = np.where(big, np.frexp(m)[1], 0)
+    return np.ldexp(v, -e), e
+
+
+def _left_jacobian(theta, k, u):
+    """V(φ) u = u + (1 - cos θ)/θ k×u + (1 - sin θ/θ) k×(k×u), φ = θ k: the coefficients of
+    the unit axis are bounded (no θ² or θ³ to overflow at large angles, no cancellation:
+    series below 1e-3, and where θ overflows their limits 0 and 1)."""
+    small, huge = theta < 1e-3, np.isinf(theta)
+    th = np.where(small | huge, 1.0, theta)
+    a = np.where(small, theta / 2 - theta**3 / 24 + theta**5 / 720,
+                 np.where(huge, 0.0, 2 * np.sin(th / 2) ** 2 / th))
+    b = np.where(small, theta**2 / 6 - theta**4 / 120 + theta**6 / 5040,
+                 np.where(huge, 1.0, 1 - np.sin(th) / th))
+    ku = np.cross(k, u)
+    return u + a * ku + b * np.cross(k, ku)
 
 
 def _last_row_check(m):
@@ -204,10 +237,11 @@ class RigidTransform:
         e = _promote(exp_coords)
         _check_last(e, "exp_coords", 6)
         phi, u = e[..., :3], e[..., 3:]
-        theta = np.linalg.norm(phi, axis=-1, keepdims=True)
-        a, b = _left_jacobian_coeffs(theta)
-        pu = np.cross(phi, u)
-        t = u + a * pu + b * np.cross(phi, pu)
+        theta, k = _axis_angle(phi)
+        u, scale = _shrink(u)
+        t = _left_jacobian(theta, k, u)
+        if scale is not None:
+            t = np.ldexp(t, scale)
         q = C.from_rotvec(phi).astype(e.dtype, copy=False)
         return cls._from_parts(q, t.astype(e.dtype, copy=False), e.ndim == 1)
 
@@ -277,15 +311,17 @@ class RigidTransform:
         """Exponential coordinates (..., 6): rotation vector, then the se(3) translation part."""
         q = self._quat
         phi = C.as_rotvec(q).astype(q.dtype, copy=False)
-        theta = np.linalg.norm(phi, axis=-1, keepdims=True)
+        theta, k = _axis_angle(phi)
         small = theta < 1e-3
         th = np.where(small, 1.0, theta)
-        # inverse left Jacobian: u = t - ½ φ×t + c φ×(φ×t)
-        c = np.where(small, 1 / 12 + theta**2 / 720 + theta**4 / 30240,
-                     (1 - 0.5 * th / np.tan(0.5 * th)) / th**2)
-        t = self._translation
-        pt = np.cross(phi, t)
-        u = t - 0.5 * pt + c * np.cross(phi, pt)
+        # inverse left Jacobian: u = t - θ/2 k×t + (1 - θ/2 cot(θ/2)) k×(k×t), θ in [0, π]
+        c = np.where(small, theta**2 / 12 + theta**4 / 720 + theta**6 / 30240,
+                     1 - 0.5 * th / np.tan(0.5 * th))
+        t, scale = _shrink(self._translation)
+        kt = np.cross(k, t)
+        u = t - (0.5 * theta) * kt + c * np.cross(k, kt)
+        if scale is not None:
+            u = np.ldexp(u, scale)
         return np.concatenate([phi, u.astype(phi.dtype, copy=False)], axis=-1)
 
     def as_dual_quat(self, *, scalar_first=False):
@@ -355,6 +391,8 @@ class RigidTransform:
                 n = n[0]
             elif n.ndim != 0:
                 raise ValueError("Array exponent must be a scalar")
+        if not np.isfinite(n):
+            raise ValueError(f"expected a finite exponent n, got {float(n)}")
         if n == 0:
             return RigidTransform.identity(shape=self.shape)
         if n == -1:
@@ -385,8 +423,12 @@ class RigidTransform:
         if weights is None:
             tm = np.mean(t, axis=axes)
         else:
+            total = np.sum(w, axis=axes)
+            if not np.all(total > 0):   # scipy: ZeroDivisionError; 0/0 would be a NaN translation
+                raise ValueError("expected weights with a positive sum over the averaged axes, "
+                                 "got weights that sum to zero")
             w = w.astype(t.dtype, copy=False)[..., None]
-            tm = np.sum(t * w, axis=axes) / np.sum(w, axis=axes)
+            tm = np.sum(t * w, axis=axes) / total[..., None].astype(t.dtype, copy=False)
         return type(self)._from_parts(qm.reshape(tm.shape[:-1] + (4,)), tm, tm.ndim == 1)
 
     # ------------------------------------------------------------------ container

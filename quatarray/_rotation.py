@@ -477,9 +477,11 @@ class Rotation:
                     raise ValueError(f"Array exponent must be a scalar, or (an extension of "
                                      f"scipy's) broadcast with the rotations' shape "
                                      f"{q.shape[:-1]}: got shape {t.shape}")
-                t = t.astype(np.result_type(t.dtype, q.dtype), copy=False)
+                t = finite(t.astype(np.result_type(t.dtype, q.dtype), copy=False), "the exponent n")
                 return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * t[..., None]))
             n = float(t)
+        if not np.isfinite(n):
+            raise ValueError(f"expected a finite exponent n, got {n}")
         if n == 0:
             return type(self).identity(shape=q.shape[:-1], dtype=q.dtype)
         if n == -1:
@@ -590,7 +592,7 @@ class Rotation:
                              f"rotation along axis {axes}, got shape {batch}")
         w = None
         if weights is not None:
-            w = float_array(weights, "weights").astype(np.float64)
+            w = float_array(weights, "weights").astype(np.float64, copy=False)
             if (w < 0).any():
                 raise ValueError("`weights` must be non-negative.")
             if not np.isfinite(w).all():

@@ -7,32 +7,66 @@ Conversions and products come from `_convert` and `_kernels`; nothing here impor
 """
 
 import warnings
+from math import prod
 
 import numpy as np
 
-from . import _convert, _kernels
+from . import _blocks, _convert, _kernels
 from ._validate import float_array
 
-__all__ = ["mean", "reduce", "align"]
+__all__ = ["mean", "chordal_sums", "reduce", "align"]
 
 
 def mean(q, weights, axes):
     """Chordal L2 mean of rotations `q` (..., 4) over batch `axes` (sorted, non-negative),
     with optional non-negative `weights` of the batch shape: the dominant eigenvector of
-    Σ wᵢ qᵢ qᵢᵀ, canonical, in `q`'s dtype (computed in float64)."""
+    Σ wᵢ qᵢ qᵢᵀ, canonical, in `q`'s dtype (computed in float64, `chordal_sums`)."""
+    # the 4x4 matrix in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
+    xyzw = [1, 2, 3, 0]
+    _, vectors = np.linalg.eigh(chordal_sums(q, weights, axes)[..., xyzw, :][..., xyzw])
+    return _convert.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype)
+
+
+def chordal_sums(q, weights, axes, name="rotations to average"):
+    """Σ wᵢ qᵢ qᵢᵀ over the batch `axes` (sorted, non-negative) of quaternions `q` (..., 4),
+    in float64, (w, x, y, z) order: shape ``kept batch + (4, 4)``.  Rows are normalised
+    first (NaN, infinite or zero ones raise `_convert.from_quat`'s `ValueError`, naming
+    `name` and the index in the whole batch).
+
+    The sum runs over slices of about one block along the first averaged axis, so the
+    extra memory is a few blocks whatever the batch (not a float64 copy of it).
+
+    >>> import numpy as np
+    >>> from quatarray._rotation_algorithms import chordal_sums
+    >>> chordal_sums(np.array([[2.0, 0, 0, 0], [0, 0, 0, 1]]), None, (0,))
+    array([[1., 0., 0., 0.],
+           [0., 0., 0., 0.],
+           [0., 0., 0., 0.],
+           [0., 0., 0., 1.]])
+    """
     batch = q.shape[:-1]
     nb = len(batch)
-    # nan, inf and zero rows refused; rows of any magnitude normalised
-    q64 = _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name="rotations to average")
-    wq = q64 if weights is None else q64 * weights[..., None]
     keep = tuple(a for a in range(nb) if a not in axes)
-    order = keep + axes + (nb,)
+    order = keep + tuple(axes) + (nb,)
     kshape = tuple(batch[a] for a in keep)
-    # components in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
-    qm = q64.transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
-    wm = np.broadcast_to(wq, batch + (4,)).transpose(order).reshape(kshape + (-1, 4))[..., [1, 2, 3, 0]]
-    _, vectors = np.linalg.eigh(np.matmul(np.swapaxes(wm, -1, -2), qm))
-    return _convert.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype)
+    qt = q.transpose(order)                                   # views: nothing is copied whole
+    wt = None if weights is None else np.broadcast_to(weights, batch).transpose(order[:-1])
+    lead = qt.shape[len(keep)]
+    per_slice = prod(qt.shape[:-1]) // lead
+    step = max(1, _blocks.block_size(np.float64) // max(per_slice, 1))
+    acc = np.zeros(kshape + (4, 4))
+    head = (slice(None),) * len(keep)
+    for start in range(0, lead, step):   # a loop over blocks, as the block engine's
+        sl = head + (slice(start, start + step),)
+        try:
+            c = _convert.from_quat(qt[sl].astype(np.float64, copy=False), scalar_first=True, name=name)
+        except ValueError:   # the message with the index in the whole batch
+            _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name=name)
+            raise
+        c = c.reshape(kshape + (-1, 4))
+        wc = c if wt is None else c * wt[sl].reshape(kshape + (-1, 1))
+        acc += np.matmul(np.swapaxes(wc, -1, -2), c)
+    return acc
 
 
 def reduce(p, left, right):

@@ -23,10 +23,12 @@ import numpy as np
 
 from . import _blocks
 
-__all__ = ["NONFINITE", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm", "outside",
-           "unscale", "true_norm"]
+__all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
+           "outside", "unscale", "true_norm", "BIG_VECTOR", "shrink_vectors", "small_norms"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
+ZERO = "expected non-zero quaternions, got a zero quaternion (it is no rotation)"
+"""The conversions' error for the zero quaternion (`guard` with ``zero=True``)."""
 
 _RANGE = {}
 for _d in (np.float32, np.float64):
@@ -40,6 +42,10 @@ LOW = {d: r[0] for d, r in _RANGE.items()}
 
 HIGH = {d: r[1] for d, r in _RANGE.items()}
 """Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
+
+BIG_VECTOR = {d: float(np.ldexp(np.finfo(d).max, -4)) for d in _RANGE}
+"""Largest |component| of a vector rotated as it is, per dtype: the rotation formulas form
+sums of up to five terms of the vector's size (`shrink_vectors`)."""
 
 
 def fits(n2):
@@ -105,14 +111,15 @@ def rescale(q, only=None):
     return e
 
 
-def guard(q, n2, start=0):
+def guard(q, n2, start=0, zero=False):
     """The squared norms `n2` of a block, made safe: if they do not all `fit`,
     rescale `q` in place (`rescale`) and recompute them into `n2`.
 
     Returns the exponents applied (None when nothing was rescaled: the
     common path).  NaN or infinite components raise
     `ValueError` (the API's policy for non-finite input), found at no cost
-    on the common path.  `start` = 1 when `n2` holds the squared norms of
+    on the common path; so does a zero quaternion with `zero` (conversions
+    to rotations: `ZERO`).  `start` = 1 when `n2` holds the squared norms of
     the vector parts only (the whole quaternion is rescaled all the same).
     """
     if fits(n2):
@@ -121,6 +128,8 @@ def guard(q, n2, start=0):
         raise ValueError(NONFINITE)
     e = rescale(q, outside(n2))
     sum_squares(q, n2, start)
+    if zero and not (n2 if start == 0 else np.max(np.abs(q), axis=0)).all():
+        raise ValueError(ZERO)
     return e
 
 
@@ -142,11 +151,77 @@ def true_norm(v, out):
     return e
 
 
-def guarded_sqnorm(q):
+def guarded_sqnorm(q, zero=False):
     """Squared norms of a block's scratch copy `q` (in a row of the thread's
-    scratch), rescaling `q` in place where they would over- or underflow."""
+    scratch), rescaling `q` in place where they would over- or underflow
+    (`guard`: with `zero`, a zero quaternion raises `ZERO`)."""
     n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
-    guard(q, n2)
+    guard(q, n2, zero=zero)
+    return n2
+
+
+def shrink_vectors(v, n2=None):
+    """Scale the vectors of a components-first block (a scratch copy) whose largest |component|
+    exceeds `BIG_VECTOR` by 2**-e in place, e the exponent of that component, so that the
+    rotation formulas' intermediate sums cannot overflow; the others are left as they are
+    (so each vector gives the same bits whatever the block around them).
+
+    With `n2`, the squared norms of the quaternions the vectors are rotated by: the test is
+    on the vector's largest |component| times max(|q|, 1/|q|), the size of the cross
+    products vec × v and of their quotients by |q|² for a quaternion that is not unit; and
+    a vector rotated by a quaternion with |q|² outside [1/4, 4] is always scaled (to
+    [1/2, 1)), so that those products neither overflow nor leave the normal range below.
+
+    Returns e (batch shape, int32, 0 where not scaled), or None when no vector is that
+    large: the common path, two reductions (four with `n2`).  Multiply the result by 2**e
+    (`unscale`).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import shrink_vectors
+    >>> v = np.array([[1e308, 1.0], [0.0, 2.0], [0.0, 3.0]])
+    >>> e = shrink_vectors(v); e.tolist(), v[:, 1].tolist()
+    ([1024, 0], [1.0, 2.0, 3.0])
+    """
+    if not v.size:
+        return None
+    big = BIG_VECTOR[v.dtype]
+    grow = 1.0
+    if n2 is not None:
+        lo, hi = float(n2.min()), float(n2.max())
+        grow = float(np.sqrt(max(hi, 1.0 / lo if lo > 0 else np.inf, 1.0)))
+    if grow <= 2.0 and v.max() * grow <= big and v.min() * grow >= -big:
+        return None
+    size = np.max(np.abs(v), axis=0)
+    scale = size > big
+    if n2 is not None:
+        with np.errstate(over="ignore", divide="ignore"):
+            f = np.sqrt(np.maximum(n2, 1.0 / n2))
+        scale |= (f > 2.0) | (size * f > big)
+    _, e = np.frexp(size)
+    e = np.where(scale, e, 0).astype(np.int32)
+    np.ldexp(v, -e, out=v)
+    return e
+
+
+def small_norms(v, n2):
+    """Correct `n2` = |v|² in place where it lost its digits to underflow (below `LOW`), for a
+    components-first block `v` (not modified), and return ``|v|`` in it: each such vector's
+    norm is taken after scaling it by a power of two.  Vectors with ordinary |v|² keep their
+    ``sqrt(n2)`` (the same bits whatever the block around them).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import small_norms
+    >>> v = np.array([[3e-200, 3.0], [4e-200, 4.0]])
+    >>> small_norms(v, (v * v).sum(axis=0)).tolist()
+    [5e-200, 5.0]
+    """
+    small = n2 < LOW[n2.dtype] if n2.size and n2.min() < LOW[n2.dtype] else None
+    np.sqrt(n2, out=n2)
+    if small is not None:
+        s = v[:, small]
+        _, e = np.frexp(np.max(np.abs(s), axis=0))
+        np.ldexp(s, -e, out=s)
+        n2[small] = np.ldexp(np.sqrt(sum_squares(s, np.empty(s.shape[1:], s.dtype))), e)
     return n2
 
 

@@ -58,6 +58,8 @@ def float_array(x, name, last=None, dtype=None):
         except (ValueError, TypeError) as exc:
             raise ValueError(f"expected {name} to be array_like of real numbers, got {type(x).__name__} ({exc})") from None
     kind = a.dtype.kind
+    if not a.dtype.isnative:   # big-endian input on a little-endian machine: the same values, native
+        a = a.astype(a.dtype.newbyteorder("="))
     if kind == "f":
         if a.dtype.itemsize not in (4, 8):
             a = a.astype(np.float64)
@@ -147,7 +149,10 @@ def batch_shape(num, shape):
     if num is not None and shape is not None:
         raise ValueError("Only one of `num` or `shape` can be specified: expected num or shape, got both")
     if num is not None:
-        if not isinstance(num, (int, np.integer)) or num < 0:
+        if not isinstance(num, (int, np.integer)):
+            # scipy's type error (its `num` is a typed int argument), with our wording's what-came
+            raise TypeError(f"Argument 'num' has incorrect type (expected int, got {type(num).__name__})")
+        if num < 0:
             raise ValueError(f"expected num to be a non-negative int, got {num!r}")
         return (int(num),)
     if shape is None:

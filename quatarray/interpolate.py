@@ -491,7 +491,9 @@ class Track:
     """
 
     def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
-        from ._rotation import Rotation
+        from ._rotation import Rotation, _is_scipy_rotation
+        if _is_scipy_rotation(keys):   # as Slerp accepts them
+            keys = Rotation.from_scipy(keys)
         if isinstance(keys, Rotation):  # its quaternions, scalar-first, without a copy
             keys = keys.as_quatarray()
         self._setup(times, keys, method, extrapolate, "times", "keys")

@@ -12,7 +12,7 @@ from . import _kernels, _scale
 from ._array import QuatArray
 from ._interp_lookup import SegmentIndex
 from ._rotation import Rotation
-from ._validate import float_array, in_memory
+from ._validate import finite, float_array, in_memory
 
 __all__ = ["RotationSpline", "angular_rate_to_rotvec_dot_matrix", "rotvec_dot_to_angular_rate_matrix",
            "angular_acceleration_nonlinear_term", "block_tridiagonal_banded"]
@@ -146,6 +146,16 @@ class RotationSpline:
     rotations : Rotation, shape (K, *batch)
         Keys; a batch of tracks after the key axis is evaluated in one call.
 
+    Notes
+    -----
+    Beyond scipy: the rate equations are solved per segment's own time scale,
+    so key spacings from 1e-300 to 1e300 (and neighbours that far apart) work,
+    and equal keys give the key itself at every time.  Where scipy's
+    fixed-point iteration has not settled after `MAX_ITER` steps (large
+    rotations between keys; at uneven spacings it diverges), Newton's method
+    continues to the solution; where that fails too, `ValueError` is raised
+    rather than a non-unit or NaN rotation returned.
+
     Examples
     --------
     >>> import numpy as np
@@ -171,6 +181,7 @@ class RotationSpline:
         times = np.asarray(in_memory(times, "times"), dtype=float)
         if times.ndim != 1:
             raise ValueError("`times` must be 1-dimensional.")
+        finite(times, "times")   # scipy: "array must not contain infs or NaNs"
         if len(times) != len(keys):
             raise ValueError("Expected number of rotations to be equal to number of timestamps given, "
                              f"got {len(keys)} rotations and {len(times)} timestamps.")
@@ -208,6 +219,7 @@ class RotationSpline:
         t = np.asarray(in_memory(times, "times"), dtype=float)
         if t.ndim > 1:
             raise ValueError("`times` must be at most 1-dimensional.")
+        finite(t, "times")   # scipy: "Found zero norm quaternions"
         single = t.ndim == 0
         res = S.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
         if single:

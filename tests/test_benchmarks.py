@@ -15,7 +15,8 @@ import pytest
 
 from benchmarks import _common
 
-MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid", "chunked", "sweep"]
+MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid", "chunked", "sweep",
+           "memory"]
 
 
 def _classes():

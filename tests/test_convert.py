@@ -96,11 +96,12 @@ def test_as_matrix_of_non_unit_quaternion_is_the_rotation_by_q_over_norm(rng, dt
         np.testing.assert_allclose(C.magnitude(q[k] * scale[k]), C.magnitude(q[k]), rtol=0, atol=tol(dtype))
 
 
-def test_as_matrix_of_zero_quaternion_is_nan_without_warning():
+@pytest.mark.parametrize("shape", [(4,), (3, 4)])
+def test_as_matrix_of_zero_quaternion_raises_without_warning(shape):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        m = C.as_matrix(np.zeros(4))
-    assert np.isnan(m).all()
+        with pytest.raises(ValueError, match="expected non-zero quaternions, got a zero quaternion"):
+            C.as_matrix(np.zeros(shape))
 
 
 @pytest.mark.parametrize("shape", SHAPES)

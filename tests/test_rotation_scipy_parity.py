@@ -425,11 +425,19 @@ def test_slerp_bad_keys_like_scipy(times, shape):
     same_as_scipy(lambda R, Slerp, **_: Slerp(times, _random(R, shape, 1)))
 
 
+class _ConvergedSpline(sst.RotationSpline):
+    """scipy's spline iterated until its rates settle: these keys' fixed point has not settled
+    after scipy's 10 steps (3.7e-7 off in acceleration), where quatarray continues by Newton's
+    method to the solution."""
+    MAX_ITER = 1000
+
+
 @pytest.mark.parametrize("order", [0, 1, 2])
 def test_rotation_spline_like_scipy(order):
     same_as_scipy(lambda Spline, **_: (Spline.TOL, Spline.MAX_ITER))
     for at in [0.5, [0, 1.7, 4], [], 5]:
-        same_as_scipy(lambda R, Spline, **_: Spline([0, 1, 2.5, 4], R.random(4, rng=3))(at, order), atol=1e-7)
+        same_as_scipy(lambda R, Spline, **_: (_ConvergedSpline if Spline is sst.RotationSpline else Spline)(
+            [0, 1, 2.5, 4], R.random(4, rng=3))(at, order), atol=1e-8)
 
 
 @pytest.mark.parametrize("shape", [(), (1,), (4,), (0,), (2, 3)])
