@@ -385,7 +385,8 @@ def test_local_cluster_two_processes_writing_to_s3(rng, s3):
     q = _flippy(rng, 40, 2, np.float64)
     g = zarr.open_group("s3://quatarray-test/cluster/in.zarr", mode="w", storage_options=s3)
     g["times"], g["keys"] = times, keys
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True, dashboard_address=None,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True, host="127.0.0.1",
+                                  dashboard_address="127.0.0.1:0",
                                   silence_logs=40) as cluster, distributed.Client(cluster) as client:
         lazy = [qd.evaluate(track, da.from_array(t, chunks=30)),
                 qd.unflip(da.from_array(q, chunks=(7, 1, 4))),
