@@ -19,12 +19,14 @@ from ._rigid_transform import RigidTransform
 from .rigid import RigidTrack, dual_quaternion_blend, normalize_dual_quaternion, sclerp
 from .spline import RotationSpline
 from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
+from .timeseries import ReducedKeys, reduce_keys
 
 __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
     "RotationSpline", "RigidTransform", "RigidTrack", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
     "set_num_threads", "get_num_threads", "num_threads",
+    "reduce_keys", "ReducedKeys",
     "testing",
 ]
 __version__ = "0.1.0"

@@ -67,13 +67,14 @@ def _bisect(p, q):
 
 def _interval_weights(times, K, batch_ndim):
     """(w_in, w_out) per key: Δ_{i-1} / (Δ_{i-1} + Δ_i) and Δ_i / (Δ_{i-1} + Δ_i),
-    with the mirrored intervals at the ends; shaped (K, 1, ..., 1) to broadcast
-    over the batch and a last axis."""
-    shape = (K,) + (1,) * (batch_ndim + 1)
+    with the mirrored intervals at the ends; shaped (K, 1, ..., 1) (or
+    (K, n, 1, ..., 1) for times (K, n)) to broadcast over the batch and a last axis."""
     if times is None:
-        w = np.full(shape, 0.5)
+        w = np.full((K,) + (1,) * (batch_ndim + 1), 0.5)
         return w, w
-    dt = np.diff(times)
+    # times (K,) shared by every track, or (K, n) per track of the first batch axis
+    shape = times.shape + (1,) * (batch_ndim + 2 - times.ndim)
+    dt = np.diff(times, axis=0)
     din = np.concatenate([dt[:1], dt])
     dout = np.concatenate([dt, dt[-1:]])
     tot = din + dout

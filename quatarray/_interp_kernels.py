@@ -33,13 +33,13 @@ import numpy as np
 
 from . import _blocks
 from ._blocks import soa
-from ._kernels import result_dtype
+from ._kernels import norm, result_dtype
 from ._trig import atan_unit32, tan
 from ._validate import all_finite
 
 __all__ = [
     "vdot", "soa", "sqsum", "slerp_weights", "hemisphere", "wide_arcs", "slerp_core", "squad_param", "squad_blend",
-    "frame_core", "frames", "slerp", "lerp", "nlerp", "squad", "bezier", "unflip",
+    "frame_core", "frames", "slerp", "lerp", "nlerp", "squad", "bezier", "unflip", "unit_keys",
 ]
 
 
@@ -495,6 +495,22 @@ def _nlerp_block(A, B, h, O, shortest):
     np.sqrt(n, out=n)
     np.divide(1, n, out=n)
     np.multiply(N, n, out=O)
+
+
+def unit_keys(keys, name="keys"):
+    """Finite keyframes (K, ..., 4) unflipped along axis 0, then normalised.
+
+    Each key is first multiplied by a power of two near 1/its largest
+    component: exact (the same directions and dot-product signs), and no
+    overflow or underflow at any magnitude.  Zero keys raise `ValueError`.
+    """
+    _, e = np.frexp(np.abs(keys).max(axis=-1, keepdims=True))
+    keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
+    n = norm(keys)
+    if not (n > 0).all():
+        raise ValueError(f"expected non-zero {name}, got a zero quaternion")
+    # unflipped before normalising: the signs follow the dot products of the keys as given
+    return unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
 
 
 def unflip(q, axis):

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-__all__ = ["float_array", "quat_array", "all_finite", "finite", "batch_shape", "in_memory", "batch_axis"]
+__all__ = ["float_array", "quat_array", "all_finite", "finite", "batch_shape", "in_memory", "batch_axis", "key_times"]
 
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 
@@ -179,3 +179,27 @@ def batch_axis(axis, batch, name="q"):
         raise ValueError(f"expected axis in [{-nb}, {nb - 1}] (a batch axis of {name} with batch shape "
                          f"{tuple(batch)}), got {axis}")
     return int(axis) % nb
+
+
+def key_times(times, K, name="times", keys_name="keys"):
+    """`times` as float64 of shape (K,), finite and strictly increasing (`ValueError` otherwise).
+
+    >>> from quatarray._validate import key_times
+    >>> key_times([0, 2, 1], 3)
+    Traceback (most recent call last):
+    ...
+    ValueError: expected times in strictly increasing order, got times[2] = 1.0 after times[1] = 2.0
+    """
+    times = float_array(times, name, dtype=np.float64)
+    if times.ndim != 1:
+        raise ValueError(f"expected {name} of shape (K,) (a 1 dimensional array), got {times.shape}")
+    if times.shape[0] != K:
+        raise ValueError(f"expected as many {name} as {keys_name} (number of rotations equal to number "
+                         f"of timestamps), got {times.shape[0]} {name} and {K} {keys_name}")
+    finite(times, name)
+    bad = np.flatnonzero(np.diff(times) <= 0)
+    if bad.size:
+        j = int(bad[0])
+        raise ValueError(f"expected {name} in strictly increasing order, got "
+                         f"{name}[{j + 1}] = {float(times[j + 1])!r} after {name}[{j}] = {float(times[j])!r}")
+    return times

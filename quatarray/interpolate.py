@@ -31,7 +31,7 @@ from . import _interp_spline as ISp
 from . import _kernels as Kn
 from . import _track as TR
 from ._array import QuatArray
-from ._validate import batch_axis, finite, float_array, quat_array
+from ._validate import batch_axis, finite, float_array, key_times, quat_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -308,34 +308,14 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
         raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
                          f"(a sequence of at least 2 rotations), got {keys.shape}")
     finite(keys, name)
-    # each key times a power of two near 1/its largest component: exact (the same
-    # directions and dot-product signs), and no overflow or underflow at any magnitude
-    _, e = np.frexp(np.abs(keys).max(axis=-1, keepdims=True))
-    keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
-    n = Kn.norm(keys)
-    if not (n > 0).all():
-        raise ValueError(f"expected non-zero {name}, got a zero quaternion")
-    # unflipped before normalising: the signs follow the dot products of the keys as given
-    keys = IK.unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
+    keys = IK.unit_keys(keys, name)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
 
 
 def _check_times(times, K, name="times", keys_name="keys"):
-    times = float_array(times, name, dtype=np.float64)
-    if times.ndim != 1:
-        raise ValueError(f"expected {name} of shape (K,) (a 1 dimensional array), got {times.shape}")
-    if times.shape[0] != K:
-        raise ValueError(f"expected as many {name} as {keys_name} (number of rotations equal to number "
-                         f"of timestamps), got {times.shape[0]} {name} and {K} {keys_name}")
-    finite(times, name)
-    bad = np.flatnonzero(np.diff(times) <= 0)
-    if bad.size:
-        j = int(bad[0])
-        raise ValueError(f"expected {name} in strictly increasing order, got "
-                         f"{name}[{j + 1}] = {float(times[j + 1])!r} after {name}[{j}] = {float(times[j])!r}")
-    return times
+    return key_times(times, K, name, keys_name)
 
 
 def squad_control_points(keys, times=None):

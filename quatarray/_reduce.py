@@ -1,0 +1,329 @@
+"""Raw keyframe reduction: keep few samples of rotation tracks such that the curve
+through them stays within an angular tolerance of every sample.
+
+Samples are unit, unflipped quaternions ``Q`` of shape (T, B, 4) at times (T,).
+The result is, per track (or for all tracks at once with `shared`), the
+sorted indices of the samples kept as keys; `reduce` also returns the curve's
+maximum angular error at every original time, measured on the very `Track`s
+the caller gets back.
+
+Algorithm.  Greedy farthest reach: from a key s, the next key is the farthest
+sample c such that the segment [s, c], evaluated with the method's own
+kernels at the samples in between, stays within the tolerance (galloping
+from the previous segment's length, then bisection).  For 'linear' and
+'slerp' a segment depends on its two keys only, so that test is exact.
+squad's control points also depend on the neighbouring keys: the test takes
+the previous key and guesses the next one (a segment of the same length), and
+the final check repairs what the guess got wrong.
+
+To run without a Python loop over samples, every track is cut into chunks of
+`CHUNK` samples, and all (track, chunk) lanes advance in lock step: one
+iteration tests one candidate segment per lane, all evaluated in one batch.
+Chunk boundaries are forced keys at first; rounds of merges then drop those
+the neighbouring segments do not need.
+
+The check.  The kept keys are made into `Track`s, evaluated at every
+original time, and compared with the samples; where a segment exceeds the
+tolerance its worst sample becomes a key, until none does (keeping every
+sample reproduces every sample, so this ends).
+"""
+
+import numpy as np
+
+from . import _convert
+from . import _interp_curves as IC
+from . import _interp_kernels as IK
+from . import _kernels as Kn
+
+__all__ = ["METHODS", "CHUNK", "angle_between", "greedy", "reduce"]
+
+METHODS = ("linear", "slerp", "squad")
+#: Samples per lane of the lock-step greedy search.
+CHUNK = 2048
+#: Interior samples evaluated per batch (bounds the temporaries).
+BATCH = 1 << 16
+
+
+def angle_between(p, q):
+    """Angle in [0, π] of the rotation from p to q, ``|q p*|``, for (..., 4) arrays (broadcasting)."""
+    return _convert.magnitude(Kn.multiply(q, Kn.conjugate(p)))
+
+
+def _chord2(p, q):
+    """Squared distance from unit p to the nearer of ±q: the search's test, per sample.
+
+    A monotone function of the angle θ between the rotations (4 sin²(θ/4)),
+    exact for small angles and cheaper than the angle itself, which is
+    formed from it only once per segment.
+    """
+    d = p - q
+    a = IK.vdot(d, d)
+    np.add(p, q, out=d)
+    return np.minimum(a, IK.vdot(d, d))
+
+
+def _hemisphere(ref, q):
+    """q with its sign flipped where it points away from `ref` (shape (..., 4) both)."""
+    d = IK.vdot(ref, q)
+    return np.where((d < 0)[..., None], -q, q)
+
+
+def _controls(Q, times, p, s, c, n, b, first, last):
+    """squad control points at keys s and c of segments whose neighbouring keys are p
+    (before s) and n (after c), each -1 where not known yet (then the neighbouring
+    sample stands in: a short chord is the better guess of the tangent): the keys
+    and control points (m, X, 4).  `b` is the track (None: all)."""
+    T = len(times)
+    n = np.where(n < 0, np.minimum(c + 1, T - 1), n)
+    pp = np.where(p < 0, np.maximum(s - 1, 0), p)
+    qp, qs, qc, qn = (_take(Q, k, b) for k in (pp, s, c, n))
+    qp, qc = _hemisphere(qs, qp), _hemisphere(qs, qc)
+    qn = _hemisphere(qc, qn)
+    tp = np.where(pp == s, times[s] - (times[c] - times[s]), times[pp])
+    tn = np.where(n == c, times[c] + (times[c] - times[s]), times[n])
+    ts, tc = times[s], times[c]
+    a_s = IC.squad_controls(np.stack([qp, qs, qc]), np.stack([tp, ts, tc]))[1]
+    a_c = IC.squad_controls(np.stack([qs, qc, qn]), np.stack([ts, tc, tn]))[1]
+    # the track's ends: the control point is the key itself (squad_controls' reflection)
+    a_s = np.where((s == first)[:, None, None], qs, a_s)
+    a_c = np.where((c == last)[:, None, None], qc, a_c)
+    return qs, qc, a_s.astype(Q.dtype, copy=False), a_c.astype(Q.dtype, copy=False)
+
+
+def _take(Q, k, b):
+    """Samples k of tracks b (m, 1, 4), or of all tracks (m, B, 4) when b is None."""
+    if b is None:
+        return Q[k]
+    return Q.reshape(-1, 4)[k * Q.shape[1] + b][:, None]
+
+
+def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
+    """Largest angular error, shape (m,), of the segments [s, c] (m,) at the samples
+    strictly inside them, of track b (m,) or of all tracks (b None: max over tracks),
+    and the sample where it occurs (s where there is none).  p, n (m,) are the keys
+    before s and after c (-1: not known) for 'squad'."""
+    m = len(s)
+    inner = c - s - 1
+    out = np.zeros(m)
+    where = s.copy()
+    if m == 0 or inner.sum() == 0:
+        return out, where
+    if method == "squad":
+        first, last = 0, len(times) - 1
+        unknown = np.full(m, -1)
+        qs, qc, a_s, a_c = _controls(Q, times, unknown if p is None else p, s, c, unknown if n is None else n,
+                                     b, first, last)
+    else:
+        qs, qc = _take(Q, s, b), _take(Q, c, b)
+    # the segments in batches of about BATCH interior samples (whole segments per batch)
+    per = inner * (1 if b is not None else Q.shape[1])
+    ends = np.cumsum(per)
+    if ends[-1] <= BATCH:
+        bounds = [0, m]
+    else:
+        cuts = np.searchsorted(ends, np.arange(BATCH, ends[-1], BATCH), side="left") + 1
+        bounds = np.concatenate([[0], cuts[cuts < m], [m]])
+        bounds = bounds[np.concatenate([[True], np.diff(bounds) > 0])]
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        lo, hi = int(lo), int(hi)
+        n_in = inner[lo:hi]
+        tot = int(n_in.sum())
+        if tot == 0:
+            continue
+        seg = np.repeat(np.arange(lo, hi), n_in)
+        starts = np.cumsum(n_in) - n_in
+        k = np.arange(tot) - np.repeat(starts, n_in) + s[seg] + 1
+        u = ((times[k] - times[s[seg]]) / (times[c[seg]] - times[s[seg]])).astype(Q.dtype)
+        uu = np.broadcast_to(u[:, None], (tot, qs.shape[1]))
+        if method == "linear":
+            curve = IK.nlerp(qs[seg], qc[seg], uu, True)
+        elif method == "slerp":
+            curve = IK.slerp(qs[seg], qc[seg], uu, True)
+        else:
+            curve = IK.squad(qs[seg], a_s[seg], a_c[seg], _hemisphere(qs[seg], qc[seg]), uu)
+        err = _chord2(curve, _take(Q, k, None if b is None else b[seg])).max(axis=1)
+        nz = n_in > 0
+        worst = np.maximum.reduceat(err, starts[nz])
+        out[lo:hi][nz] = 4 * np.arcsin(np.sqrt(worst) / 2)
+        hit = np.flatnonzero(err == np.repeat(worst, n_in[nz]))
+        first_hit = hit[np.concatenate([[True], seg[hit][1:] != seg[hit][:-1]])]
+        where[seg[first_hit]] = k[first_hit]
+    return out, where
+
+
+def greedy(method, times, Q, tol, shared, chunk=CHUNK):
+    """Kept sample indices: a list of B sorted index arrays, or one with `shared`."""
+    T, B = Q.shape[:2]
+    tracks = [None] if shared else list(range(B))
+    nch = max(1, -(-(T - 1) // chunk))
+    bounds = np.minimum(np.arange(nch + 1) * chunk, T - 1)
+    lane_b = np.repeat(np.arange(len(tracks)), nch)
+    a = np.tile(bounds[:-1], len(tracks))
+    e = np.tile(bounds[1:], len(tracks))
+    s = a.copy()
+    lo = s + 1
+    hi = np.full_like(s, -1)
+    guess = np.full_like(s, 8)
+    prev = np.full_like(s, -1)
+    pprev = np.full_like(s, -1)
+    last_len = np.ones(len(s))
+    last_err = np.zeros(len(s))
+    bisect = np.zeros(len(s), bool)
+    order = 4 if method == "squad" else 2
+    found = [a, e]
+    active = s < e
+    while True:
+        commit = active & (((hi < 0) & (lo >= e)) | ((hi >= 0) & (hi - lo <= 1)))
+        if commit.any():
+            found.append(lane_b[commit] * T + lo[commit] if not shared else lo[commit])
+            guess[commit] = lo[commit] - s[commit]
+            pprev[commit] = prev[commit]
+            prev[commit] = s[commit]
+            s[commit] = lo[commit]
+            lo[commit] = s[commit] + 1
+            hi[commit] = -1
+            bisect[commit] = False
+            active &= s < e
+        if not active.any():
+            break
+        # next candidate end: the error of the last test predicts the length where it
+        # reaches tol (it grows like length^order); in a bracket, every other step bisects
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            pred = np.floor(last_len * (tol / last_err) ** (1 / order) * 0.98)
+        pred = np.nan_to_num(pred, nan=0, posinf=1e18).astype(np.int64, copy=False)
+        fresh = lo == s + 1
+        gallop = np.minimum(np.clip(s + pred, 2 * lo - s, 4 * lo - 3 * s), e)
+        gallop = np.where(fresh, np.minimum(np.maximum(s + guess, lo + 1), e), gallop)
+        bracket = np.where(bisect, (lo + hi) // 2, np.clip(s + pred, lo + 1, hi - 1))
+        cand = np.where(hi < 0, gallop, bracket)
+        test = np.flatnonzero(active & (cand > lo))
+        if test.size == 0:
+            continue
+        c = cand[test]
+        tb = None if shared else lane_b[test]
+        if method != "squad":
+            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb)
+        else:
+            # squad: the candidate also sets the previous segment's end control point, so
+            # that segment is tested again with it (and its own previous key)
+            back = prev[test] >= 0
+            m = test.size
+            err, _ = segment_errors(
+                method, times, Q, np.r_[s[test], prev[test][back]], np.r_[c, s[test][back]],
+                np.r_[prev[test], pprev[test][back]], np.r_[np.full(m, -1), c[back]],
+                None if shared else np.r_[tb, tb[back]])
+            err[:m][back] = np.maximum(err[:m][back], err[m:])
+            err = err[:m]
+        ok = err <= tol
+        lo[test[ok]] = c[ok]
+        hi[test[~ok]] = c[~ok]
+        last_len[test] = c - s[test]
+        last_err[test] = err
+        bisect[test] = ~bisect[test] & (hi[test] >= 0)
+    if shared:
+        kept = [np.unique(np.concatenate([found[0], found[1]] + found[2:]))]
+    else:
+        first = [lane_b * T + found[0], lane_b * T + found[1]]
+        flat = np.unique(np.concatenate(first + found[2:]))
+        kept = np.split(flat % T, np.searchsorted(flat, np.arange(1, B) * T))
+    kept = [_merge(method, times, Q, k, tol, None if shared else j, bounds[1:-1]) for j, k in enumerate(kept)]
+    return _repair(method, times, Q, kept, tol, shared) if method == "squad" else kept
+
+
+def _merge(method, times, Q, kept, tol, b, forced):
+    """Drop the forced chunk boundaries that the segments around them do not need."""
+    forced = np.intersect1d(kept, forced)
+    for _ in range(64):
+        changed = False
+        for parity in (0, 1):
+            pos = np.searchsorted(kept, forced)
+            pos = pos[(np.arange(len(pos)) % 2 == parity)]
+            pos = pos[(pos > 0) & (pos < len(kept) - 1)]
+            if pos.size == 0:
+                continue
+            prev = np.where(pos >= 2, kept[np.maximum(pos - 2, 0)], -1)
+            nxt = np.where(pos + 2 < len(kept), kept[np.minimum(pos + 2, len(kept) - 1)], -1)
+            err, _ = segment_errors(method, times, Q, kept[pos - 1], kept[pos + 1], prev, nxt,
+                                    None if b is None else np.full(len(pos), b))
+            drop = kept[pos[err <= tol]]
+            if drop.size:
+                kept = np.setdiff1d(kept, drop)
+                forced = np.setdiff1d(forced, drop)
+                changed = True
+        if not changed:
+            break
+    return kept
+
+
+def _repair(method, times, Q, kept, tol, shared):
+    """Segments checked with their actual neighbouring keys; the worst sample of each
+    one over `tol` becomes a key, until none is.  Only the segments next to new keys
+    (whose control points changed) are checked again, all tracks in one batch."""
+    T = len(times)
+    G = np.concatenate([j * T + k for j, k in enumerate(kept)])   # one sorted array for every track
+    dirty = np.arange(len(G) - 1)
+    while dirty.size:
+        j = dirty[G[dirty] // T == G[dirty + 1] // T]
+        track = G[j] // T
+        s, c = G[j] % T, G[j + 1] % T
+        before = np.maximum(j - 1, 0)
+        after = np.minimum(j + 2, len(G) - 1)
+        p = np.where((j > 0) & (G[before] // T == track), G[before] % T, -1)
+        n = np.where((j + 2 < len(G)) & (G[after] // T == track), G[after] % T, -1)
+        err, worst = segment_errors(method, times, Q, s, c, p, n, None if shared else track)
+        bad = err > tol
+        if not bad.any():
+            break
+        new = track[bad] * T + worst[bad]
+        G = np.union1d(G, new)
+        pos = np.searchsorted(G, new)
+        dirty = np.unique(np.clip((pos[:, None] + np.arange(-2, 2)).ravel(), 0, len(G) - 2))
+    return [G[(G >= j * T) & (G < (j + 1) * T)] - j * T for j in range(len(kept))]
+
+
+def refine(check, times, kept, tol):
+    """Add keys until ``check(kept)`` (the errors at every sample, (T, X)) are within `tol`.
+
+    Per segment over tolerance its worst sample becomes a key.  Returns the
+    final kept indices and errors (T, X)."""
+    T = len(times)
+    while True:
+        errors = check(kept)
+        err = errors.max(axis=1)
+        seg = np.searchsorted(kept, np.arange(T), side="right") - 1
+        bad = err > tol
+        if not bad.any() or len(kept) == T:
+            return kept, errors
+        worst = np.maximum.reduceat(err, kept[:-1])   # per segment (the last key joins the last one)
+        hit = np.flatnonzero(bad & (err == worst[np.minimum(seg, len(worst) - 1)]))
+        add = hit[np.concatenate([[True], seg[hit][1:] != seg[hit][:-1]])]
+        kept = np.union1d(kept, add)
+
+
+def reduce(method, times, Q, tol, shared, make_track):
+    """Greedy reduction, then the check: ``(kept indices, Tracks, max errors)``.
+
+    `make_track(idx, b)` builds the `Track` of samples idx of track b (None:
+    all); `Q` (T, B, 4) holds the reference samples.  Returns a list per
+    track (one entry with `shared`) and the errors per track (B,).
+    """
+    kept = greedy(method, times, Q, tol, shared)
+    tracks, errors, out = [], np.zeros(Q.shape[1]), []
+    for j, k in enumerate(kept):
+        b = None if shared else j
+        ref = Q if shared else Q[:, j:j + 1]
+
+        def check(idx):
+            track = make_track(idx, b)
+            return angle_between(np.asarray(track(times)).reshape(ref.shape), ref)
+
+        k, err = refine(check, times, k, tol)
+        track = make_track(k, b)
+        err = err.max(axis=0)
+        if shared:
+            errors[:] = err
+        else:
+            errors[j] = err[0]
+        out.append(k)
+        tracks.append(track)
+    return out, tracks, errors
