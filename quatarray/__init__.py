@@ -19,14 +19,16 @@ from ._rigid_transform import RigidTransform
 from .rigid import RigidTrack, dual_quaternion_blend, normalize_dual_quaternion, sclerp
 from .spline import RotationSpline
 from .interpolate import Slerp, Track, bezier, bezier_control_points, lerp, nlerp, slerp, squad, squad_control_points, unflip
-from .timeseries import ReducedKeys, reduce_keys
+from .timeseries import (ReducedKeys, angular_velocity, fill_gaps, geodesic_mean, integrate_angular_velocity,
+                         minimal_rotation, reduce_keys, smooth, swing_twist)
 
 __all__ = [
     "QuatArray", "Rotation", "Slerp", "Track",
     "lerp", "nlerp", "slerp", "squad", "squad_control_points", "bezier", "bezier_control_points", "unflip",
     "RotationSpline", "RigidTransform", "RigidTrack", "sclerp", "dual_quaternion_blend", "normalize_dual_quaternion",
     "set_num_threads", "get_num_threads", "num_threads",
-    "reduce_keys", "ReducedKeys",
+    "reduce_keys", "ReducedKeys", "integrate_angular_velocity", "angular_velocity", "minimal_rotation",
+    "swing_twist", "geodesic_mean", "smooth", "fill_gaps",
     "testing",
 ]
 __version__ = "0.1.0"

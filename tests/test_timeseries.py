@@ -32,7 +32,7 @@ def measured(tracks, times, keys, shared):
     return np.array([angles(np.asarray(tr(times)), Q[:, j]).max() for j, tr in enumerate(tracks)])
 
 
-def smooth(T=400, batch=(), seed=1, span=4.0):
+def smooth_series(T=400, batch=(), seed=1, span=4.0):
     rng = np.random.default_rng(seed)
     t = np.linspace(0, span, T)
     f = rng.uniform(0.1, 0.4, batch + (3,))
@@ -59,7 +59,7 @@ def check(times, keys, tol, method, shared=False, dtype=None):
 @pytest.mark.parametrize("shared", [False, True])
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_bound_smooth(method, shared, dtype):
-    t, q = smooth(300, (2, 3))
+    t, q = smooth_series(300, (2, 3))
     tracks, err = check(t, q, 1e-3 if dtype == np.float64 else 3e-3, method, shared, dtype)
     if shared:
         assert tracks.batch_shape == (2, 3) and tracks.dtype == dtype
@@ -71,7 +71,7 @@ def test_bound_smooth(method, shared, dtype):
 
 def test_order_of_tracks():
     """shared=False: one Track per track in the batch's C order, keys taken from that track."""
-    t, q = smooth(200, (2, 3))
+    t, q = smooth_series(200, (2, 3))
     tracks, _ = reduce_keys(t, q, 1e-3)
     flat = unit(q).reshape(200, 6, 4)
     for j, tr in enumerate(tracks):
@@ -121,7 +121,7 @@ def test_constant_and_steps(method, dtype):
 @pytest.mark.parametrize("method", METHODS)
 def test_near_antipodal_neighbours(method, rng):
     """Signs flipping between samples (q, -q) and neighbours almost a half turn apart."""
-    t, q = smooth(200, (2,), seed=3)
+    t, q = smooth_series(200, (2,), seed=3)
     q = q * np.where(rng.random((200, 2, 1)) < 0.5, -1, 1)      # random signs: the same rotations
     check(t, q, 1e-3, method)
     half = np.array([0.0, 1.0, 0.0, 0.0])
@@ -146,7 +146,7 @@ def test_recovers_the_keys_of_its_own_curve(rng):
 
 
 def test_degrees_and_rotation_input():
-    t, q = smooth(200)
+    t, q = smooth_series(200)
     r = Rotation.from_quat(q, scalar_first=True)
     tracks_deg, err_deg = reduce_keys(t, r, 0.1, degrees=True)
     tracks_rad, err_rad = reduce_keys(t, q, np.radians(0.1))
@@ -156,7 +156,7 @@ def test_degrees_and_rotation_input():
 
 
 def test_inputs_untouched_and_read_only():
-    t, q = smooth(100, (2,))
+    t, q = smooth_series(100, (2,))
     q = -q                                      # flipped signs: unflipping must not write back
     t.flags.writeable = False
     q.flags.writeable = False
@@ -192,3 +192,262 @@ def test_errors(args, kwargs, match):
 def test_tolerance_type():
     with pytest.raises(TypeError, match="tolerance to be a real number"):
         reduce_keys([0, 1], [[1.0, 0, 0, 0], [1, 0, 0, 0]], "0.1deg")
+
+
+# ---------------------------------------------------------------------------
+# angular velocity <-> orientation
+# ---------------------------------------------------------------------------
+
+from quatarray import (angular_velocity, fill_gaps, geodesic_mean, integrate_angular_velocity,  # noqa: E402
+                       minimal_rotation, smooth, swing_twist)
+
+NU, BETA = 2.0, 0.3
+
+
+def coning(t):
+    """R(t) = Rz(ν t) Rx(β) Rz(-ν t) and its world angular velocity ν (z - Rz(ν t) Rx(β) z)."""
+    spin = Rotation.from_rotvec(np.outer(NU * t, [0, 0, 1]))
+    tilt = Rotation.from_rotvec([BETA, 0, 0])
+    R = spin * tilt * spin.inv()
+    return R, NU * (np.array([0, 0, 1.0]) - (spin * tilt).apply([0, 0, 1.0]))
+
+
+def rotation_error(a, b):
+    return (a * b.inv()).magnitude()
+
+
+def test_integrate_constant_omega_exact(rng):
+    """Piecewise-constant ω (held over each interval) integrates exactly, both frames, any batch."""
+    t = np.cumsum(rng.uniform(0.01, 0.1, 40))
+    w = rng.normal(size=(40, 2, 3))
+    q0 = Rotation.random(2, rng=rng)
+    for frame in ("world", "body"):
+        r = integrate_angular_velocity(t, w, initial=q0, frame=frame, method="constant")
+        assert r.shape == (40, 2)
+        # step by step: world steps act on the left, body steps on the right
+        ref = [q0]
+        for k in range(39):
+            step = Rotation.from_rotvec(w[k] * (t[k + 1] - t[k]))
+            ref.append(step * ref[-1] if frame == "world" else ref[-1] * step)
+        ref = Rotation.concatenate([x[None] for x in ref])
+        assert rotation_error(r, ref).max() < 1e-13
+
+
+def test_integrate_frame_order_pinned():
+    """A world-frame z spin after a body tilt: the two frames differ, and each matches q̇ = ½ ω q resp. ½ q ω."""
+    t = np.linspace(0, 1, 3)
+    tilt = Rotation.from_rotvec([np.pi / 2, 0, 0])
+    w = np.tile([0, 0, np.pi / 2], (3, 1))
+    world = integrate_angular_velocity(t, w, initial=tilt, frame="world", method="constant")
+    body = integrate_angular_velocity(t, w, initial=tilt, frame="body", method="constant")
+    spin = Rotation.from_rotvec([0, 0, np.pi / 2])
+    assert rotation_error(world[-1], spin * tilt) < 1e-15          # world: the step on the left
+    assert rotation_error(body[-1], tilt * spin) < 1e-15           # body: the step on the right
+    assert rotation_error(world[-1], body[-1]) > 1                 # and they are not the same
+
+
+@pytest.mark.parametrize("frame", ["world", "body"])
+def test_integrate_coning_closed_form(frame):
+    t = np.arange(0, 10 + 1e-9, 0.005)
+    R, w = coning(t)
+    if frame == "body":
+        w = R.inv().apply(w)
+    r = integrate_angular_velocity(t, w, initial=R[0], frame=frame)
+    assert rotation_error(r, R).max() < 1e-11
+    # fourth order: halving the step divides the error by about 16
+    errs = []
+    for dt in (0.04, 0.02):
+        tt = np.arange(0, 10 + 1e-9, dt)
+        RR, ww = coning(tt)
+        errs.append(rotation_error(integrate_angular_velocity(tt, ww, initial=RR[0]), RR).max())
+    assert 10 < errs[0] / errs[1] < 40
+
+
+def test_integrate_as_accurate_as_numpy_quaternion():
+    quaternion = pytest.importorskip("quaternion")
+    t = np.arange(0, 10 + 1e-9, 0.005)
+    R, w = coning(t)
+    ours = rotation_error(integrate_angular_velocity(t, w, initial=R[0]), R)
+    R0 = quaternion.from_float_array(R[0].as_quat(scalar_first=True))
+    _, Rq = quaternion.integrate_angular_velocity((t, w), t[0], t[-1], R0=R0)
+    theirs = rotation_error(Rotation.from_quat(quaternion.as_float_array(Rq), scalar_first=True), R)
+    assert ours[-1] <= theirs[-1] and ours.max() <= theirs.max()
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_integrate_dtype_and_batch(dtype, rng):
+    t = np.linspace(0, 1, 20)
+    w = rng.normal(size=(20, 2, 3, 3)).astype(dtype)
+    r = integrate_angular_velocity(t, w)
+    assert r.shape == (20, 2, 3) and r.dtype == dtype
+    one = integrate_angular_velocity(t, w[:, 1, 2])
+    assert rotation_error(r[:, 1, 2], one).max() < 1e-6 if dtype == np.float32 else 1e-14
+
+
+def euler_motion():
+    t = np.linspace(0, 4, 401)
+    a, ad, add = np.sin(1.3 * t) + 0.2 * t, 1.3 * np.cos(1.3 * t) + 0.2, -1.69 * np.sin(1.3 * t)
+    b, bd, bdd = 0.7 * np.cos(0.9 * t), -0.63 * np.sin(0.9 * t), -0.567 * np.cos(0.9 * t)
+    R = Rotation.from_euler("ZX", np.c_[a, b])                    # Rz(a) Rx(b)
+    z, x = np.array([0, 0, 1.0]), np.array([1.0, 0, 0])
+    Rz = Rotation.from_rotvec(np.outer(a, z))
+    w = np.outer(ad, z) + Rz.apply(np.outer(bd, x))
+    alpha = np.outer(add, z) + Rz.apply(np.outer(bdd, x)) + np.cross(np.outer(ad, z), Rz.apply(np.outer(bd, x)))
+    return t, R, w, alpha
+
+
+def test_angular_velocity_closed_form_and_ends():
+    t, R, w, alpha = euler_motion()
+    got, acc = angular_velocity(t, R, acceleration=True)
+    assert np.linalg.norm(got - w, axis=1).max() < 1e-10             # ends included
+    assert np.linalg.norm(acc - alpha, axis=1).max() < 1e-7
+    body = angular_velocity(t, R, frame="body")
+    np.testing.assert_allclose(R.apply(body), got, atol=1e-13)
+
+
+def test_angular_velocity_within_twice_numpy_quaternion():
+    quaternion = pytest.importorskip("quaternion")
+    t, R, w, _ = euler_motion()
+    ours = np.linalg.norm(angular_velocity(t, R) - w, axis=1)
+    theirs = np.linalg.norm(quaternion.angular_velocity(
+        quaternion.from_float_array(R.as_quat(scalar_first=True)), t) - w, axis=1)
+    assert ours.max() <= 2 * theirs.max()
+    assert ours[10:-10].max() <= 2 * theirs[10:-10].max()
+
+
+@pytest.mark.parametrize("batch", [(), (3,), (2, 2)])
+def test_angular_velocity_batch_roundtrip(batch, rng):
+    """Differentiating the integral of a smooth ω gives ω back, per track as in a batch."""
+    t = np.linspace(0, 2, 201)
+    f = rng.uniform(0.5, 1.5, batch + (3,))
+    w = np.cos(np.multiply.outer(t, f))
+    r = integrate_angular_velocity(t, w, frame="body")
+    back = angular_velocity(t, r, frame="body")
+    assert back.shape == (201,) + batch + (3,)
+    assert np.abs(back - w).max() < 1e-8
+
+
+def test_minimal_rotation():
+    t = np.linspace(0, 2, 201)
+    r = Rotation.from_euler("zx", np.c_[3 * t, np.sin(t)])
+    m = minimal_rotation(t, r)
+    assert np.abs(angular_velocity(t, m, frame="body")[:, 2]).max() < 1e-6
+    np.testing.assert_allclose(m.apply([0, 0, 1]), r.apply([0, 0, 1]), atol=1e-12)
+    assert rotation_error(m[0], r[0]) < 1e-15
+
+
+# ---------------------------------------------------------------------------
+# swing-twist, geodesic mean
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("batch", [(), (5,), (2, 3)])
+def test_swing_twist(batch, rng):
+    r = Rotation.random(shape=batch, rng=rng)
+    axis = rng.normal(size=batch + (3,))
+    swing, twist = swing_twist(r, axis)
+    assert swing.shape == twist.shape == batch
+    assert rotation_error(swing * twist, r).max() < 1e-14
+    a = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    rv = twist.as_rotvec()
+    np.testing.assert_allclose(np.cross(rv, a), 0, atol=1e-14)        # the twist turns about the axis
+    np.testing.assert_allclose(np.sum(swing.as_rotvec() * a, axis=-1), 0, atol=1e-14)   # the swing across it
+
+
+def test_swing_twist_undefined_twist():
+    swing, twist = swing_twist(Rotation.from_rotvec([np.pi, 0, 0]), [0, 0, 1])
+    assert twist.magnitude() == 0 and abs(swing.magnitude() - np.pi) < 1e-15
+
+
+def test_geodesic_mean(rng):
+    # about one axis the geodesic mean is the weighted mean angle
+    ang = rng.uniform(-1, 1, 7)
+    wts = rng.uniform(0.1, 1, 7)
+    r = Rotation.from_rotvec(np.outer(ang, [0, 1, 0]))
+    m = geodesic_mean(r, weights=wts)
+    np.testing.assert_allclose(m.as_rotvec(), [0, np.average(ang, weights=wts), 0], atol=1e-13)
+    # in general: the weighted sum of the logs at the mean vanishes (first-order condition)
+    base = Rotation.random(rng=rng)
+    r = base * Rotation.from_rotvec(rng.normal(0, 0.4, (4, 6, 3)))
+    m = geodesic_mean(r, axis=1)
+    assert m.shape == (4,)
+    logs = (m[:, None].inv() * r).as_rotvec()
+    assert np.abs(logs.sum(axis=1)).max() < 1e-10
+    # it minimises the sum of squared angles: no worse than the chordal mean (its start)
+    def cost(mean):
+        return np.sum((mean[:, None].inv() * r).magnitude() ** 2, axis=1)
+    assert (cost(m) <= cost(r.mean(axis=1))).all()
+
+
+def test_geodesic_mean_errors():
+    r = Rotation.from_rotvec([[0, 0, 0.1], [0, 0, 0.2]])
+    with pytest.raises(ValueError, match="tol > 0"):
+        geodesic_mean(r, tol=0)
+    with pytest.raises(ValueError, match="max_iter"):
+        geodesic_mean(r, max_iter=0)
+    with pytest.raises(ValueError, match="positive sum"):
+        geodesic_mean(r, weights=[0, 0])
+
+
+# ---------------------------------------------------------------------------
+# smoothing and gaps
+# ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_smooth_reduces_error_to_truth(dtype, rng):
+    t = np.linspace(0, 4, 401)
+    truth = Rotation.from_euler("zx", np.c_[np.sin(t), 0.5 * np.cos(2 * t)])
+    noise = Rotation.from_rotvec(rng.normal(0, 0.01, (401, 3)))
+    noisy = Rotation.from_quat(((truth * noise).as_quat() * np.where(rng.random((401, 1)) < 0.3, -1, 1))
+                               .astype(dtype))
+    before = rotation_error(noisy, truth)
+    out = smooth(t, noisy, 0.3)
+    assert out.dtype == dtype
+    after = rotation_error(out, truth)
+    assert after.mean() < before.mean() / 3 and after.max() < before.max()
+    # the signs of the input are kept (hemisphere)
+    assert (np.sum(out.as_quat() * noisy.as_quat(), axis=-1) > 0).all()
+
+
+def test_fill_gaps():
+    t = np.arange(10.0)
+    q = Rotation.from_rotvec(np.outer(t / 10, [0, 0, 1])).as_quat(scalar_first=True)
+    q = np.stack([q, q], axis=1)
+    q[2:4, 0] = np.nan          # a gap of 3 s between valid samples 1 and 4
+    q[6, 1] = np.nan            # a gap of 2 s
+    q[9, 1] = np.nan            # after the last valid sample
+    out = np.asarray(fill_gaps(t, q, 2.5))
+    assert np.isnan(out[2:4, 0]).all()                       # too long: left as NaN
+    assert not np.isnan(out[6, 1]).any() and np.isnan(out[9, 1]).all()
+    ref = Rotation.from_rotvec([0, 0, 0.6]).as_quat(scalar_first=True)
+    assert angles(out[6, 1], ref) < 1e-14                    # SLERP of a uniform spin is exact
+    out = np.asarray(fill_gaps(t, q, 3.0))
+    assert not np.isnan(out[2:4, 0]).any()
+
+
+def test_nan_refused_elsewhere():
+    q = np.tile([1.0, 0, 0, 0], (3, 1))
+    q[1, 0] = np.nan
+    for call in (lambda: angular_velocity([0, 1, 2], q), lambda: smooth([0, 1, 2], q, 1.0),
+                 lambda: reduce_keys([0, 1, 2], q, 0.1)):
+        with pytest.raises(ValueError, match="finite values"):
+            call()
+    with pytest.raises(ValueError, match="finite values"):
+        integrate_angular_velocity([0, 1, 2], [[0, 0, 1.0], [np.nan, 0, 0], [0, 0, 0]])
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: integrate_angular_velocity([0, 1, 1], np.zeros((3, 3))), "strictly increasing"),
+    (lambda: integrate_angular_velocity([0, 1], np.zeros((2, 4))), r"omega of shape \(T, \.\.\., 3\)"),
+    (lambda: integrate_angular_velocity([0, 1], np.zeros((2, 3)), frame="space"), "expected frame in"),
+    (lambda: integrate_angular_velocity([0, 1], np.zeros((2, 3)), method="rk4"), "expected method in"),
+    (lambda: integrate_angular_velocity([0, 1], np.zeros((2, 2, 3)), initial=np.ones((3, 4))), "initial"),
+    (lambda: angular_velocity([1, 0], np.tile([1.0, 0, 0, 0], (2, 1))), "strictly increasing"),
+    (lambda: angular_velocity([0, 1], np.tile([1.0, 0, 0, 0], (2, 1)), points=1), "points"),
+    (lambda: smooth([0, 1, 2], np.tile([1.0, 0, 0, 0], (3, 1)), 0), "window > 0"),
+    (lambda: fill_gaps([0, 1, 2], np.tile([1.0, 0, 0, 0], (3, 1)), -1), "max_gap > 0"),
+    (lambda: swing_twist(Rotation.identity(), [0, 0, 0]), "non-zero axis"),
+    (lambda: minimal_rotation([0, 1], np.tile([1.0, 0, 0, 0], (2, 1)), axis=[0, 0, 0]), "non-zero axis"),
+])
+def test_series_errors(call, match):
+    with pytest.raises(ValueError, match=match):
+        call()
