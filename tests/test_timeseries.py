@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from quatarray import Rotation, Track, reduce_keys
-from quatarray.io import example_path, read_bvh, read_csv
+from quatarray.formats import example_path, read_bvh, read_csv
 
 METHODS = ("linear", "slerp", "squad")
 
