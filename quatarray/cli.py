@@ -5,6 +5,7 @@
     quatarray resample IN -o OUT (--fps F | --times FILE) [--method slerp|linear|squad|bezier|spline]
                                  [--extrapolate raise|clamp|extend] [--scalar-last]
                                  [--precision N|full] [--force]
+    quatarray reduce IN -o OUT --tolerance ANGLE [--method slerp|linear|squad] [--scalar-last] [--force]
     quatarray demo [-o DIR]
     quatarray --version
 
@@ -29,6 +30,7 @@ import numpy as np
 from .formats import (FORMATS, FormatError, NonUnitKeyWarning, example_path, format_of, fps_times, read_bvh,
                       read_csv, resample_file, resample_motion, write_bvh, write_csv, write_npz)
 from .formats.atomic import atomic_write
+from .formats.reduce import parse_tolerance, reduce_file
 from .formats.text import command_line, echo
 from .interpolate import EXTRAPOLATE, METHODS as _TRACK_METHODS, Track
 
@@ -36,6 +38,8 @@ __all__ = ["main", "demo"]
 
 #: The Track methods the command line offers, default first.
 METHODS = ("slerp",) + tuple(m for m in _TRACK_METHODS if m != "slerp")
+#: The methods of ``quatarray reduce`` (those `quatarray.reduce_keys` offers).
+REDUCE_METHODS = ("slerp", "linear", "squad")
 
 
 # --------------------------------------------------------------------------- demo
@@ -213,6 +217,24 @@ def build_parser():
     p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
     p.set_defaults(run=_run_resample)
 
+    p = commands.add_parser(
+        "reduce", help="keep fewer keys, every track within an angular tolerance (.csv, .npz, .bvh)",
+        description="Drop keys while the curve through the kept ones stays within --tolerance of every "
+                    "original key, and print keys before and after and the largest error per track. "
+                    "CSV and NPZ tracks keep one shared set of key times (the kept rows are written as read). "
+                    "BVH frames stay on one uniform grid: the clip is resampled at the coarsest whole "
+                    "multiple of its frame time that keeps every joint within the tolerance (positions "
+                    "linearly, outside the bound).")
+    p.add_argument("input", metavar="IN", help="keyframe file to read")
+    p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
+    p.add_argument("--tolerance", type=_tolerance, required=True, metavar="ANGLE",
+                   help="largest angle from any original key: 0.1deg, 0.002rad or 0.002 (radians)")
+    p.add_argument("--method", choices=REDUCE_METHODS, default="slerp",
+                   help="curve the reader draws through the keys (default: slerp)")
+    p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
+    p.add_argument("--force", action="store_true", help="allow OUT to be IN (replaced atomically)")
+    p.set_defaults(run=_run_reduce)
+
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",
                             description="Resample a shipped example track with slerp, squad and Bezier, print "
                                         "what was done and plot the angular speed to DIR/demo.png.")
@@ -240,6 +262,28 @@ def _count(n, noun):
     return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
+def _tolerance(text):
+    try:
+        return parse_tolerance(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _run_reduce(args):
+    start = time.perf_counter()
+    rows = reduce_file(args.input, args.output, args.tolerance, method=args.method,
+                       scalar_last=args.scalar_last, force=args.force)
+    width = max(len(r[0]) for r in rows) if rows else 0
+    for name, before, after, err in rows:
+        print(f"  {name:<{width}}  {before} -> {_count(after, 'key')}   max error {np.degrees(err):.4g} deg")
+    total_before = sum(r[1] for r in rows)
+    total_after = sum(r[2] for r in rows)
+    print(f"{args.input} -> {args.output}: {total_before} -> {_count(total_after, 'key')} over "
+          f"{_count(len(rows), 'track')} ({args.method}, tolerance {np.degrees(args.tolerance):.4g} deg, "
+          f"{time.perf_counter() - start:.2f} s)")
+    return 0
+
+
 def _run_demo(args):
     demo(args.output)
     return 0
@@ -253,7 +297,7 @@ def main(argv=None):
     2
     """
     args = build_parser().parse_args(argv)
-    where = args.input if args.command == "resample" else args.output
+    where = args.input if args.command in ("resample", "reduce") else args.output
     try:
         with _exit_on_sigterm(), command_line(), warnings.catch_warnings():
             warnings.simplefilter("always", NonUnitKeyWarning)

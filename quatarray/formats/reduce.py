@@ -1,0 +1,161 @@
+"""Keyframe files with fewer keys within an angular tolerance (`reduce_file`, ``quatarray reduce``).
+
+Formats come from the registry (`quatarray.formats.FORMATS`): its readers and
+writers, and per family the way keys can be dropped:
+
+- **CSV, NPZ** (one time column for every track): the tracks keep one shared
+  set of key times (`quatarray.reduce_keys` with ``shared=True``); the kept
+  rows are written exactly as they were read.
+- **BVH** (frames on one uniform grid): keys cannot be dropped one by one.
+  The clip is resampled onto the coarsest uniform grid, a whole multiple n
+  of the frame time, whose curve, evaluated back at every original frame,
+  keeps every joint's rotation within the tolerance (frame time n times the
+  old one; a last frame past the end holds the end pose).  Position channels
+  are interpolated linearly and are not part of the bound.
+- **glTF** is not supported here yet.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from .. import _euler, _reduce
+from ..timeseries import reduce_keys
+from .bvh import resample_motion
+from .keyframes import Keyframes
+from .registry import FORMATS, Request, format_of
+from .text import FormatError
+
+__all__ = ["reduce_file", "parse_tolerance"]
+
+
+def parse_tolerance(text):
+    """An angle given as text, in radians: ``"0.1deg"``, ``"0.002rad"`` or ``"0.002"`` (radians).
+
+    >>> from quatarray.formats.reduce import parse_tolerance
+    >>> round(parse_tolerance("0.1deg"), 12), parse_tolerance("0.002")
+    (0.001745329252, 0.002)
+    """
+    s = str(text).strip().lower()
+    scale = 1.0
+    for unit, factor in (("deg", np.pi / 180), ("°", np.pi / 180), ("rad", 1.0)):
+        if s.endswith(unit):
+            s, scale = s[:-len(unit)].strip(), factor
+            break
+    try:
+        value = float(s) * scale
+    except ValueError:
+        value = float("nan")
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"expected tolerance a positive angle such as 0.1deg or 0.002rad, got {text!r}")
+    return value
+
+
+def _reduce_keyframes(src, dst, kind_in, kind_out, tolerance, method, request):
+    data = FORMATS[kind_in].read(src, request)
+    track, err = reduce_keys(data.times, data.keys, tolerance, method=method, shared=True)
+    idx = np.searchsorted(data.times, track.times)
+    out = Keyframes(data.times[idx], data.keys[idx], data.names, data.style)
+    FORMATS[kind_out].write(dst, out, request)
+    names = data.names or tuple(f"q{j}" for j in range(err.size))
+    return [(name, len(data.times), len(idx), float(e)) for name, e in zip(names, err.ravel())]
+
+
+def _motion_quats(motion):
+    """Joint rotations (frames, joints, 4) of a BVH clip and the joints' names, in channel order."""
+    parts, names = [], []
+    rotating = [j for j in motion.joints if j.rotation[0]]
+    for seq, cols in motion.rotation_groups().items():
+        q = _euler.from_euler(seq, motion.frames[:, cols.ravel()].reshape(-1, 3), degrees=True)
+        parts.append(q.reshape(len(motion.frames), -1, 4))
+        names += [j.name for j in rotating if j.rotation[0].upper() == seq]
+    return np.concatenate(parts, axis=1), names
+
+
+def _reduce_bvh(src, dst, kind_in, kind_out, tolerance, method, request):
+    motion = FORMATS[kind_in].read(src, request)
+    times = motion.times
+    T = len(times)
+    ref, names = _motion_quats(motion)
+
+    def coarse(n):
+        m = -(-(T - 1) // n)                     # frames 0, n, ..., m n (the last one may pass the end)
+        grid = np.arange(m + 1) * n * motion.frame_time
+        out = resample_motion(motion, grid, method=method, extrapolate="clamp", frame_time=n * motion.frame_time)
+        back = resample_motion(out, times, method=method, extrapolate="clamp")
+        return out, _reduce.angle_between(_motion_quats(back)[0], ref).max(axis=0)
+
+    best = (motion, np.zeros(len(names)), 1)
+    lo, hi = 1, max(1, T - 1)                     # n = lo meets the tolerance; find the largest that does
+    while lo < hi:
+        n = (lo + hi + 1) // 2
+        out, err = coarse(n)
+        if (err <= tolerance).all():
+            lo, best = n, (out, err, n)
+        else:
+            hi = n - 1
+    out, err, n = best
+    FORMATS[kind_out].write(dst, out, request)
+    return [(name, T, len(out.frames), float(e)) for name, e in zip(names, err)]
+
+
+_REDUCERS = {"keyframes": _reduce_keyframes, "BVH": _reduce_bvh}
+
+
+def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force=False):
+    """Write `dst` with fewer keys than `src`, every track within `tolerance` of its keys.
+
+    Parameters
+    ----------
+    src, dst : str or os.PathLike
+        ``.csv`` or ``.npz`` (interchangeable), or ``.bvh``; see the module
+        notes for what each format allows.
+    tolerance : float or str
+        Largest angle between the reduced curve and any original key, in
+        radians, or text such as ``"0.1deg"`` (`parse_tolerance`).
+    method : {'slerp', 'linear', 'squad'}
+        The curve the reader of `dst` will draw through the keys.
+    scalar_last : bool
+        CSV components are ``x, y, z, w``.
+    force : bool
+        Allow `dst` to be `src` (replaced atomically).
+
+    Returns
+    -------
+    list of tuple
+        ``(track name, keys before, keys after, max error in radians)`` per track.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from quatarray.formats import example_path, resample_file
+    >>> from quatarray.formats.reduce import reduce_file
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> dense = os.path.join(tmp.name, "arm_120.csv")
+    >>> _ = resample_file(example_path("arm.csv"), dense, fps=120, method="squad", precision="full")
+    >>> rows = reduce_file(dense, os.path.join(tmp.name, "arm_small.csv"), "0.1deg", method="squad")
+    >>> [(name, before, after < before // 4, bool(err <= np.radians(0.1))) for name, before, after, err in rows]
+    [('shoulder', 481, True, True), ('elbow', 481, True, True), ('wrist', 481, True, True)]
+    """
+    import os
+    kind_in, kind_out = format_of(src), format_of(dst)
+    family = FORMATS[kind_in].family
+    if family not in _REDUCERS:
+        raise FormatError(f"reducing {FORMATS[kind_in].name} files is not supported (expected "
+                          f"{', '.join(e for e, f in FORMATS.items() if f.family in _REDUCERS)})", src)
+    if family != FORMATS[kind_out].family:
+        raise FormatError(f"cannot write {kind_out} from {kind_in} input ({family} files convert into "
+                          f"{', '.join(e for e, f in FORMATS.items() if f.family == family)} only)", dst)
+    tolerance = parse_tolerance(tolerance) if isinstance(tolerance, str) else float(tolerance)
+    if not (np.isfinite(tolerance) and tolerance > 0):
+        raise ValueError(f"expected tolerance > 0, got {tolerance!r}")
+    if not force:
+        try:
+            same = os.path.samefile(src, dst)
+        except OSError:
+            same = False
+        if same:
+            raise FormatError("is the input file; give --force (force=True) to replace it", dst)
+    request = dataclasses.replace(Request(), scalar_last=scalar_last, force=force)
+    return _REDUCERS[family](src, dst, kind_in, kind_out, tolerance, method, request)

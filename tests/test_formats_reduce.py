@@ -1,0 +1,111 @@
+"""Keyframe files with fewer keys (quatarray.formats.reduce) and the ``quatarray reduce`` command."""
+
+import numpy as np
+import pytest
+
+from quatarray import Rotation, Track
+from quatarray.cli import main
+from quatarray.formats import (FormatError, example_path, keyframes_to_gltf, read_bvh, read_csv, read_npz,
+                               resample_file)
+from quatarray.formats.reduce import parse_tolerance, reduce_file
+
+
+def angles(p, q):
+    p, q = np.asarray(p, np.float64), np.asarray(q, np.float64)
+    p = p / np.linalg.norm(p, axis=-1, keepdims=True)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    s = np.where(np.sum(p * q, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+    return 4 * np.arctan2(np.linalg.norm(p - s * q, axis=-1), np.linalg.norm(p + s * q, axis=-1))
+
+
+@pytest.fixture
+def dense_csv(tmp_path):
+    path = tmp_path / "arm_120.csv"
+    resample_file(example_path("arm.csv"), path, fps=120, method="squad", precision="full")
+    return path
+
+
+@pytest.mark.parametrize("method", ["slerp", "linear", "squad"])
+@pytest.mark.parametrize("ext", [".csv", ".npz"])
+def test_keyframes_within_tolerance(dense_csv, tmp_path, method, ext):
+    tol = np.radians(0.05)
+    out = tmp_path / ("small" + ext)
+    rows = reduce_file(dense_csv, out, tol, method=method)
+    src = read_csv(dense_csv)
+    small = read_csv(out) if ext == ".csv" else read_npz(out)
+    assert [r[0] for r in rows] == list(src.names)
+    assert all(r[1] == len(src.times) and r[2] == len(small.times) for r in rows)
+    assert len(small.times) < len(src.times) // 2
+    # the kept rows are the input's rows, and the curve through them stays within the tolerance
+    idx = np.searchsorted(src.times, small.times)
+    np.testing.assert_array_equal(src.times[idx], small.times)
+    np.testing.assert_array_equal(src.keys[idx], small.keys)
+    err = angles(np.asarray(Track(small.times, small.keys, method=method)(src.times)), src.keys).max(axis=0)
+    assert (err <= tol).all()
+    np.testing.assert_allclose(err, [r[3] for r in rows], atol=1e-12)
+
+
+def _bvh_quats(clip):
+    from quatarray._euler import from_euler
+    return np.concatenate([from_euler(seq, clip.frames[:, cols.ravel()].reshape(-1, 3), degrees=True)
+                           .reshape(len(clip.frames), -1, 4) for seq, cols in clip.rotation_groups().items()], 1)
+
+
+def test_bvh_uniform_grid_within_tolerance(tmp_path):
+    dense = tmp_path / "walk_120.bvh"
+    resample_file(example_path("walk.bvh"), dense, fps=120, method="squad", precision="full")
+    out = tmp_path / "small.bvh"
+    tol = np.radians(0.5)
+    rows = reduce_file(dense, out, tol, method="squad")
+    src, small = read_bvh(dense), read_bvh(out)
+    n = round(small.frame_time / src.frame_time)
+    assert n > 2 and abs(small.frame_time - n * src.frame_time) < 1e-6
+    assert all(r[2] == len(small.frames) for r in rows)
+    # the reduced clip evaluated at the original frame times (the end pose held past the end)
+    t_small = np.arange(len(small.frames)) * small.frame_time
+    back = []
+    q = _bvh_quats(small)
+    for j in range(q.shape[1]):
+        back.append(np.asarray(Track(t_small, q[:, j], method="squad", extrapolate="clamp")(src.times)))
+    err = angles(np.stack(back, 1), _bvh_quats(src)).max(axis=0)
+    assert (err <= tol + 1e-9).all()          # the file's printed decimals round the angles (1e-6 degrees)
+    assert max(r[3] for r in rows) <= tol
+
+
+def test_cli_reduce(dense_csv, tmp_path, capsys):
+    out = tmp_path / "small.csv"
+    assert main(["reduce", str(dense_csv), "-o", str(out), "--tolerance", "0.1deg", "--method", "squad"]) == 0
+    text = capsys.readouterr().out
+    for name in ("shoulder", "elbow", "wrist"):
+        assert name in text
+    assert "481 ->" in text and "max error" in text
+    assert out.exists()
+
+
+def test_cli_reduce_errors(dense_csv, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["reduce", str(dense_csv), "-o", str(tmp_path / "x.csv"), "--tolerance", "abc"])
+    assert "expected tolerance a positive angle" in capsys.readouterr().err
+    glb = tmp_path / "arm.glb"
+    keyframes_to_gltf(glb, read_csv(example_path("arm.csv")))
+    assert main(["reduce", str(glb), "-o", str(tmp_path / "y.glb"), "--tolerance", "1deg"]) == 2
+    assert "not supported" in capsys.readouterr().err
+    assert main(["reduce", str(dense_csv), "-o", str(dense_csv), "--tolerance", "1deg"]) == 2
+    assert "--force" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text, value", [("0.1deg", np.radians(0.1)), ("2e-3rad", 2e-3), ("0.5", 0.5),
+                                         (" 1 deg ", np.radians(1))])
+def test_parse_tolerance(text, value):
+    assert parse_tolerance(text) == pytest.approx(value, rel=1e-15)
+
+
+@pytest.mark.parametrize("text", ["0deg", "-1", "nan", "inf", "deg", "1 turn"])
+def test_parse_tolerance_errors(text):
+    with pytest.raises(ValueError, match="expected tolerance a positive angle"):
+        parse_tolerance(text)
+
+
+def test_unknown_extension(tmp_path):
+    with pytest.raises(FormatError, match="unknown extension"):
+        reduce_file(example_path("arm.csv"), tmp_path / "x.txt", 0.1)
