@@ -26,6 +26,9 @@ GROUPS = [
     ("interpolation", "Interpolation",
      "Pairwise interpolation, curve control points, keyframe tracks, scipy's `Slerp` and "
      "`RotationSpline`, and screw interpolation of rigid motions. See :doc:`/guide/interpolation`."),
+    ("timeseries", "Time series",
+     "Fewer keys within a stated angular error, angular velocity to orientations and back, minimal "
+     "rotation, swing-twist, the geodesic mean, smoothing and gap filling; see :doc:`/guide/timeseries`."),
     ("files", "Files and command line",
      "Readers, writers and resampling of keyframe files; see :doc:`/guide/files`."),
     ("dask", "Scaling out (Dask)",
@@ -54,6 +57,8 @@ def _group_of_module(module):
                        ("_rotation", "rotations"), ("_rigid_transform", "rotations")):
         if key in parts:
             return group
+    if "timeseries" in parts or "_reduce" in parts or "_timeseries" in parts:
+        return "timeseries"
     if any(k in module for k in ("interp", "spline", "rigid", "track", "dualquat")):
         return "interpolation"
     return "arrays"
@@ -115,7 +120,7 @@ def _cli_help():
     """``quatarray --help`` and each sub-command's help, as the command prints them."""
     from quatarray import cli
     texts = []
-    for argv in (["--help"], ["resample", "--help"], ["demo", "--help"]):
+    for argv in (["--help"], ["resample", "--help"], ["reduce", "--help"], ["demo", "--help"]):
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf), contextlib.suppress(SystemExit):
             cli.main(argv)
@@ -144,7 +149,7 @@ def write_api_pages(docs_dir):
         page = [title, "=" * len(title), "", intro, ""]
         if key == "files":
             page += [".. toctree::", "   :hidden:", "", "   cli", "",
-                     ":doc:`cli`: the ``quatarray`` command (``resample``, ``demo``).", ""]
+                     ":doc:`cli`: the ``quatarray`` command (``resample``, ``reduce``, ``demo``).", ""]
         if names:
             page += [".. autosummary::", "   :toctree: generated", "   :nosignatures:", ""]
             page += [f"   ~{q}" for q in names] + [""]

@@ -218,13 +218,14 @@ def build_parser():
     p.set_defaults(run=_run_resample)
 
     p = commands.add_parser(
-        "reduce", help="keep fewer keys, every track within an angular tolerance (.csv, .npz, .bvh)",
+        "reduce", help="keep fewer keys, every track within an angular tolerance (.csv, .npz, .bvh, .gltf, .glb)",
         description="Drop keys while the curve through the kept ones stays within --tolerance of every "
                     "original key, and print keys before and after and the largest error per track. "
                     "CSV and NPZ tracks keep one shared set of key times (the kept rows are written as read). "
                     "BVH frames stay on one uniform grid: the clip is resampled at the coarsest whole "
                     "multiple of its frame time that keeps every joint within the tolerance (positions "
-                    "linearly, outside the bound).")
+                    "linearly, outside the bound). glTF: each LINEAR rotation sampler gets its own fewer keys "
+                    "(slerp); everything else in the file is kept as it was.")
     p.add_argument("input", metavar="IN", help="keyframe file to read")
     p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
     p.add_argument("--tolerance", type=_tolerance, required=True, metavar="ANGLE",

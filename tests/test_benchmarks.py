@@ -16,7 +16,7 @@ import pytest
 from benchmarks import _common
 
 MODULES = ["algebra", "rotate", "conversions", "pairwise", "tracks", "resample", "rigid", "chunked", "sweep",
-           "memory"]
+           "memory", "timeseries"]
 
 
 def _classes():

@@ -86,10 +86,8 @@ def test_cli_reduce_errors(dense_csv, tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["reduce", str(dense_csv), "-o", str(tmp_path / "x.csv"), "--tolerance", "abc"])
     assert "expected tolerance a positive angle" in capsys.readouterr().err
-    glb = tmp_path / "arm.glb"
-    keyframes_to_gltf(glb, read_csv(example_path("arm.csv")))
-    assert main(["reduce", str(glb), "-o", str(tmp_path / "y.glb"), "--tolerance", "1deg"]) == 2
-    assert "not supported" in capsys.readouterr().err
+    assert main(["reduce", example_path("walk.bvh"), "-o", str(tmp_path / "y.csv"), "--tolerance", "1deg"]) == 2
+    assert "cannot write .csv from .bvh input" in capsys.readouterr().err
     assert main(["reduce", str(dense_csv), "-o", str(dense_csv), "--tolerance", "1deg"]) == 2
     assert "--force" in capsys.readouterr().err
 
@@ -109,3 +107,31 @@ def test_parse_tolerance_errors(text):
 def test_unknown_extension(tmp_path):
     with pytest.raises(FormatError, match="unknown extension"):
         reduce_file(example_path("arm.csv"), tmp_path / "x.txt", 0.1)
+
+
+def test_gltf_rotation_samplers_reduced(tmp_path):
+    """Each LINEAR rotation sampler gets its own fewer keys; the rest of the file is as it was."""
+    from quatarray.formats.gltf_read import read_animations, read_gltf
+    dense = tmp_path / "arm_120.glb"
+    keyframes_to_gltf(tmp_path / "arm.glb", read_csv(example_path("arm.csv")))
+    resample_file(tmp_path / "arm.glb", dense, fps=120)
+    out = tmp_path / "small.gltf"
+    tol = np.radians(0.1)
+    rows = reduce_file(dense, out, tol)
+    before, after = read_gltf(dense), read_gltf(out)
+    old, new = read_animations(before)[0], read_animations(after)[0]
+    assert len(rows) == sum(s.path == "rotation" for s in old)
+    for s_old, s_new in zip(old, new):
+        if s_old.path != "rotation":       # other samplers untouched
+            np.testing.assert_array_equal(s_old.times, s_new.times)
+            np.testing.assert_array_equal(s_old.values, s_new.values)
+            continue
+        assert len(s_new.times) < len(s_old.times) // 3
+        q_new = np.roll(s_new.values, 1, axis=-1)
+        curve = np.asarray(Track(s_new.times, q_new)(s_old.times))
+        assert angles(curve, np.roll(s_old.values, 1, axis=-1)).max() <= tol + 1e-6   # float32 keys
+    assert after.json["nodes"] == before.json["nodes"]
+    assert [c["target"] for c in after.json["animations"][0]["channels"]] == \
+        [c["target"] for c in before.json["animations"][0]["channels"]]
+    with pytest.raises(ValueError, match="expected method 'slerp'"):
+        reduce_file(dense, tmp_path / "x.glb", tol, method="squad")

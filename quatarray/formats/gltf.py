@@ -135,7 +135,9 @@ def write_gltf(dst, gf, animations):
         One entry per animation of the file: ``(times, outputs)`` with
         ``times`` (M,) float32 shared by all its samplers and ``outputs`` a
         list of values (M, n), one per sampler, the keys of a LINEAR
-        sampler; or None to leave that animation's samplers as they are.
+        sampler; a dict ``{sampler index: (times, values)}`` to replace only
+        those samplers, each by a LINEAR one with its own key times; or None
+        to leave that animation's samplers as they are.
 
     Accessors and buffer views that only the replaced samplers used are
     dropped; everything else is copied into one compact buffer.
@@ -143,10 +145,13 @@ def write_gltf(dst, gf, animations):
     dst = os.fspath(dst)
     doc = copy.deepcopy(gf.json)
     old_accessors = doc.get("accessors", [])
-    replaced = {s[k] for anim, new in zip(doc.get("animations", []), animations) if new is not None
-                for s in anim.get("samplers", []) for k in ("input", "output") if k in s}
-    kept_anim = {s[k] for anim, new in zip(doc.get("animations", []), animations) if new is None
-                 for s in anim.get("samplers", []) for k in ("input", "output") if k in s}
+    def swapped(i, new):   # whether sampler i of an animation is replaced
+        return new is not None and (not isinstance(new, dict) or i in new)
+
+    slots = [(s, k, swapped(i, new)) for anim, new in zip(doc.get("animations", []), animations)
+             for i, s in enumerate(anim.get("samplers", [])) for k in ("input", "output") if k in s]
+    replaced = {s[k] for s, k, out in slots if out}
+    kept_anim = {s[k] for s, k, out in slots if not out}
     used = _targets(_accessor_slots(doc)) | kept_anim
     keep = [i for i in range(len(old_accessors)) if i not in replaced or i in used]
     accessor_map = {old: new for new, old in enumerate(keep)}
@@ -163,9 +168,17 @@ def write_gltf(dst, gf, animations):
     _renumber(_view_slots(doc, accessors), view_map, "bufferView", gf.path)
     for anim, new in zip(doc.get("animations", []), animations):
         samplers = anim.get("samplers", [])
-        if new is None:
-            _renumber([(s, k) for s in samplers for k in ("input", "output") if k in s], accessor_map,
-                      "accessor", gf.path)
+        if new is None or isinstance(new, dict):
+            _renumber([(s, k) for i, s in enumerate(samplers) if not swapped(i, new)
+                       for k in ("input", "output") if k in s], accessor_map, "accessor", gf.path)
+            for i, (times, values) in (new or {}).items():
+                sampler, old = samplers[i], old_accessors[samplers[i]["output"]]
+                name = old_accessors[sampler["input"]].get("name")
+                sampler.update(
+                    input=_float_accessor(blob, accessors, np.reshape(times, (-1, 1)), "SCALAR", name, bounds=True),
+                    interpolation="LINEAR",
+                    output=_float_accessor(blob, accessors, np.reshape(values, (-1, SIZES[old["type"]])),
+                                           old["type"], old.get("name")))
             continue
         times, outputs = new
         name = old_accessors[samplers[0]["input"]].get("name") if samplers else None

@@ -12,7 +12,9 @@ writers, and per family the way keys can be dropped:
   keeps every joint's rotation within the tolerance (frame time n times the
   old one; a last frame past the end holds the end pose).  Position channels
   are interpolated linearly and are not part of the bound.
-- **glTF** is not supported here yet.
+- **glTF** (``.gltf``, ``.glb``): each LINEAR rotation sampler is rewritten
+  with its own fewer keys (LINEAR is slerp, the only method there); every
+  other sampler and everything else in the file is written back as it was.
 """
 
 import dataclasses
@@ -99,7 +101,39 @@ def _reduce_bvh(src, dst, kind_in, kind_out, tolerance, method, request):
     return [(name, T, len(out.frames), float(e)) for name, e in zip(names, err)]
 
 
-_REDUCERS = {"keyframes": _reduce_keyframes, "BVH": _reduce_bvh}
+def _reduce_gltf(src, dst, kind_in, kind_out, tolerance, method, request):
+    from .gltf import write_gltf
+    from .gltf_read import read_animations, read_gltf
+    if method != "slerp":
+        raise ValueError(f"glTF rotation samplers interpolate LINEAR, which is slerp: expected method "
+                         f"'slerp', got {method!r}")
+    gf = read_gltf(src)
+    nodes = gf.json.get("nodes", [])
+    rows, new = [], []
+    for a, samplers in enumerate(read_animations(gf)):
+        anim = gf.json["animations"][a]
+        label = {}
+        for channel in anim.get("channels", []):   # a sampler is named after the node it turns
+            node = (channel.get("target") or {}).get("node")
+            if isinstance(node, int) and 0 <= node < len(nodes) and isinstance(nodes[node].get("name"), str):
+                label.setdefault(channel["sampler"], nodes[node]["name"])
+        replace = {}
+        for i, s in enumerate(samplers):
+            if s.path != "rotation" or s.interpolation != "LINEAR" or len(s.times) < 2:
+                continue          # translation, scale, weights, STEP and CUBICSPLINE samplers stay as they are
+            keys = np.roll(s.values, 1, axis=-1)          # glTF stores x, y, z, w
+            tracks, err = reduce_keys(s.times, keys, tolerance, method="slerp")
+            idx = np.searchsorted(s.times, tracks[0].times)
+            replace[i] = (s.times[idx].astype(np.float32), s.values[idx].astype(np.float32))
+            rows.append((label.get(i, f"animation {a} sampler {i}"), len(s.times), len(idx), float(err)))
+        new.append(replace or None)
+    if not rows:
+        raise FormatError("no LINEAR rotation samplers to reduce", src)
+    write_gltf(dst, gf, new)
+    return rows
+
+
+_REDUCERS = {"keyframes": _reduce_keyframes, "BVH": _reduce_bvh, "glTF": _reduce_gltf}
 
 
 def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force=False):
@@ -108,13 +142,15 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     Parameters
     ----------
     src, dst : str or os.PathLike
-        ``.csv`` or ``.npz`` (interchangeable), or ``.bvh``; see the module
-        notes for what each format allows.
+        ``.csv`` or ``.npz`` (interchangeable), ``.bvh``, or ``.gltf`` or
+        ``.glb`` (interchangeable); see the module notes for what each
+        format allows.
     tolerance : float or str
         Largest angle between the reduced curve and any original key, in
         radians, or text such as ``"0.1deg"`` (`parse_tolerance`).
     method : {'slerp', 'linear', 'squad'}
-        The curve the reader of `dst` will draw through the keys.
+        The curve the reader of `dst` will draw through the keys (glTF:
+        'slerp' only).
     scalar_last : bool
         CSV components are ``x, y, z, w``.
     force : bool
