@@ -19,7 +19,11 @@ from . import _interp_kernels as IK
 from . import _kernels as Kn
 from . import _reduce
 from . import _timeseries as TS
+from ._array import QuatArray
+from ._rotation import Rotation
 from ._validate import batch_axis, finite, float_array, key_times
+from .interpolate import METHODS as TRACK_METHODS
+from .interpolate import Track
 
 __all__ = ["ReducedKeys", "reduce_keys", "integrate_angular_velocity", "angular_velocity", "minimal_rotation",
            "swing_twist", "geodesic_mean", "smooth", "fill_gaps"]
@@ -35,7 +39,6 @@ def _choice(value, name, options):
 
 def _series(keys, name, min_len=2):
     """keys (T, *batch, 4) from a QuatArray, array_like or Rotation: finite, unflipped, unit."""
-    from ._rotation import Rotation
     if isinstance(keys, Rotation):
         if keys.single:
             raise ValueError(f"expected {name} of shape (T, ...) (a sequence of rotations), got a single rotation")
@@ -123,7 +126,6 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
     >>> len(tracks), len(tracks[0]) < 201 // 5, float(err) <= 0.1
     (1, True, True)
     """
-    from .interpolate import Track
     method = _choice(method, "method", _reduce.METHODS)
     tol = _positive(tolerance, "tolerance")
     Q = _series(keys, "keys")
@@ -151,7 +153,6 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
 # ---------------------------------------------------------------------------
 
 def _wrap_rotation(q, dtype):
-    from ._rotation import Rotation
     return Rotation.from_quat(np.asarray(q, dtype), scalar_first=True)
 
 
@@ -217,7 +218,6 @@ def integrate_angular_velocity(times, omega, *, initial=None, frame="world", met
         q0 = np.zeros(batch + (4,))
         q0[..., 0] = 1
     else:
-        from ._rotation import Rotation
         if isinstance(initial, Rotation):
             initial = initial.as_quatarray()
         q0 = float_array(initial, "initial", last=4).astype(np.float64)
@@ -237,7 +237,6 @@ def integrate_angular_velocity(times, omega, *, initial=None, frame="world", met
 
 def _given_quats(rotations):
     """The quaternions as given (signs kept), as an ndarray."""
-    from ._rotation import Rotation
     return np.asarray(rotations.as_quatarray() if isinstance(rotations, Rotation) else rotations)
 
 
@@ -392,7 +391,6 @@ def swing_twist(rotations, axis):
     >>> bool((swing * twist).approx_equal(r))
     True
     """
-    from ._rotation import Rotation
     if isinstance(rotations, Rotation):
         rotations = rotations.as_quatarray()
     q = float_array(rotations, "rotations", last=4)
@@ -405,8 +403,7 @@ def swing_twist(rotations, axis):
     batch = np.broadcast_shapes(q.shape[:-1], a.shape[:-1])
     q64 = Kn.normalize(np.ascontiguousarray(np.broadcast_to(q.astype(np.float64), batch + (4,))))
     swing, twist = TS.swing_twist(q64, np.broadcast_to(a / n, batch + (3,)).astype(np.float64))
-    dtype = np.result_type(q.dtype, np.float32) if q.dtype == np.float32 else np.float64
-    return _wrap_rotation(swing, dtype), _wrap_rotation(twist, dtype)
+    return _wrap_rotation(swing, q.dtype), _wrap_rotation(twist, q.dtype)
 
 
 def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100):
@@ -444,7 +441,6 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     >>> np.round(geodesic_mean(r).as_rotvec(), 12) + 0.0       # about one axis: the mean angle
     array([0. , 0. , 0.4])
     """
-    from ._rotation import Rotation
     r = rotations if isinstance(rotations, Rotation) else Rotation.from_quat(
         float_array(rotations, "rotations", last=4), scalar_first=True)
     tol = _positive(tol, "tol")
@@ -565,9 +561,7 @@ def fill_gaps(times, keys, max_gap, *, method="slerp"):
                [0.        , 0.        , 0.        , 1.        ],
                [       nan,        nan,        nan,        nan]])
     """
-    from ._array import QuatArray
-    from .interpolate import METHODS, Track
-    method = _choice(method, "method", METHODS)
+    method = _choice(method, "method", TRACK_METHODS)
     q = float_array(keys, "keys")
     if q.ndim < 2 or q.shape[-1] != 4:
         raise ValueError(f"expected keys of shape (T, ..., 4), got {q.shape}")
