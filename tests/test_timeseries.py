@@ -451,3 +451,24 @@ def test_nan_refused_elsewhere():
 def test_series_errors(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+# ---------------------------------------------------------------------------
+# property: the bound holds for any track, tolerance and method
+# ---------------------------------------------------------------------------
+
+from hypothesis import given  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@given(seed=st.integers(0, 2**32 - 1), T=st.integers(2, 120), step=st.floats(0.001, 1.0),
+       tol=st.floats(1e-6, 0.5), method=st.sampled_from(METHODS), shared=st.booleans())
+def test_bound_property(seed, T, step, tol, method, shared):
+    """Random walks with random step sizes (from nearly constant to half turns between
+    samples), unequal times: the returned error is at most the tolerance and is the error
+    of the returned tracks."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.1, 1.0, T))
+    rv = np.cumsum(rng.normal(0, step, (T, 2, 3)), axis=0)
+    q = Rotation.from_rotvec(rv.reshape(-1, 3)).as_quat(scalar_first=True).reshape(T, 2, 4)
+    check(t, q, tol, method, shared)
