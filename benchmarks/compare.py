@@ -341,6 +341,10 @@ def _rows(full):
         for op in RIGID_OPS if n == 1 else ("rigid apply", "rigid compose"):
             rows.append(Row(op, RigidTransforms, RIGID_OPS[op], (n, "float64"), size=n, libs=(qa, sp)))
     if full:
+        from .timeseries import ReduceKeys
+        for method in ("slerp", "squad"):   # 10⁶ x 50: python -m benchmarks.timeseries
+            rows.append(Row(f"reduce_keys {method}, 10000 x 10", ReduceKeys, "time_reduce",
+                            (10_000, 10, method, "float64"), libs=(qa,), n=100_000))
         for case in ("npz", "bvh"):
             rows.append(Row(f"resample {case}", Resample, "time_resample", (case,), libs=Resample.params[-1],
                             one_thread=True))
