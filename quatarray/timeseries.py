@@ -140,7 +140,8 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
         return Track(times[idx], k.reshape((len(idx),) + (batch if b is None else ()) + (4,)), method=method)
 
     if B == 0:
-        return ReducedKeys(Track(times, Q, method=method) if shared else [], np.zeros(batch, Q.dtype))
+        ends = [0, T - 1]   # no track to keep within anything: the two ends make a Track
+        return ReducedKeys(Track(times[ends], Q[ends], method=method) if shared else [], np.zeros(batch, Q.dtype))
     _, tracks, errors = _reduce.reduce(method, times, flat, tol_rad, bool(shared), make_track)
     errors = errors.reshape(batch)
     if degrees:

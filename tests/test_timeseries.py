@@ -168,6 +168,8 @@ def test_inputs_untouched_and_read_only():
 def test_empty_batch():
     tracks, err = reduce_keys([0.0, 1.0], np.zeros((2, 0, 4)), 0.1)
     assert tracks == [] and err.shape == (0,)
+    track, err = reduce_keys([0.0, 1.0, 2.0], np.zeros((3, 0, 4)), 0.1, shared=True)
+    assert track.batch_shape == (0,) and len(track) == 2 and err.shape == (0,)
 
 
 @pytest.mark.parametrize("args, kwargs, match", [
