@@ -106,6 +106,10 @@ def from_quat(quat, scalar_first=False, name="quat"):
                      f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
 
 
+#: Below this many components two strided copies cost less than the shifted copy's reshapes.
+_SHIFT_MIN = 256
+
+
 def to_scalar_first(q):
     """``(x, y, z, w)`` -> a new C-contiguous ``(w, x, y, z)`` array (see `to_scalar_last`).
 
@@ -115,7 +119,7 @@ def to_scalar_first(q):
     array([4., 1., 2., 3.])
     """
     out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size:
+    if q.flags.c_contiguous and q.size >= _SHIFT_MIN:
         out.reshape(-1)[1:] = q.reshape(-1)[:-1]
     else:
         out[..., 1:] = q[..., :3]
@@ -137,7 +141,7 @@ def to_scalar_last(q):
     array([[1., 2., 3., 4.]])
     """
     out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size:
+    if q.flags.c_contiguous and q.size >= _SHIFT_MIN:
         out.reshape(-1)[:-1] = q.reshape(-1)[1:]
     else:
         out[..., :3] = q[..., 1:]
