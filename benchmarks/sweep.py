@@ -136,29 +136,18 @@ def _ops():
         a, b = rng.standard_normal((2, m, 3))
         return lambda: R.align_vectors(a, b)
 
-    @op("Slerp build")
-    def _(R, mod, n):
-        k = _keys(n)
-        r, times = _rot(R, k), np.arange(k, dtype=float)
-        return lambda: mod.Slerp(times, r)
+    for cls in ("Slerp", "RotationSpline"):
+        def build(R, mod, n, cls=cls):
+            k = _keys(n)
+            r, times = _rot(R, k), np.arange(k, dtype=float)
+            return lambda: getattr(mod, cls)(times, r)
 
-    @op("Slerp call")
-    def _(R, mod, n):
-        s = mod.Slerp(np.arange(10.0), _rot(R, 10))
-        t = np.random.default_rng(SEED).uniform(0, 9, () if n is None else (n,))
-        return lambda: s(t)
+        def call(R, mod, n, cls=cls):
+            s = getattr(mod, cls)(np.arange(10.0), _rot(R, 10))
+            t = np.random.default_rng(SEED).uniform(0, 9, () if n is None else (n,))
+            return lambda: s(t)
 
-    @op("RotationSpline build")
-    def _(R, mod, n):
-        k = _keys(n)
-        r, times = _rot(R, k), np.arange(k, dtype=float)
-        return lambda: mod.RotationSpline(times, r)
-
-    @op("RotationSpline call")
-    def _(R, mod, n):
-        s = mod.RotationSpline(np.arange(10.0), _rot(R, 10))
-        t = np.random.default_rng(SEED).uniform(0, 9, () if n is None else (n,))
-        return lambda: s(t)
+        ops[f"{cls} build"], ops[f"{cls} call"] = build, call
 
     def rigid(mod, n, salt=0):
         rng, shape, q = _data(n, salt)
