@@ -598,13 +598,19 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
-    n = np.sqrt(_scale.guarded_sqnorm(q, zero=True))
+    k = _scale.guarded_sqnorm(q, zero=True)   # a scratch row; q may be rescaled in place
     w, x, y, z = q
-    k = 1.0 / (n + np.abs(w))
-    k = np.where(w < 0, -k, k)
-    np.multiply(x, k, out=o[0])
-    np.multiply(y, k, out=o[1])
-    np.multiply(z, k, out=o[2])
+    with _blocks.scratch().frame() as work:
+        a = work.rows(1, k.shape, k.dtype)[0]
+        np.sqrt(k, out=k)
+        np.abs(w, out=a)
+        k += a
+        np.divide(1.0, k, out=k)            # 1 / (|q| + |w|)
+        np.add(w, 0.0, out=a)               # -0 -> +0: only w < 0 flips the sign
+        np.copysign(k, a, out=k)
+        np.multiply(x, k, out=o[0])
+        np.multiply(y, k, out=o[1])
+        np.multiply(z, k, out=o[2])
 
 
 def as_mrp(q):
