@@ -106,6 +106,10 @@ def from_quat(quat, scalar_first=False, name="quat"):
                      f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
 
 
+#: Below this many components two strided copies cost less than the shifted copy's reshapes.
+_SHIFT_MIN = 256
+
+
 def to_scalar_first(q):
     """``(x, y, z, w)`` -> a new C-contiguous ``(w, x, y, z)`` array (see `to_scalar_last`).
 
@@ -115,7 +119,7 @@ def to_scalar_first(q):
     array([4., 1., 2., 3.])
     """
     out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size:
+    if q.flags.c_contiguous and q.size >= _SHIFT_MIN:
         out.reshape(-1)[1:] = q.reshape(-1)[:-1]
     else:
         out[..., 1:] = q[..., :3]
@@ -137,7 +141,7 @@ def to_scalar_last(q):
     array([[1., 2., 3., 4.]])
     """
     out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size:
+    if q.flags.c_contiguous and q.size >= _SHIFT_MIN:
         out.reshape(-1)[:-1] = q.reshape(-1)[1:]
     else:
         out[..., :3] = q[..., 1:]
@@ -594,13 +598,19 @@ def magnitude(q):
 
 
 def _k_as_mrp(q, o):
-    n = np.sqrt(_scale.guarded_sqnorm(q, zero=True))
+    k = _scale.guarded_sqnorm(q, zero=True)   # a scratch row; q may be rescaled in place
     w, x, y, z = q
-    k = 1.0 / (n + np.abs(w))
-    k = np.where(w < 0, -k, k)
-    np.multiply(x, k, out=o[0])
-    np.multiply(y, k, out=o[1])
-    np.multiply(z, k, out=o[2])
+    with _blocks.scratch().frame() as work:
+        a = work.rows(1, k.shape, k.dtype)[0]
+        np.sqrt(k, out=k)
+        np.abs(w, out=a)
+        k += a
+        np.divide(1.0, k, out=k)            # 1 / (|q| + |w|)
+        np.add(w, 0.0, out=a)               # -0 -> +0: only w < 0 flips the sign
+        np.copysign(k, a, out=k)
+        np.multiply(x, k, out=o[0])
+        np.multiply(y, k, out=o[1])
+        np.multiply(z, k, out=o[2])
 
 
 def as_mrp(q):

@@ -600,7 +600,7 @@ class Rotation:
             if not _broadcastable(w.shape, batch) or np.broadcast_shapes(w.shape, batch) != batch:
                 raise ValueError(f"Expected `weights` to be broadcastable to rotation shape, got "
                                  f"shape {w.shape} for {batch} rotations.")
-        return type(self)._wrap(_rotation_algorithms.mean(q, w, axes))
+        return type(self)._wrap(_rotation_algorithms.mean(q, w, axes, unit=self._unit))
 
     def reduce(self, left=None, right=None, return_indices=False):
         """Reduce each rotation p to the smallest l · p · r over l in `left`, r in `right`.

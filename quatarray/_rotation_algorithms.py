@@ -17,21 +17,23 @@ from ._validate import float_array
 __all__ = ["mean", "chordal_sums", "reduce", "align"]
 
 
-def mean(q, weights, axes):
+def mean(q, weights, axes, unit=False):
     """Chordal L2 mean of rotations `q` (..., 4) over batch `axes` (sorted, non-negative),
     with optional non-negative `weights` of the batch shape: the dominant eigenvector of
-    Σ wᵢ qᵢ qᵢᵀ, canonical, in `q`'s dtype (computed in float64, `chordal_sums`)."""
+    Σ wᵢ qᵢ qᵢᵀ, canonical, in `q`'s dtype (computed in float64, `chordal_sums`).  `unit`:
+    the rows are known to be unit quaternions (`Rotation`'s storage)."""
     # the 4x4 matrix in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
     xyzw = [1, 2, 3, 0]
-    _, vectors = np.linalg.eigh(chordal_sums(q, weights, axes)[..., xyzw, :][..., xyzw])
+    _, vectors = np.linalg.eigh(chordal_sums(q, weights, axes, unit=unit)[..., xyzw, :][..., xyzw])
     return _convert.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype)
 
 
-def chordal_sums(q, weights, axes, name="rotations to average"):
+def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
     """Σ wᵢ qᵢ qᵢᵀ over the batch `axes` (sorted, non-negative) of quaternions `q` (..., 4),
     in float64, (w, x, y, z) order: shape ``kept batch + (4, 4)``.  Rows are normalised
     first (NaN, infinite or zero ones raise `_convert.from_quat`'s `ValueError`, naming
-    `name` and the index in the whole batch).
+    `name` and the index in the whole batch), unless `unit` says they are unit already
+    (`Rotation`'s normalised storage: a pass saved).
 
     The sum runs over slices of about one block along the first averaged axis, so the
     extra memory is a few blocks whatever the batch (not a float64 copy of it).
@@ -59,7 +61,9 @@ def chordal_sums(q, weights, axes, name="rotations to average"):
     for start in range(0, lead, step):   # a loop over blocks, as the block engine's
         sl = head + (slice(start, start + step),)
         try:
-            c = _convert.from_quat(qt[sl].astype(np.float64, copy=False), scalar_first=True, name=name)
+            c = qt[sl].astype(np.float64, copy=False)
+            if not unit:
+                c = _convert.from_quat(c, scalar_first=True, name=name)
         except ValueError:   # the message with the index in the whole batch
             _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name=name)
             raise

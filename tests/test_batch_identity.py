@@ -251,3 +251,16 @@ def test_dask_chunks_give_the_memory_bits(dtype):
                                    ("log", qd.log(Q), QuatArray(q).log()),
                                    ("product", qd.multiply(Q, Q[::-1]), QuatArray(q) * QuatArray(q[::-1]))):
             _same(lazy.compute(scheduler="synchronous"), _raw(memory), name)
+
+
+@DTYPE
+@given(b=batches())
+def test_one_normalisation(dtype, b):
+    """`Rotation.from_quat` (either component order), `QuatArray.normalized` and the raw
+    kernel give the same bits: one normalisation kernel."""
+    (seed, kinds, scale), _ = b
+    q = _rows(seed, kinds, dtype, scale)
+    want = QuatArray(q).normalized().view(np.ndarray)
+    _same(Rotation.from_quat(q, scalar_first=True).as_quat(scalar_first=True), want, "from_quat scalar_first")
+    _same(Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_quat(scalar_first=True), want, "from_quat scalar last")
+    _same(Rotation(q, scalar_first=True).as_quat(scalar_first=True), want, "Rotation()")

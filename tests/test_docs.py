@@ -111,7 +111,8 @@ def test_readme_links_into_every_guide_page():
 def _readme_table(section):
     text = README.read_text(encoding="utf-8")
     start = text.index(f"\n## {section}\n")
-    end = text.find("\n## ", start + 1)
+    ends = [i for i in (text.find("\n## ", start + 1), text.find("\n### ", start + 1)) if i >= 0]
+    end = min(ends, default=-1)   # up to the next heading (the size sweep has its own table)
     rows = [[c.strip() for c in line.strip("|").split("|")]
             for line in text[start:end if end >= 0 else None].splitlines() if line.startswith("|")]
     return text[start:end], rows[0], rows[2:]
