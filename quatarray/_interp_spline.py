@@ -354,6 +354,10 @@ def coefficients(times, keys):
     return coeff
 
 
+_CHECK_BELOW = 8.0
+"""Cubics whose terms stay below this (rad) give |q| within about this many ulp of 1 (the
+rounding of r(s) relative to its terms, whatever their cancellation): no norm check."""
+
 _UNIT_TOL = {np.dtype(d): 16 * float(np.finfo(d).eps) for d in (np.float32, np.float64)}
 
 ROWS = 25   # key q (4), q (0, c_k) for k = 0, 1, 2 (12), c_0, c_1, c_2 (9)
@@ -382,10 +386,11 @@ def table(keys, coeff):
     return out
 
 
-def _rotation_rows(G, s, O):
+def _rotation_rows(G, s, O, check=True):
     """O (4, m, b) = q exp(r(s)/2) from gathered table rows G (25, m, b) and s (m, 1).
 
-    G is used as scratch (overwritten); O may be a strided view of the output.
+    G is used as scratch (overwritten); O may be a strided view of the output.  `check`:
+    the cubics may be large enough here for |q| to stray from 1 (see below).
     """
     shape = O.shape[1:]
     work = _blocks.scratch()
@@ -426,9 +431,12 @@ def _rotation_rows(G, s, O):
     Q = G[0:4]
     Q *= cos_half
     Q += V
-    # unit to rounding, except where the cubic's large coefficients (fast turns between
-    # keys, over 1e5 rad per segment) cancel in r(s) differently from its products q (0, c_k):
-    # only such elements are divided by their norm (the others keep their bits)
+    if not check:
+        np.copyto(O, Q)                       # the only write to the (strided) output
+        return
+    # unit to rounding, except where the cubic's large terms (fast turns between keys, or
+    # far extrapolation) cancel in r(s) differently from its products q (0, c_k): only
+    # elements off by over 16 eps are divided by their norm (the others keep their bits)
     np.multiply(Q[0], Q[0], out=theta)
     for k in (1, 2, 3):
         np.multiply(Q[k], Q[k], out=tmp)
@@ -467,6 +475,9 @@ def evaluate(index, times, tab, t, order, batch):
     out = np.empty((M, B, width), dtype)
 
     found = index.find_sorted(t) if M > _blocks.BLOCK else None
+    # the size of the cubics' coefficients, for `_rotation_rows`' check (|r| in a block is at
+    # most this times max(1, |u|)³, u the segment's own time)
+    cmax = float(np.abs(tab[16:25]).max(initial=0.0)) if order == 0 else 0.0
 
     def block(qt):
         sm, sb = qt
@@ -480,7 +491,8 @@ def evaluate(index, times, tab, t, order, batch):
         G = TR.gather(tab, i, sb)
         O = soa(out[sm, sb])
         if order == 0:
-            _rotation_rows(G, s, O)
+            umax = max(1.0, float(np.abs(s).max(initial=0.0)))
+            _rotation_rows(G, s, O, check=not cmax * umax ** 3 <= _CHECK_BELOW)
         else:
             _rate_rows(G, s, order, O)
             span = span.astype(dtype, copy=False)[:, None]
