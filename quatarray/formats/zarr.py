@@ -314,7 +314,7 @@ def read_zarr(path, *, storage_options=None):
     times, keys, names = _open(loc)
     check_size(len(times), 4 * int(np.prod(keys.shape[1:-1])),
                "reading the store into memory (only .zarr to .zarr is resampled chunk by chunk)")
-    keys = float_array(_Chunks(keys, "keys", loc.name)[...], "keys", last=4)   # real numbers: checked by _node
+    keys = float_array(_Chunks(keys, "keys", loc.name)[:], "keys", last=4)   # real numbers: checked by _node
     check_arrays(times, keys, loc.name)
     return Keyframes(times, keys, names)
 
