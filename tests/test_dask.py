@@ -774,7 +774,8 @@ def test_zarr_converts_to_and_from_csv_and_npz(tmp_path, dtype, chain):
         src = example_path("arm.csv")
     else:
         write_npz(src, Keyframes(arm.times, arm.keys.astype(dtype), arm.names))
-    for step, (ext, fps, method) in enumerate(zip(chain[1:], (30, 7.5, 12, 50), ("squad", "slerp", "bezier", "linear"))):
+    steps = zip(chain[1:], (30, 7.5, 12, 50), ("squad", "slerp", "bezier", "linear"))
+    for step, (ext, fps, method) in enumerate(steps):
         dst = tmp_path / f"step{step + 1}{ext}"
         read = _read_any(src)
         assert resample_file(src, dst, fps=fps, method=method, progress=False) == (len(read.times), len(

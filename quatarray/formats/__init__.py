@@ -34,6 +34,7 @@ from .zarr import read_zarr, resample_zarr, write_zarr
 __all__ = [
     "FormatError", "NonUnitKeyWarning", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
     "Joint", "Motion", "read_bvh", "write_bvh", "resample_motion", "resample_gltf", "keyframes_to_gltf",
-    "read_zarr", "write_zarr", "resample_zarr", "read_times", "fps_times", "fps_steps", "resample_keyframes", "example_path",
+    "read_zarr", "write_zarr", "resample_zarr", "read_times", "fps_times", "fps_steps", "resample_keyframes",
+    "example_path",
     "Format", "FORMATS", "format_of", "resample_file",
 ]

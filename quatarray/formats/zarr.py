@@ -2,13 +2,16 @@
 
 A store is a Zarr group holding ``times`` (K,) and ``keys`` (K, *batch, 4),
 scalar-first, like the NPZ layout, and optionally the track names in the
-group attribute ``names`` (one per flattened batch index).  It may be anything zarr opens: a local
-path, or a URL (``memory://``, ``s3://``, ``gs://``, any fsspec protocol)
-with ``storage_options`` for its filesystem (credentials, endpoint).  The
-keys are read into memory when small (one `Track` for every chunk of
-queries), else kept as a Dask array chunked along the tracks.  Query times
-come from ``fps`` (generated lazily) or a times file (a Zarr store or
-array holding ``times``, read chunk by chunk, or a text file).
+group attribute ``names`` (one per flattened batch index).  It may be
+anything zarr opens: a local path, or a URL (``memory://``, ``s3://``,
+``gs://``, any fsspec protocol) with ``storage_options`` for its filesystem
+(credentials, endpoint).
+
+`resample_zarr` (Zarr → Zarr) reads the keys into memory when small (one
+`Track` for every chunk of queries), else keeps them as a Dask array
+chunked along the tracks.  Query times come from ``fps`` (generated
+lazily) or a times file (a Zarr store or array holding ``times``, read
+chunk by chunk, or a text file).
 
 Converting to or from the in-memory formats (CSV, NPZ) goes through
 `read_zarr` and `write_zarr`: the whole track is in memory then, as those
@@ -550,6 +553,8 @@ def _nbytes(n, batch, dtype):
 def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate="raise",
                   scheduler=None, progress=None, force=False, storage_options=None):
     """Resample the keyframes of Zarr store `src` into Zarr store `dst`, chunk by chunk.
+
+    The track names (the group attribute ``names``) are carried over.
 
     Parameters
     ----------
