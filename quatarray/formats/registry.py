@@ -248,7 +248,8 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         `dst` (or a ``.gltf`` output's ``.bin``) exists, without `force`.
     ValueError
         Query times outside the keys with ``extrapolate="raise"``, a single key,
-        an output of more than ``quatarray.formats.text.MAX_VALUES`` values.
+        an output of more than ``quatarray.formats.text.MAX_VALUES`` values, or
+        a Zarr store of more for a CSV or NPZ output (read into memory).
     OSError
         A missing input or an unwritable output.
 
