@@ -10,8 +10,8 @@
     quatarray --version
 
 Formats follow the extensions, as registered in `quatarray.formats.FORMATS`:
-``.csv``, ``.npz`` (interchangeable), ``.bvh``, glTF ``.gltf``, ``.glb``
-(interchangeable) and Zarr stores ``.zarr``.  Bad input ends
+``.csv``, ``.npz`` and Zarr stores ``.zarr`` (interchangeable), ``.bvh``, glTF
+``.gltf``, ``.glb`` (interchangeable).  Bad input ends
 with a one-line message naming the file (and line) on stderr and exit status
 2; the output file is then not created or touched (also on Ctrl-C and SIGTERM).
 """
@@ -157,7 +157,8 @@ def _families():
     families = {}
     for ext, fmt in FORMATS.items():
         families.setdefault(fmt.family, []).append(ext)
-    return [f"{' and '.join(exts)} convert into each other." for exts in families.values() if len(exts) > 1]
+    return [f"{', '.join(exts[:-1])} and {exts[-1]} convert into each other."
+            for exts in families.values() if len(exts) > 1]
 
 
 def _storage_option(text):
@@ -187,7 +188,8 @@ def build_parser():
                     "CSV (time,<track>.w,<track>.x,<track>.y,<track>.z,...), NPZ (times (K,), keys (K, ..., 4) "
                     "scalar-first), BVH (Euler channels resampled through quaternions), glTF 2.0 "
                     "(.gltf, .glb: every animation, written back with LINEAR samplers) and Zarr stores (.zarr, "
-                    "the NPZ layout, resampled chunk by chunk with Dask). "
+                    "the NPZ layout; .zarr to .zarr is resampled chunk by chunk with Dask, to or from CSV and "
+                    "NPZ in memory). "
                     + " ".join(_families()))
     p.add_argument("input", metavar="IN", help="keyframe file to read")
     p.add_argument("-o", "--output", metavar="OUT", required=True,
@@ -208,13 +210,13 @@ def build_parser():
     p.add_argument("--force", action="store_true",
                    help="replace an existing OUT, also when it is IN (not for Zarr stores, which are written "
                         "while IN is read)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="Zarr stores: run on this distributed scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS", help=".zarr to .zarr: run on this distributed scheduler")
     p.add_argument("--storage-option", metavar="KEY=VALUE", action="append", type=_storage_option, default=[],
                    dest="storage_options",
                    help="Zarr stores given as URLs (s3://..., gs://..., memory://...): an option of their "
                         "filesystem, e.g. endpoint_url=http://127.0.0.1:9000 or anon=true (VALUE is read as "
                         "JSON when it parses, else as text); repeat for several")
-    p.add_argument("--quiet", action="store_true", help="Zarr stores: no progress bar")
+    p.add_argument("--quiet", action="store_true", help=".zarr to .zarr: no progress bar")
     p.set_defaults(run=_run_resample)
 
     p = commands.add_parser(

@@ -565,6 +565,32 @@ def _zarr_input(path):
     return path
 
 
+def test_zarr_converts_to_and_from_csv_and_npz_on_the_command_line(tmp_path):
+    """``resample in.csv -o out.zarr`` and ``in.zarr -o out.npz|out.csv``: each output is, bit for bit, the
+    in-process resample of what the step read; the CSV header (track names) survives the store."""
+    pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
+    from quatarray.formats import read_zarr
+    arm = read_csv(example_path("arm.csv"))
+    res = run("resample", example_path("arm.csv"), "-o", tmp_path / "arm.zarr", "--fps", 30, "--method", "squad")
+    assert res.returncode == 0 and res.stderr == "", res.stderr
+    assert res.stdout.startswith(f"{example_path('arm.csv')}: 11 keys -> {tmp_path / 'arm.zarr'}: 121 frames (squad")
+    store = read_zarr(tmp_path / "arm.zarr")
+    want = resample_keyframes(arm, fps_times(arm.times[0], arm.times[-1], 30, onto=arm.times), method="squad")
+    np.testing.assert_array_equal(store.keys, want.keys)
+    assert store.names == arm.names
+    for out in ("arm.npz", "arm.csv"):
+        res = run("resample", tmp_path / "arm.zarr", "-o", tmp_path / out, "--fps", 12)
+        assert res.returncode == 0 and res.stderr == "", res.stderr
+        got = (read_npz if out.endswith(".npz") else read_csv)(tmp_path / out)
+        want = resample_keyframes(store, fps_times(store.times[0], store.times[-1], 12, onto=store.times))
+        np.testing.assert_array_equal(got.times, want.times)
+        np.testing.assert_array_equal(got.keys, want.keys)
+        assert got.names == arm.names
+    assert open(tmp_path / "arm.csv").readline() == open(example_path("arm.csv")).readline()
+    assert sorted(os.listdir(tmp_path)) == ["arm.csv", "arm.npz", "arm.zarr"]
+
+
 @pytest.mark.parametrize("ext", [".csv", ".npz", ".bvh", ".glb", ".gltf", ".zarr"])
 def test_an_existing_output_is_replaced_only_with_force(tmp_path, ext):
     """Every format: an existing output is refused with a message naming it and --force, and left as it

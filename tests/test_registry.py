@@ -92,12 +92,15 @@ def _read(path, ext):
 @pytest.mark.filterwarnings("ignore::quatarray.formats.NonUnitKeyWarning")   # keys rounded to 0-9 decimals
 @given(seed=st.integers(0, 2**32 - 1), ext=st.sampled_from(EXTENSIONS), batch=st.sampled_from(BATCHES),
        decimals=st.integers(0, 9), nkeys=st.integers(2, 6), method=st.sampled_from(["slerp", "squad", "bezier"]),
-       fps=st.sampled_from([3.0, 7.5, 24.0]))
-def test_nothing_written_misrepresents_the_resampled_rotations(seed, ext, batch, decimals, nkeys, method, fps):
-    """Random tracks (batch shapes, 0-9 decimals) in each format, resampled by resample_file and read back:
-    every written quaternion is, as a rotation, within 1e-6 of the curve through the input as read, and every
-    interpolated one is unit within 1e-6 (a key at its own time is copied as the input wrote it)."""
-    if ext == ".zarr":
+       fps=st.sampled_from([3.0, 7.5, 24.0]), convert=st.sampled_from([None, ".csv", ".npz", ".zarr"]))
+def test_nothing_written_misrepresents_the_resampled_rotations(seed, ext, batch, decimals, nkeys, method, fps,
+                                                                convert):
+    """Random tracks (batch shapes, 0-9 decimals) in each format, resampled by resample_file into the same
+    format or another of its family (`convert`: CSV, NPZ and Zarr) and read back: every written quaternion
+    is, as a rotation, within 1e-6 of the curve through the input as read, and every interpolated one is
+    unit within 1e-6 (a key at its own time is copied as the input wrote it)."""
+    out = convert if convert and FORMATS[ext].family == FORMATS[convert].family else ext
+    if ".zarr" in (ext, out):
         pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
     rng = np.random.default_rng(seed)
     if ext == ".bvh":   # evenly spaced frames, middle angles away from gimbal lock
@@ -108,11 +111,11 @@ def test_nothing_written_misrepresents_the_resampled_rotations(seed, ext, batch,
         times = np.round(np.cumsum(rng.uniform(0.1, 0.6, nkeys)), 2)
         keys = smooth_keys(rng, nkeys, batch)
     with tempfile.TemporaryDirectory() as tmp:
-        src, dst = os.path.join(tmp, "in" + ext), os.path.join(tmp, "out" + ext)
+        src, dst = os.path.join(tmp, "in" + ext), os.path.join(tmp, "out" + out)
         _write_input(src, ext, times, keys, decimals)
-        resample_file(src, dst, fps=fps, method=method)
+        resample_file(src, dst, fps=fps, method=method, progress=False)
         key_times, key_quats = _read(src, ext)
-        t, got = _read(dst, ext)
+        t, got = _read(dst, out)
     want = np.asarray(Track(key_times, key_quats, method=method)(t), np.float64)
     got = np.asarray(got, np.float64)
     unit = got / np.linalg.norm(got, axis=-1, keepdims=True)
@@ -142,6 +145,21 @@ def test_help_lists_every_registered_extension(capsys):
         cli.main(["--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "(.csv, .npz, .bvh, .gltf, .glb or .zarr)" in out
+    with pytest.raises(SystemExit):
+        cli.main(["resample", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert ".csv, .npz and .zarr convert into each other. .gltf and .glb convert into each other." in out
+
+
+def test_formats_of_one_family_convert_into_each_other():
+    """CSV, NPZ and Zarr form one family (Zarr -> Zarr with its own chunked resampler); BVH and glTF
+    stay apart."""
+    families = {}
+    for ext, fmt in FORMATS.items():
+        families.setdefault(fmt.family, []).append(ext)
+    assert sorted(families.values()) == [[".bvh"], [".csv", ".npz", ".zarr"], [".gltf", ".glb"]]
+    assert [ext for ext, fmt in FORMATS.items() if fmt.chunked] == [".zarr"]
+    assert all(FORMATS[ext].read and FORMATS[ext].write for ext in (".csv", ".npz", ".zarr"))
 
 
 def test_resample_file_writes_zarr(tmp_path):

@@ -9,7 +9,10 @@
   per flattened batch index.
 - **BVH** (`read_bvh`, `write_bvh`, `resample_motion`) -- motion capture.
 - **glTF 2.0** (`resample_gltf`, `keyframes_to_gltf`) -- ``.gltf`` and ``.glb``.
-- **Zarr** (`resample_zarr`) -- ``.zarr`` stores, resampled chunk by chunk with Dask.
+- **Zarr** (`read_zarr`, `write_zarr`, `resample_zarr`) -- ``.zarr`` stores, the
+  NPZ layout (names in the group attribute ``names``); Zarr → Zarr is
+  resampled chunk by chunk with Dask, a store converted to or from CSV or NPZ
+  is held in memory.
 
 `FORMATS` maps each extension to its `Format` (reader, writer, resampler);
 `resample_file` and the ``quatarray`` command go through it.  Every problem
@@ -26,11 +29,12 @@ from .keyframes import Keyframes, example_path, fps_steps, fps_times, read_times
 from .npz import read_npz, write_npz
 from .registry import FORMATS, Format, format_of, resample_file
 from .text import FormatError, NonUnitKeyWarning, TextStyle
-from .zarr import resample_zarr
+from .zarr import read_zarr, resample_zarr, write_zarr
 
 __all__ = [
     "FormatError", "NonUnitKeyWarning", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
     "Joint", "Motion", "read_bvh", "write_bvh", "resample_motion", "resample_gltf", "keyframes_to_gltf",
-    "resample_zarr", "read_times", "fps_times", "fps_steps", "resample_keyframes", "example_path",
+    "read_zarr", "write_zarr", "resample_zarr", "read_times", "fps_times", "fps_steps", "resample_keyframes",
+    "example_path",
     "Format", "FORMATS", "format_of", "resample_file",
 ]

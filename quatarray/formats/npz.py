@@ -9,7 +9,7 @@ import numpy as np
 from .._validate import float_array
 from .atomic import atomic_write
 from .keyframes import Keyframes
-from .text import FormatError, check_numbers, check_unit
+from .text import FormatError, check_arrays
 
 __all__ = ["read_npz", "write_npz"]
 
@@ -82,14 +82,7 @@ def read_npz(path):
             raise FormatError(f"expected names of shape ({int(np.prod(batch))},), one string per track, got "
                               f"{names.dtype} of shape {names.shape}", name)
         names = tuple(str(n) for n in names)
-
-    def where(i, j):
-        if j is None:
-            return None, f"times[{i}]: "
-        return None, "keys[" + ", ".join(map(str, (i,) + np.unravel_index(j, batch))) + "]: "
-
-    check_numbers(times, keys, name, where)
-    check_unit(keys, name, where)
+    check_arrays(times, keys, name)
     return Keyframes(times, keys, names)
 
 

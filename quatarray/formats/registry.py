@@ -2,9 +2,11 @@
 
 Each format registers its extensions, its family (formats of one family
 convert into each other), its reader and writer (None where it has none in
-memory) and the resampler of its family.  `resample_file`, the command line's
-messages and ``quatarray --help`` read this table, so a format added here is
-everywhere at once.
+memory), the resampler of its family and, where it has one, a resampler from
+the format into itself that does not hold the track in memory (Zarr → Zarr,
+chunk by chunk).  `resample_file`, the command line's messages and
+``quatarray --help`` read this table, so a format added here is everywhere at
+once.
 """
 
 import dataclasses
@@ -65,6 +67,14 @@ def _write_npz(path, data, request):
     npz.write_npz(path, data)
 
 
+def _read_zarr(path, request):
+    return zarr.read_zarr(path, storage_options=request.storage_options)
+
+
+def _write_zarr(path, data, request):
+    zarr.write_zarr(path, data, force=request.force, storage_options=request.storage_options)
+
+
 def _resample_keyframes(src, dst, kind_in, kind_out, request):
     data = FORMATS[kind_in].read(src, request)
     t = request.grid(data.times[0], data.times[-1], 1 + data.keys[0].size, onto=data.times)
@@ -121,11 +131,19 @@ class Format:
     resample : callable
         ``resample(src, dst, ext_in, ext_out, request) -> (keys read,
         frames written)``, the resampler of the family.
+    chunked : callable or None
+        A resampler (called as `resample`) used instead when input and
+        output are both of this format, which resamples chunk by chunk
+        beyond memory (Zarr → Zarr); None: none.
     replaces_input : bool
         The input is read whole before the output is renamed into place,
-        so the output may be the input (with ``force``).
+        so the output may be the input (with ``force``).  False where the
+        `chunked` resampler writes the output while it reads the input.
     directory : bool
         The format is a directory (a Zarr store), not a file.
+    urls : bool
+        A file of this format may be a URL (``s3://``, ``memory://``, ...)
+        with ``storage_options`` for its filesystem.
     """
 
     name: str
@@ -133,8 +151,10 @@ class Format:
     read: object
     write: object
     resample: object
+    chunked: object = None
     replaces_input: bool = True
     directory: bool = False
+    urls: bool = False
 
 
 #: File extension (lower case) -> `Format`.
@@ -144,8 +164,8 @@ FORMATS = {
     ".bvh": Format("BVH", "BVH", _read_bvh, _write_bvh, _resample_bvh),
     ".gltf": Format("glTF", "glTF", None, None, _resample_gltf),
     ".glb": Format("GLB", "glTF", None, None, _resample_gltf),
-    ".zarr": Format("Zarr", "Zarr", None, None, _resample_zarr, replaces_input=False,
-                    directory=True),
+    ".zarr": Format("Zarr", "keyframes", _read_zarr, _write_zarr, _resample_keyframes, chunked=_resample_zarr,
+                    replaces_input=False, directory=True, urls=True),
 }
 
 
@@ -176,13 +196,17 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     Parameters
     ----------
     src, dst : str or os.PathLike
-        ``.csv``, ``.npz``, ``.bvh``, ``.gltf``, ``.glb`` or ``.zarr``.  CSV
-        and NPZ convert into each other, and so do glTF and GLB; BVH goes to
-        BVH only, Zarr to Zarr only.  `dst` is written atomically.
+        ``.csv``, ``.npz``, ``.bvh``, ``.gltf``, ``.glb`` or ``.zarr``.  CSV,
+        NPZ and Zarr convert into each other, and so do glTF and GLB; BVH
+        goes to BVH only.  Zarr → Zarr is resampled chunk by chunk, beyond
+        memory; a Zarr store converted to or from CSV or NPZ is held in memory
+        whole, as those formats need (see `quatarray.formats.read_zarr`).
+        `dst` is written atomically.
     fps : float, optional
         Sample at ``t0 + k / fps`` for k = 0, 1, ... up to the last key time.
     times : array_like or str or os.PathLike, optional
-        Query times, or a file of one time per line.  For BVH they count from
+        Query times, or a file of one time per line, or a Zarr store (or
+        array) holding ``times``.  For BVH they count from
         the first frame and must be evenly spaced.  Give `fps` or `times`.
     method, extrapolate : str
         Passed to `quatarray.Track`.  `method` None is 'slerp',
@@ -202,9 +226,12 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         let a ``.gltf`` output's ``.bin`` replace an existing file.  A Zarr
         store, written chunk by chunk while its input is read, is never
         written over its input.
-    scheduler, progress, storage_options
-        Zarr stores only (a local path or a URL zarr opens, such as
-        ``s3://bucket/run.zarr``): see `quatarray.formats.resample_zarr`.
+    scheduler, progress
+        Zarr → Zarr only: see `quatarray.formats.resample_zarr`.
+    storage_options : dict, optional
+        For Zarr stores given as a URL zarr opens, such as
+        ``s3://bucket/run.zarr``, input or output: see
+        `quatarray.formats.resample_zarr`.
 
     Returns
     -------
@@ -221,7 +248,8 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         `dst` (or a ``.gltf`` output's ``.bin``) exists, without `force`.
     ValueError
         Query times outside the keys with ``extrapolate="raise"``, a single key,
-        an output of more than ``quatarray.formats.text.MAX_VALUES`` values.
+        an output of more than ``quatarray.formats.text.MAX_VALUES`` values, or
+        a Zarr store of more for a CSV or NPZ output (read into memory).
     OSError
         A missing input or an unwritable output.
 
@@ -235,6 +263,7 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     """
     kind_in, kind_out = format_of(src), format_of(dst)
     family = FORMATS[kind_in].family
+    chunked = FORMATS[kind_in].chunked if kind_in == kind_out else None
     if family != FORMATS[kind_out].family:
         raise FormatError(f"cannot write {kind_out} from {kind_in} input ({family} files convert into "
                           f"{', '.join(e for e, f in FORMATS.items() if f.family == family)} only)", dst)
@@ -242,8 +271,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         raise ValueError("give exactly one of fps and times")
     if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
         raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
-    if storage_options and family != "Zarr":
-        raise FormatError("storage options apply to Zarr stores (.zarr) only", dst)
+    if storage_options and not (FORMATS[kind_in].urls or FORMATS[kind_out].urls):
+        urls = ", ".join(f"{f.name} stores ({e})" for e, f in FORMATS.items() if f.urls)
+        raise FormatError(f"storage options apply to {urls} only", dst)
     if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
         if FORMATS[kind_out].directory:
             raise FileExistsError(errno.EEXIST, f"exists and is not a {FORMATS[kind_out].name} store (a directory)",
@@ -257,12 +287,13 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
             raise FormatError(f"is the input file; give {option('force')} to replace it", dst)
     elif not force and os.path.lexists(dst):
         raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(dst))
-    if family != "Zarr":   # Zarr stores read their query times chunk by chunk (also from a .zarr store)
+    if chunked is None:   # a chunked resampler reads its query times chunk by chunk (Zarr: also from a .zarr store)
         if times is not None and isinstance(times, (str, os.PathLike)):
-            times = read_times(times)
+            times = (zarr.read_times_zarr(times, storage_options=storage_options) if zarr.is_zarr(times)
+                     else read_times(times))
         times = None if times is None else np.asarray(times, np.float64)
     if method is None and family != "glTF":
         method = "slerp"
     request = Request(fps, times, method, extrapolate, scalar_last, precision, force, scheduler, progress,
                       storage_options)
-    return FORMATS[kind_in].resample(src, dst, kind_in, kind_out, request)
+    return (chunked or FORMATS[kind_in].resample)(src, dst, kind_in, kind_out, request)

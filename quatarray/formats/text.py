@@ -353,6 +353,20 @@ def check_unit(keys, path, where, decimals=None, per_key=None):
             path, line)), NonUnitKeyWarning, stacklevel=3)
 
 
+def check_arrays(times, keys, path):
+    """`check_numbers` and `check_unit` for keyframes stored as arrays (NPZ, Zarr): messages name the
+    index, ``times[3]`` or ``keys[3, 1]``, and the norm allowed is that of binary floats."""
+    batch = keys.shape[1:-1]
+
+    def where(i, j):
+        if j is None:
+            return None, f"times[{i}]: "
+        return None, "keys[" + ", ".join(map(str, (i,) + np.unravel_index(j, batch))) + "]: "
+
+    check_numbers(times, keys, path, where)
+    check_unit(keys, path, where)
+
+
 def check_query(times, t, extrapolate):
     """At least two keys, and with ``extrapolate="raise"`` every query time within the keys."""
     if len(times) < 2:

@@ -1,13 +1,24 @@
-"""``quatarray resample`` on Zarr stores, chunk by chunk with Dask, through zarr's public API.
+"""Zarr stores: resampled chunk by chunk with Dask, or read and written whole, through zarr's public API.
 
 A store is a Zarr group holding ``times`` (K,) and ``keys`` (K, *batch, 4),
-scalar-first, like the NPZ layout.  It may be anything zarr opens: a local
-path, or a URL (``memory://``, ``s3://``, ``gs://``, any fsspec protocol)
-with ``storage_options`` for its filesystem (credentials, endpoint).  The
-keys are read into memory when small (one `Track` for every chunk of
-queries), else kept as a Dask array chunked along the tracks.  Query times
-come from ``fps`` (generated lazily) or a times file (a Zarr store or
-array holding ``times``, read chunk by chunk, or a text file).
+scalar-first, like the NPZ layout, and optionally the track names in the
+group attribute ``names`` (one per flattened batch index).  It may be
+anything zarr opens: a local path, or a URL (``memory://``, ``s3://``,
+``gs://``, any fsspec protocol) with ``storage_options`` for its filesystem
+(credentials, endpoint).
+
+`resample_zarr` (Zarr → Zarr) reads the keys into memory when small (one
+`Track` for every chunk of queries), else keeps them as a Dask array
+chunked along the tracks.  Query times come from ``fps`` (generated
+lazily) or a times file (a Zarr store or array holding ``times``, read
+chunk by chunk, or a text file).
+
+Converting to or from the in-memory formats (CSV, NPZ) goes through
+`read_zarr` and `write_zarr`: the whole track is in memory then, as those
+formats need it anyway, and a store of more than
+``quatarray.formats.text.MAX_VALUES`` values is refused before it is read.
+`write_zarr` writes the same chunks, through the same atomic steps, as
+`resample_zarr`.
 
 Chunks are read with `zarr.open_group` and `dask.array.from_array` and
 written by `dask.array.store` into arrays made by zarr's ``create_array``:
@@ -48,8 +59,11 @@ from functools import partial
 
 import numpy as np
 
-from .keyframes import fps_steps, read_times
-from .text import FormatError, check_query, option
+from .._validate import float_array
+from .keyframes import Keyframes, fps_steps, read_times
+from .text import FormatError, check_arrays, check_query, check_size, echo, option
+
+__all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
 
 #: Quaternions per output chunk: 2**21 of them are 32 MiB in float32.
 CHUNK_QUATS = 1 << 21
@@ -218,10 +232,13 @@ def read_store(path, *, storage_options=None):
     (array([0., 1.]), (2, 4))
     """
     _need()
-    return _read(_Location(path, storage_options))
+    times, keys, _ = _read(_Location(path, storage_options))
+    return times, keys
 
 
-def _read(loc):
+def _open(loc):
+    """``(times in memory, the zarr array of keys, track names or None)`` of the store at `loc`, the
+    shapes checked."""
     group = _open_group(loc, "arrays 'times' and 'keys'")
     times = _node(group, "times", loc)
     keys = _node(group, "keys", loc)
@@ -231,7 +248,114 @@ def _read(loc):
     if keys.ndim < 2 or keys.shape[0] != len(times) or keys.shape[-1] != 4:
         raise FormatError(f"expected keys of shape ({len(times)}, ..., 4) to match times, got {keys.shape}",
                           loc.name)
-    return times, _dask(keys, "keys", loc.name)
+    names = group.attrs.get("names")
+    count = int(np.prod(keys.shape[1:-1]))
+    if names is not None:
+        if not (isinstance(names, list) and len(names) == count and all(isinstance(n, str) for n in names)):
+            raise FormatError(f"expected the attribute 'names' to be a list of {count} strings, one per track, "
+                              f"got {echo(names)}", loc.name)
+        names = tuple(names)
+    return times, keys, names
+
+
+def _read(loc):
+    """``(times, keys as a Dask array, track names or None)`` of the store at `loc`."""
+    times, keys, names = _open(loc)
+    return times, _dask(keys, "keys", loc.name), names
+
+
+def read_zarr(path, *, storage_options=None):
+    """Read the keyframes of a Zarr store into memory.
+
+    The whole store is read, as the in-memory formats (CSV, NPZ) need it:
+    a store of more than ``quatarray.formats.text.MAX_VALUES`` values is
+    refused before it is read (`resample_zarr` resamples such a store into
+    another store, chunk by chunk).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A local path or a URL zarr opens (``memory://``, ``s3://``, ...),
+        holding ``times`` (K,), ``keys`` (K, *batch, 4) scalar-first, and
+        optionally the group attribute ``names`` (one per flattened batch
+        index).
+    storage_options : dict, optional
+        Options of the URL's filesystem (fsspec), e.g. credentials.
+
+    Returns
+    -------
+    Keyframes
+        float32 keys stay float32, integer keys become float64; times are
+        float64.
+
+    Raises
+    ------
+    FormatError
+        Not a store of keyframes, a chunk zarr cannot decode, non-finite
+        values, times not strictly increasing or a zero quaternion (the
+        message names the index).
+    ValueError
+        A store of more than ``MAX_VALUES`` values.
+
+    Warns
+    -----
+    NonUnitKeyWarning
+        Once per store, as `read_npz`.
+
+    Examples
+    --------
+    >>> import numpy as np, zarr
+    >>> from quatarray.formats import read_zarr
+    >>> g = zarr.open_group("memory://doc-read-zarr.zarr", mode="w")
+    >>> g["times"] = np.array([0.0, 1.0]); g["keys"] = np.eye(4)[:2]
+    >>> read_zarr("memory://doc-read-zarr.zarr").keys
+    array([[1., 0., 0., 0.],
+           [0., 1., 0., 0.]])
+    """
+    _need()
+    loc = _locations(storage_options, src=path)["src"]
+    times, keys, names = _open(loc)
+    check_size(len(times), 4 * int(np.prod(keys.shape[1:-1])),
+               "reading the store into memory (only .zarr to .zarr is resampled chunk by chunk)")
+    keys = float_array(_Chunks(keys, "keys", loc.name)[:], "keys", last=4)   # real numbers: checked by _node
+    check_arrays(times, keys, loc.name)
+    return Keyframes(times, keys, names)
+
+
+def _times_node(loc):
+    """The zarr array of query times at `loc`: a Zarr array, or a group's array ``times``."""
+    import zarr
+    try:
+        node = zarr.open(mode="r", **loc.store())
+    except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
+        if not loc.exists():
+            raise FileNotFoundError(errno.ENOENT, "No such file or directory", loc.name) from None
+        raise FormatError(f"not a Zarr array or group of times ({_reason(exc)})", loc.name) from None
+    array = _node(node, "times", loc) if isinstance(node, zarr.Group) else node
+    if array.ndim != 1 or np.dtype(array.dtype).kind not in "biuf":
+        raise FormatError(f"expected times of real numbers, shape (N,), got {array.dtype} {array.shape}", loc.name)
+    return array
+
+
+def read_times_zarr(path, *, storage_options=None):
+    """Query times from a Zarr store (or array) holding ``times``, into memory (float64).
+
+    `resample_zarr` reads such a store chunk by chunk; the in-memory
+    formats take their query times whole.
+
+    Examples
+    --------
+    >>> import numpy as np, zarr
+    >>> from quatarray.formats.zarr import read_times_zarr
+    >>> zarr.open_group("memory://doc-times.zarr", mode="w")["times"] = np.array([0.0, 0.5])
+    >>> read_times_zarr("memory://doc-times.zarr")
+    array([0. , 0.5])
+    """
+    _need()
+    loc = _locations(storage_options, times=path)["times"]
+    array = _times_node(loc)
+    check_size(array.shape[0], 1, "reading the query times into memory")
+    return np.asarray(_Chunks(array, "times", loc.name)[...], np.float64)
 
 
 class _Queries:
@@ -244,18 +368,7 @@ class _Queries:
             self.size = fps_steps(self.t0, self.t1, fps) + 1   # the same count and values as fps_times
             return
         if loc is not None:
-            import zarr
-            try:
-                node = zarr.open(mode="r", **loc.store())
-            except Exception as exc:  # noqa: BLE001 - zarr raises several unrelated types
-                if not loc.exists():
-                    raise FileNotFoundError(errno.ENOENT, "No such file or directory", loc.name) from None
-                raise FormatError(f"not a Zarr array or group of times ({_reason(exc)})", loc.name) from None
-            self.array = _node(node, "times", loc) if isinstance(node, zarr.Group) else node
-            self.where = loc.name
-            if self.array.ndim != 1 or np.dtype(self.array.dtype).kind not in "biuf":
-                raise FormatError(f"expected times of real numbers, shape (N,), got {self.array.dtype} "
-                                  f"{self.array.shape}", loc.name)
+            self.array, self.where = _times_node(loc), loc.name
             self.size = self.array.shape[0]
             return
         self.memory = np.asarray(read_times(times) if isinstance(times, (str, os.PathLike)) else times, np.float64)
@@ -365,9 +478,83 @@ def _space_check(loc, nbytes):
                          f"{free / 1e9:.3g} GB free (try a lower --fps or fewer --times)")
 
 
+def _rows(batch):
+    """Frames per chunk of a store with tracks `batch`: `CHUNK_QUATS` quaternions."""
+    return max(1, CHUNK_QUATS // max(1, int(np.prod(batch))))
+
+
+def _create(store, n, batch, dtype, names):
+    """Create the group of a store of `n` frames in `store` (`_Location.store` arguments): its arrays
+    ``times`` and ``keys``, chunked by `_rows`, and its ``names`` attribute (unless None)."""
+    import zarr
+    from zarr.codecs import BloscCodec
+
+    rows = _rows(batch)
+    group = zarr.open_group(mode="w", **store)
+    if names is not None:
+        group.attrs["names"] = list(names)
+    # quaternions are float noise to a compressor (zstd saves ~10% of the bytes and costs
+    # ~40% of the throughput): stored raw; times compress well with a byte shuffle, and
+    # LZ4 does it at memory speed
+    times = group.create_array("times", shape=(n,), chunks=(rows,), dtype=np.float64,
+                               compressors=BloscCodec(cname="lz4", clevel=1, shuffle="shuffle"))
+    keys = group.create_array("keys", shape=(n,) + batch + (4,), chunks=(rows,) + batch + (4,), dtype=dtype,
+                              compressors=None)
+    return times, keys
+
+
+def write_zarr(path, keyframes, *, force=False, storage_options=None):
+    """Write keyframes to a Zarr store, atomically.
+
+    The store holds ``times``, ``keys`` (scalar-first, in chunks of about
+    2**21 quaternions, as `resample_zarr` writes them) and, unless
+    ``keyframes.names`` is None, the group attribute ``names``.  It appears
+    only when complete (see the module's notes on local disks and object
+    stores).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A local path or a URL zarr opens (``memory://``, ``s3://``, ...).
+    keyframes : Keyframes
+        ``keys`` of shape (K, *batch, 4), float32 or float64.
+    force : bool, default False
+        Replace an existing store (a file at `path` is never replaced).
+    storage_options : dict, optional
+        Options of the URL's filesystem (fsspec), e.g. credentials.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from quatarray.formats import Keyframes, read_zarr, write_zarr
+    >>> kf = Keyframes(np.array([0.0, 1.0]), np.eye(4)[:2, None], names=("hand",))
+    >>> write_zarr("memory://doc-write.zarr", kf, force=True)
+    >>> read_zarr("memory://doc-write.zarr").names
+    ('hand',)
+    """
+    _need()
+    loc = _locations(storage_options, dst=path)["dst"]
+    times, keys = np.asarray(keyframes.times, np.float64), np.asarray(keyframes.keys)
+    batch = keys.shape[1:-1]
+    if keyframes.names is not None and len(keyframes.names) != int(np.prod(batch)):
+        raise ValueError(f"expected {int(np.prod(batch))} track names, got {len(keyframes.names)}")
+    _space_check(loc, _nbytes(len(times), batch, keys.dtype))
+    with _atomic(loc, force) as tmp:
+        zt, zk = _create(tmp, len(times), batch, keys.dtype, keyframes.names)
+        zt[...] = times
+        zk[...] = keys
+
+
+def _nbytes(n, batch, dtype):
+    """Bytes of a store of `n` frames of tracks `batch`, uncompressed."""
+    return n * (8 + 4 * np.dtype(dtype).itemsize * int(np.prod(batch)))
+
+
 def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate="raise",
                   scheduler=None, progress=None, force=False, storage_options=None):
     """Resample the keyframes of Zarr store `src` into Zarr store `dst`, chunk by chunk.
+
+    The track names (the group attribute ``names``) are carried over.
 
     Parameters
     ----------
@@ -412,8 +599,6 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     """
     _need()
     import dask.array as da
-    import zarr
-    from zarr.codecs import BloscCodec
 
     from .. import dask as qd
     from ..interpolate import Track
@@ -426,10 +611,10 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
         if loc is not None and loc.key() == loc_out.key():
             raise ValueError(f"{loc_out.name}: is the {what}; Zarr outputs are written while the {what} is "
                              "read, so they cannot replace it (even when forced): write elsewhere, then rename")
-    key_times, keys = _read(loc_in)
+    key_times, keys, names = _read(loc_in)
     check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
-    rows = max(1, CHUNK_QUATS // max(1, int(np.prod(batch))))
+    rows = _rows(batch)
     queries = _Queries(key_times, fps, times, where.get("times"))
     n = queries.size
     window = rows * WINDOW_CHUNKS
@@ -438,7 +623,7 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     else:
         interpolate = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)
     dtype = interpolate(queries.window(0, min(n, 1), 1)).dtype     # lazy: nothing computed
-    _space_check(loc_out, n * (8 + 4 * dtype.itemsize * int(np.prod(batch))))
+    _space_check(loc_out, _nbytes(n, batch, dtype))
     if extrapolate == "raise" and fps is None and n:   # one pass over the times before any writing
         low, high = np.inf, -np.inf
         for start in range(0, n, window):
@@ -447,14 +632,7 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
         check_query(key_times, np.array(da.compute(low, high)), extrapolate)
     show = sys.stderr.isatty() if progress is None else progress
     with _atomic(loc_out, force) as tmp, _runner(scheduler, show) as run:
-        group = zarr.open_group(mode="w", **tmp)
-        # quaternions are float noise to a compressor (zstd saves ~10% of the bytes and costs
-        # ~40% of the throughput): stored raw; times compress well with a byte shuffle, and
-        # LZ4 does it at memory speed
-        zt = group.create_array("times", shape=(n,), chunks=(rows,), dtype=np.float64,
-                                compressors=BloscCodec(cname="lz4", clevel=1, shuffle="shuffle"))
-        zk = group.create_array("keys", shape=(n,) + batch + (4,), chunks=(rows,) + batch + (4,), dtype=dtype,
-                                compressors=None)
+        zt, zk = _create(tmp, n, batch, dtype, names)
         for start in range(0, n, window):
             stop = min(n, start + window)
             t = queries.window(start, stop, rows)
