@@ -205,8 +205,9 @@ def build_parser():
                    help="write CSV components x, y, z, w (default: in the input CSV's order; its columns are "
                         "matched by name, in any order and case)")
     p.add_argument("--precision", type=_precision, metavar="N|full",
-                   help="decimals of the values written to CSV or BVH (default: as many as the input has; "
-                        "'full': the shortest text that reads back exactly)")
+                   help="decimals of every value written to CSV or BVH, or 'full': the shortest text that "
+                        "reads back exactly (default: a key at its own time keeps the input's text, every "
+                        "interpolated value is written in full)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing OUT, also when it is IN (not for Zarr stores, which are written "
                         "while IN is read)")

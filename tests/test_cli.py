@@ -737,6 +737,15 @@ def test_method_spline_on_the_command_line(tmp_path):
     assert "{slerp,linear,squad,bezier,spline}" in run("resample", "--help").stdout
 
 
+def test_precision_help_states_the_precision_rule():
+    """--help states the rule the files follow: only a key at its own time keeps the input's text
+    (it said 'default: as many as the input has', the old rule that rounded interpolated values)."""
+    text = " ".join(run("resample", "--help").stdout.split())
+    assert "as many as the input has" not in text
+    assert "a key at its own time keeps the input's text" in text
+    assert "every interpolated value is written in full" in text
+
+
 def test_demo_says_why_squad_and_bezier_overlap(tmp_path, capsys):
     """Their printed numbers agree to 2 decimals; the demo says by how much |w| differs, and that is true."""
     cli.demo(str(tmp_path), file=sys.stdout)
