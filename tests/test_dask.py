@@ -1,5 +1,6 @@
 """quatarray.dask equals the in-memory API on chunked data; the Zarr path of the CLI; clear errors."""
 
+import errno
 import importlib
 import json
 import os
@@ -707,7 +708,11 @@ def test_zarr_huge_output_is_refused_or_built_window_by_window(store, monkeypatc
     tmp, times, keys = store
     assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / "out.zarr"), "--fps", "1e12"]) == 2
     err = capsys.readouterr().err
-    assert "out.zarr: the output needs" in err and "GB free" in err
+    # the output alone is named (it read "quatarray: error: IN: OUT: the output needs ...")
+    assert err.startswith(f"quatarray: error: {tmp / 'out.zarr'}: the output needs ") and "GB free" in err
+    with pytest.raises(OSError, match="the output needs") as info:
+        _zarr.resample_zarr(str(tmp / "in.zarr"), str(tmp / "out.zarr"), fps=1e12, progress=False)
+    assert info.value.errno == errno.ENOSPC and info.value.filename == str(tmp / "out.zarr")
     assert sorted(os.listdir(tmp)) == ["in.zarr"]
     monkeypatch.setattr(_zarr, "CHUNK_QUATS", 3 * 8)      # 8 queries x 3 tracks a chunk
     monkeypatch.setattr(_zarr, "WINDOW_CHUNKS", 4)

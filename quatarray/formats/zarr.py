@@ -466,7 +466,8 @@ def _remove(fs, path):
 
 
 def _space_check(loc, nbytes):
-    """Refuse an output that the local disk cannot hold, before any writing."""
+    """Refuse an output that the local disk cannot hold, before any writing (an ENOSPC `OSError`
+    naming the output, as a disk that fills while writing gives)."""
     if not loc.local:
         return
     folder = os.path.dirname(loc.path)
@@ -474,8 +475,8 @@ def _space_check(loc, nbytes):
         return    # reported by _atomic_dir
     free = shutil.disk_usage(folder).free
     if nbytes > free:
-        raise ValueError(f"{loc.name}: the output needs {nbytes / 1e9:.3g} GB, and its disk has "
-                         f"{free / 1e9:.3g} GB free (try a lower --fps or fewer --times)")
+        raise OSError(errno.ENOSPC, f"the output needs {nbytes / 1e9:.3g} GB, and its disk has "
+                      f"{free / 1e9:.3g} GB free (try a lower --fps or fewer --times)", loc.name)
 
 
 def _rows(batch):
