@@ -230,13 +230,14 @@ def build_parser():
                     "linearly, outside the bound). glTF: each LINEAR rotation sampler gets its own fewer keys "
                     "(slerp); everything else in the file is kept as it was.")
     p.add_argument("input", metavar="IN", help="keyframe file to read")
-    p.add_argument("-o", "--output", metavar="OUT", required=True, help="file to write (replaced atomically)")
+    p.add_argument("-o", "--output", metavar="OUT", required=True,
+                   help="file to write (atomically; an existing one only with --force)")
     p.add_argument("--tolerance", type=_tolerance, required=True, metavar="ANGLE",
                    help="largest angle from any original key: 0.1deg, 0.002rad or 0.002 (radians)")
     p.add_argument("--method", choices=REDUCE_METHODS, default="slerp",
                    help="curve the reader draws through the keys (default: slerp)")
     p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
-    p.add_argument("--force", action="store_true", help="allow OUT to be IN (replaced atomically)")
+    p.add_argument("--force", action="store_true", help="replace an existing OUT, also when it is IN")
     p.set_defaults(run=_run_reduce)
 
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",

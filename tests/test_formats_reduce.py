@@ -92,6 +92,35 @@ def test_cli_reduce_errors(dense_csv, tmp_path, capsys):
     assert "--force" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("ext", [".csv", ".npz", ".bvh", ".glb"])
+def test_reduce_follows_the_overwrite_rule(tmp_path, capsys, ext):
+    """quatarray reduce, as resample: an existing output is refused without --force (it was replaced
+    without a word), the message names the file and the flag in command-line words (it said
+    'give --force (force=True)'), and --force replaces it."""
+    src = tmp_path / ("in" + ext)
+    if ext == ".bvh":
+        resample_file(example_path("walk.bvh"), src, fps=60, method="squad")
+    elif ext == ".glb":
+        keyframes_to_gltf(src, read_csv(example_path("arm.csv")))
+    else:
+        resample_file(example_path("arm.csv"), src, fps=60, method="squad")
+    out = tmp_path / ("out" + ext)
+    out.write_bytes(b"keep me")
+    args = ["reduce", str(src), "-o", str(out), "--tolerance", "1deg"]
+    assert main(args) == 2
+    assert capsys.readouterr().err == f"quatarray: error: {out}: exists; give --force to replace it\n"
+    assert out.read_bytes() == b"keep me"
+    with pytest.raises(FileExistsError, match="exists; give force=True to replace it"):
+        reduce_file(src, out, "1deg")
+    before = src.read_bytes()
+    assert main(["reduce", str(src), "-o", str(src), "--tolerance", "1deg"]) == 2
+    assert capsys.readouterr().err == f"quatarray: error: {src}: is the input file; give --force to replace it\n"
+    assert src.read_bytes() == before
+    assert main(args + ["--force"]) == 0
+    assert out.read_bytes() != b"keep me"
+    assert main(["reduce", str(src), "-o", str(src), "--tolerance", "1deg", "--force"]) == 0
+
+
 @pytest.mark.parametrize("text, value", [("0.1deg", np.radians(0.1)), ("2e-3rad", 2e-3), ("0.5", 0.5),
                                          (" 1 deg ", np.radians(1))])
 def test_parse_tolerance(text, value):

@@ -25,7 +25,7 @@ from .. import _euler, _reduce
 from ..timeseries import reduce_keys
 from .bvh import resample_motion
 from .keyframes import Keyframes
-from .registry import FORMATS, Request, format_of
+from .registry import FORMATS, Request, check_output, format_of
 from .text import FormatError
 
 __all__ = ["reduce_file", "parse_tolerance"]
@@ -154,7 +154,8 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     scalar_last : bool
         CSV components are ``x, y, z, w``.
     force : bool
-        Allow `dst` to be `src` (replaced atomically).
+        Replace an existing `dst`, also when it is `src` (atomically), as
+        `resample_file`: without it an existing `dst` is refused.
 
     Returns
     -------
@@ -174,7 +175,6 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     >>> [(name, before, after < before // 4, bool(err <= np.radians(0.1))) for name, before, after, err in rows]
     [('shoulder', 481, True, True), ('elbow', 481, True, True), ('wrist', 481, True, True)]
     """
-    import os
     kind_in, kind_out = format_of(src), format_of(dst)
     family = FORMATS[kind_in].family
     if family not in _REDUCERS:
@@ -186,12 +186,6 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     tolerance = parse_tolerance(tolerance) if isinstance(tolerance, str) else float(tolerance)
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"expected tolerance > 0, got {tolerance!r}")
-    if not force:
-        try:
-            same = os.path.samefile(src, dst)
-        except OSError:
-            same = False
-        if same:
-            raise FormatError("is the input file; give --force (force=True) to replace it", dst)
+    check_output(src, dst, kind_out, force)
     request = dataclasses.replace(Request(), scalar_last=scalar_last, force=force)
     return _REDUCERS[family](src, dst, kind_in, kind_out, tolerance, method, request)

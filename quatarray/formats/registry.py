@@ -189,6 +189,25 @@ def _same_file(src, dst):
         return False
 
 
+def check_output(src, dst, kind_out, force):
+    """The overwrite rule, for every command that writes a file: an existing `dst` only with `force`;
+    `dst` equal to `src` only with `force` and only where the format replaces its input atomically;
+    never a file where a store (a directory) goes, or the reverse."""
+    if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
+        if FORMATS[kind_out].directory:
+            raise FileExistsError(errno.EEXIST, f"exists and is not a {FORMATS[kind_out].name} store (a directory)",
+                                  os.fspath(dst))
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(dst))
+    if _same_file(src, dst):
+        if not FORMATS[kind_out].replaces_input:
+            raise FormatError(f"is the input; {FORMATS[kind_out].name} outputs are written while the input is "
+                              "read, so they cannot replace it: write elsewhere, then rename", dst)
+        if not force:
+            raise FormatError(f"is the input file; give {option('force')} to replace it", dst)
+    elif not force and os.path.lexists(dst):
+        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(dst))
+
+
 def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False,
                   precision=None, force=False, scheduler=None, progress=None, storage_options=None):
     """Read `src`, resample it and write `dst`; formats follow the extensions.
@@ -274,19 +293,7 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     if storage_options and not (FORMATS[kind_in].urls or FORMATS[kind_out].urls):
         urls = ", ".join(f"{f.name} stores ({e})" for e, f in FORMATS.items() if f.urls)
         raise FormatError(f"storage options apply to {urls} only", dst)
-    if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
-        if FORMATS[kind_out].directory:
-            raise FileExistsError(errno.EEXIST, f"exists and is not a {FORMATS[kind_out].name} store (a directory)",
-                                  os.fspath(dst))
-        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(dst))
-    if _same_file(src, dst):
-        if not FORMATS[kind_out].replaces_input:
-            raise FormatError(f"is the input; {FORMATS[kind_out].name} outputs are written while the input is "
-                              "read, so they cannot replace it: write elsewhere, then rename", dst)
-        if not force:
-            raise FormatError(f"is the input file; give {option('force')} to replace it", dst)
-    elif not force and os.path.lexists(dst):
-        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(dst))
+    check_output(src, dst, kind_out, force)
     if chunked is None:   # a chunked resampler reads its query times chunk by chunk (Zarr: also from a .zarr store)
         if times is not None and isinstance(times, (str, os.PathLike)):
             times = (zarr.read_times_zarr(times, storage_options=storage_options) if zarr.is_zarr(times)
