@@ -260,6 +260,23 @@ def test_npz_not_an_archive(tmp_path):
         read_npz(single)
 
 
+@pytest.mark.parametrize("array", ["keys", "names"])
+def test_npz_of_pickled_objects_is_named_without_numpys_pickle_advice(tmp_path, capsys, array):
+    """An archive whose array holds Python objects: NumPy's 'allow_pickle=False' advice leaked
+    ("unreadable array (Object arrays cannot be loaded when allow_pickle=False)"); the message names
+    the array and says what an NPZ of keyframes holds."""
+    from quatarray.cli import main
+    arrays = {"times": [0.0, 1.0], "keys": [[1.0, 0, 0, 0], [0, 1.0, 0, 0]], "names": ["q"]}
+    arrays[array] = np.array([None, None], dtype=object)
+    np.savez(tmp_path / "obj.npz", **arrays)
+    with pytest.raises(FormatError, match=f"array '{array}' holds pickled Python objects; expected numbers"):
+        read_npz(tmp_path / "obj.npz")
+    assert main(["resample", str(tmp_path / "obj.npz"), "-o", str(tmp_path / "out.npz"), "--fps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {tmp_path / 'obj.npz'}: array '{array}' holds pickled") and "pickle=" not in err
+    assert not (tmp_path / "out.npz").exists()
+
+
 def test_npz_integer_times_and_keys_become_float(tmp_path):
     path = npz_bytes(tmp_path, times=np.arange(2), keys=np.array([[1, 0, 0, 0], [0, 1, 0, 0]]))
     kf = read_npz(path)

@@ -55,16 +55,20 @@ def read_npz(path):
             raise FormatError("not an NPZ archive of arrays (a single .npy array)", name)
         stack.enter_context(archive)
         missing = [a for a in ("times", "keys") if a not in archive.files]
-        names = None
         if missing:
             raise FormatError(f"missing array {missing[0]!r} (found {', '.join(archive.files) or 'none'})", name)
-        try:
-            times = archive["times"]
-            keys = archive["keys"]
-            if "names" in archive.files:
-                names = archive["names"]
-        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-            raise FormatError(f"unreadable array ({exc})", name) from None
+        arrays = {}
+        for a in ("times", "keys", "names"):
+            if a not in archive.files:
+                continue
+            try:
+                arrays[a] = archive[a]
+            except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+                if "allow_pickle" in str(exc):   # numpy's message would offer pickle
+                    raise FormatError(f"array {a!r} holds pickled Python objects; expected numbers (an NPZ "
+                                      "archive of arrays, as numpy.savez writes them)", name) from None
+                raise FormatError(f"array {a!r} is unreadable ({exc})", name) from None
+        times, keys, names = arrays["times"], arrays["keys"], arrays.get("names")
     try:
         times = float_array(times, "times", dtype=np.float64)
         keys = float_array(keys, "keys", last=4)
