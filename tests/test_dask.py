@@ -179,6 +179,16 @@ def test_mean_reduction_equals_memory(rng, scheduler, chunks, dtype):
     assert len(parts) == np.prod([len(c) for c in chunked(q, chunks).chunks[:-1]])
 
 
+def test_mean_docstring_names_the_mean_it_computes(rng):
+    """dask.mean is the chordal mean of Rotation.mean; its docstring pointed at QuatArray.mean, the
+    arithmetic mean of the components, which it is not."""
+    from quatarray import QuatArray
+    doc = qd.mean.__doc__
+    assert "QuatArray.mean" not in doc and "`Rotation.mean`" in doc
+    q = unit(rng, (50,), np.float64)
+    assert not np.allclose(np.asarray(QuatArray(q).mean()), qd.mean(chunked(q, ((25, 25), (4,)))).compute())
+
+
 # --------------------------------------------------------------------------- keyframe tracks
 
 @pytest.mark.parametrize("dtype", DTYPES)
