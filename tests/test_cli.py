@@ -737,6 +737,21 @@ def test_method_spline_on_the_command_line(tmp_path):
     assert "{slerp,linear,squad,bezier,spline}" in run("resample", "--help").stdout
 
 
+def test_files_the_demo_writes_are_ignored_by_git(tmp_path, capsys):
+    """After the README's first command (quatarray demo, in the checkout) git status showed
+    demo_arm.glb and demo_imu.csv: every file the demo writes must match a .gitignore pattern."""
+    import fnmatch
+    path = os.path.join(ROOT, ".gitignore")
+    if not os.path.exists(path):
+        pytest.skip("not a source checkout (no .gitignore)")
+    patterns = [p.strip().rstrip("/") for p in open(path) if p.strip() and not p.startswith("#")]
+    cli.demo(str(tmp_path), file=sys.stdout)
+    capsys.readouterr()
+    written = os.listdir(tmp_path)
+    assert {"demo_arm.glb", "demo_imu.csv"} <= set(written)
+    assert [n for n in written if not any(fnmatch.fnmatch(n, p.lstrip("/")) for p in patterns)] == []
+
+
 def test_precision_help_states_the_precision_rule():
     """--help states the rule the files follow: only a key at its own time keeps the input's text
     (it said 'default: as many as the input has', the old rule that rounded interpolated values)."""
