@@ -556,6 +556,38 @@ def test_identity_resample_by_fps_on_evenly_spaced_keys(tmp_path):
     assert (tmp_path / "out.csv").read_text() == src.read_text()
 
 
+def test_identity_resample_holds_exactly_when_the_guide_says(tmp_path):
+    """The guide claimed byte-for-byte identity for 'any file whose header is written as quatarray
+    writes it'; a key in the other hemisphere from the key before it comes back negated (the curve's
+    sign), and exponent notation or digits past repr come back as plain repr decimals. The guide and
+    README now state these conditions; this pins each of them."""
+    times = tmp_path / "t.txt"
+    times.write_text("0\n1\n2\n")
+
+    def identity(rows):
+        src = tmp_path / "in.csv"
+        src.write_text("time,q.w,q.x,q.y,q.z\n" + "".join(f"{t},{r}\n" for t, r in enumerate(rows)))
+        assert cli.main(["resample", str(src), "-o", str(tmp_path / "out.csv"), "--times", str(times),
+                         "--force"]) == 0
+        return (tmp_path / "out.csv").read_text().splitlines()[1:]
+
+    plain = ["1,0,0,0", "0.6,0.8,0,0", "0.28,0.96,0,0"]
+    assert identity(plain) == [f"{t},{r}" for t, r in enumerate(plain)]
+    flipped = ["1,0,0,0", "-0.6,-0.8,0,0", "0.28,0.96,0,0"]       # key 1 in the other hemisphere
+    assert identity(flipped) == ["0,1,0,0,0", "1,0.6,0.8,0,0", "2,0.28,0.96,0,0"]
+    flipped = ["1,0,0,0", "-0.6,-0.8,0,0", "-0.28,-0.96,0,0"]     # keys 1 and 2 on the curve's other side
+    assert identity(flipped) == ["0,1,0,0,0", "1,0.6,0.8,0,0", "2,0.28,0.96,0,0"]
+    exponent = ["1e0,0e0,0e0,0e0", "6.0e-01,8.0e-01,0e0,0e0", "0.28,0.96,0,0"]
+    got = identity(exponent)
+    assert not any("e" in line for line in got)
+    assert [[float(v) for v in line.split(",")[1:]] for line in got] == [
+        [float(v) for v in row.split(",")] for row in exponent]
+    guide = " ".join(open(os.path.join(ROOT, "docs", "guide", "files.rst")).read().split())
+    assert "in the same hemisphere as the key before it" in guide and "not ``4.53e-01``" in guide
+    readme = " ".join(open(os.path.join(ROOT, "README.md")).read().split())
+    assert "whose keys do not flip hemisphere" in readme
+
+
 def _zarr_input(path):
     zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
     pytest.importorskip("dask", reason="dask is not installed (the dask extra)")
