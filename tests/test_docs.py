@@ -99,6 +99,20 @@ def test_guide_doctests(html):
 README = ROOT / "README.md"
 
 
+def test_guide_and_readme_use_public_modules_only():
+    """The guide's doctests imported quatarray._zarr.resample_zarr and quatarray._gltf.resample_gltf:
+    the README and the guide name public modules only (quatarray.formats, ...)."""
+    import re
+    private = re.compile(r"\bquatarray\._\w+|\bfrom \._\w+ import")
+    found = []
+    for path in [ROOT / "README.md", *sorted((DOCS / "guide").glob("*.rst")), *sorted(DOCS.glob("*.rst"))]:
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if private.search(line):
+                found.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
+    assert not found, "\n".join(found)
+    assert private.search(">>> from quatarray._zarr import resample_zarr")      # the scan can fail
+
+
 def test_readme_links_into_every_guide_page():
     """The README links the guide by source path (so the links work on GitHub too)."""
     links = [t for t in re.findall(r"\]\(([^)#\s]+)", README.read_text(encoding="utf-8"))
