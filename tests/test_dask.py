@@ -648,6 +648,18 @@ def test_zarr_input_is_never_its_output(store, capsys):
     assert sorted(os.listdir(tmp)) == ["in.zarr", "link.zarr"]
 
 
+@pytest.mark.parametrize("out", ["out.zarr", "out.npz"])
+def test_zarr_fps_1e308_is_a_one_line_error(store, capsys, out):
+    """--fps 1e308 on a Zarr store raised OverflowError in fps_steps (chunked, or read whole)."""
+    from quatarray.cli import main
+    tmp, times, _ = store
+    assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "1e308"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {tmp / 'in.zarr'}: a rate of 1e+308 fps over ") and \
+        "the limit is 1,073,741,824 values" in err and err.count("\n") == 1, err
+    assert sorted(os.listdir(tmp)) == ["in.zarr"]
+
+
 def test_zarr_messages_name_the_users_path(store, capsys):
     """Never a temporary ``.part`` name: a missing folder, a regular file at OUT.zarr."""
     from quatarray.cli import main
