@@ -403,6 +403,21 @@ def test_identical_keys_give_the_key_exactly_at_every_time(dtype, times):
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_identical_random_keys_give_the_rotation_s_own_bits(dtype):
+    """Any key, not only one whose norm happens to compute to 1: a Rotation's keys are
+    not normalised again (that moved about a third of them by an ulp)."""
+    rng = np.random.default_rng(27)
+    t = np.concatenate([EXTREME_TIMES, rng.uniform(0, 3e9, 40), rng.uniform(0, 2e-9, 20)])
+    for q in rng.normal(size=(40, 4)).astype(dtype):
+        keys = Rotation.from_quat(np.tile(q, (6, 1)))
+        key = keys[0].as_quat()
+        got = RotationSpline(EXTREME_TIMES, keys)(t).as_quat()
+        np.testing.assert_array_equal(got, np.broadcast_to(key, got.shape))
+        got = np.asarray(Track(EXTREME_TIMES, keys, method="spline")(t))
+        np.testing.assert_array_equal(got, np.broadcast_to(keys[0].as_quat(scalar_first=True), got.shape))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("c", [1e-300, 1e-150, 1e-9, 1e9, 1e150, 1e300])
 def test_spline_is_invariant_under_scaling_of_the_times(dtype, c):
     """Scaling every key time by c scales the spline's time: scipy at spacing 1 is the expected
