@@ -534,6 +534,41 @@ def test_float32_splines_are_refused_only_where_float64_ones_are():
         assert (Rotation.from_quat(q.astype(np.float64)).inv() * ref(t)).magnitude().max() < 64 * eps * swept
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_rigid_transform_mean_of_translations_near_the_float_maximum(dtype):
+    """The mean of translations near the float maximum is in range (their sum is not): it was
+    inf, as scipy's; expected value: scipy's mean of the same translations scaled down by 2**-8."""
+    big = np.finfo(dtype).max / 1.1
+    rng = np.random.default_rng(5)
+    t = (rng.uniform(0.5, 1, (7, 3)) * np.array([1, -1, 1])).astype(dtype) * dtype(big)
+    rot = Rotation.from_rotvec(rng.uniform(-1, 1, (7, 3)).astype(dtype))
+    w = rng.uniform(0, 1, 7)
+    ours = RigidTransform.from_components(t, rot)
+    theirs = ScipyRigidTransform.from_components(t.astype(np.float64) / 256, ScipyRotation.from_quat(rot.as_quat()))
+    eps = np.finfo(dtype).eps
+    for kw in ({}, {"weights": w}):
+        got = ours.mean(**kw).translation
+        assert got.dtype == dtype and np.isfinite(got).all()
+        np.testing.assert_allclose(got / 256, theirs.mean(**kw).translation, rtol=8 * eps)
+
+
+@pytest.mark.parametrize("scale", [1.5e308, 1e300, 1e-300, 1e-307])
+def test_rotation_mean_does_not_depend_on_the_scale_of_the_weights(scale):
+    """Weights whose sums of w q qᵀ overflow (or products underflow) give scipy's mean at
+    weights of ordinary size (1.5e308 gave the identity, as scipy's does)."""
+    rng = np.random.default_rng(6)
+    q = rng.standard_normal((9, 4))
+    w = rng.uniform(0.5, 1, 9)
+    expected = ScipyRotation.from_quat(q).mean(weights=w)
+    got = Rotation.from_quat(q).mean(weights=w * scale)
+    assert (got.inv() * Rotation.from_quat(expected.as_quat())).magnitude() < 1e-12
+    translations = RigidTransform.from_components(rng.standard_normal((9, 3)), Rotation.from_quat(q))
+    np.testing.assert_allclose(translations.mean(weights=w * scale).translation,
+                               ScipyRigidTransform.from_components(translations.translation,
+                                                                   ScipyRotation.from_quat(q)).mean(weights=w).translation,
+                               rtol=1e-12, atol=1e-15)
+
+
 # --- memory: at most 1.5x the output plus a few blocks ------------------------------------------
 
 import tracemalloc  # noqa: E402
