@@ -497,13 +497,18 @@ def _nlerp_block(A, B, h, O, shortest):
     np.multiply(N, n, out=O)
 
 
-def unit_keys(keys, name="keys"):
+def unit_keys(keys, name="keys", unit=False):
     """Finite keyframes (K, ..., 4) unflipped along axis 0, then normalised.
 
     Each key is first multiplied by a power of two near 1/its largest
     component: exact (the same directions and dot-product signs), and no
     overflow or underflow at any magnitude.  Zero keys raise `ValueError`.
+    ``unit=True``: the keys are a Rotation's, unit already, and only
+    unflipped (normalising again moves a third of them by an ulp, and an
+    interpolant of equal keys must give back the key itself).
     """
+    if unit:
+        return unflip(keys, 0)
     _, e = np.frexp(np.abs(keys).max(axis=-1, keepdims=True))
     keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
     n = norm(keys)

@@ -327,13 +327,16 @@ def coefficients(times, keys):
         Where the spacing is so small that a key's rate leaves the float range.
     """
     dtype = keys.dtype
-    rotvecs = relative_rotvecs(keys)
+    # solved in float64 whatever the keys' dtype, as scipy does: in float32, Newton's method
+    # (uneven spacings) stalls at rounding noise above its tolerance and refused about 2% of
+    # random 4-key tracks that float64 solves; the coefficients come back in the keys' dtype
+    rotvecs = relative_rotvecs(keys.astype(np.float64, copy=False))
     dt = np.diff(times)
     # spacings in a unit of time near their geometric middle (a power of two: exact), so that
     # float32 keys take float64 times of any spacing; the coefficients do not depend on the unit
     _, e = np.frexp(np.sqrt(dt.min()) * np.sqrt(dt.max()))
     with np.errstate(over="ignore", under="ignore"):   # spacings beyond the keys' range: refused below
-        dt = np.ldexp(dt, -e).astype(dtype).reshape((-1,) + (1,) * (keys.ndim - 2))
+        dt = np.ldexp(dt, -e).astype(np.float64).reshape((-1,) + (1,) * (keys.ndim - 2))
     dtb = dt[..., None]
     with np.errstate(over="ignore"):
         rates = rotvecs / dtb
@@ -343,9 +346,10 @@ def coefficients(times, keys):
         rates, rotvecs_dot = _solve_rates(dt, rates, rotvecs)
     coeff = np.zeros((4,) + rotvecs.shape, dtype)
     start, end = dtb * rates, dtb * rotvecs_dot          # the rates in the segment's own time
-    coeff[0] = -2 * rotvecs + start + end
-    coeff[1] = 3 * rotvecs - 2 * start - end
-    coeff[2] = start
+    with np.errstate(over="ignore"):                     # beyond float32's range: refused below
+        coeff[0] = -2 * rotvecs + start + end
+        coeff[1] = 3 * rotvecs - 2 * start - end
+        coeff[2] = start
     if not np.isfinite(coeff).all():
         raise ValueError("the spline's angular rates at the keys did not come out finite: expected key "
                          "times far enough apart for the rotations between them (times spaced above "

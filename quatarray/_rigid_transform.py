@@ -420,15 +420,24 @@ class RigidTransform:
                                  f"for {q.shape[:-1]} transformations.")
         rot = Rotation(q, normalize=False, copy=False, scalar_first=True)
         qm = np.asarray(rot.mean(weights=weights, axis=axes).as_quat(scalar_first=True), q.dtype)
+        # translations and weights scaled per mean by powers of two (exact: the same bits where
+        # nothing over- or underflows), so that their sums stay in range: translations near the
+        # float maximum, or weights whose sum or products overflow, gave an infinite or 0 mean
+        tmax = np.max(np.abs(t), axis=axes + (t.ndim - 1,), keepdims=True)
+        et = np.frexp(tmax)[1]
+        t = np.ldexp(t, -et).astype(t.dtype, copy=False)
         if weights is None:
             tm = np.mean(t, axis=axes)
         else:
+            wmax = np.max(w, axis=axes, keepdims=True)
+            w = np.ldexp(w, -np.frexp(wmax)[1]).astype(w.dtype, copy=False)
             total = np.sum(w, axis=axes)
             if not np.all(total > 0):   # scipy: ZeroDivisionError; 0/0 would be a NaN translation
                 raise ValueError("expected weights with a positive sum over the averaged axes, "
                                  "got weights that sum to zero")
             w = w.astype(t.dtype, copy=False)[..., None]
             tm = np.sum(t * w, axis=axes) / total[..., None].astype(t.dtype, copy=False)
+        tm = np.ldexp(tm, np.squeeze(et, axis=axes)).astype(t.dtype, copy=False)
         return type(self)._from_parts(qm.reshape(tm.shape[:-1] + (4,)), tm, tm.ndim == 1)
 
     # ------------------------------------------------------------------ container

@@ -22,10 +22,23 @@ def mean(q, weights, axes, unit=False):
     with optional non-negative `weights` of the batch shape: the dominant eigenvector of
     Σ wᵢ qᵢ qᵢᵀ, canonical, in `q`'s dtype (computed in float64, `chordal_sums`).  `unit`:
     the rows are known to be unit quaternions (`Rotation`'s storage)."""
+    if weights is not None:
+        weights = _weights_in_range(np.broadcast_to(weights, q.shape[:-1]), axes)
     # the 4x4 matrix in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
     xyzw = [1, 2, 3, 0]
     _, vectors = np.linalg.eigh(chordal_sums(q, weights, axes, unit=unit)[..., xyzw, :][..., xyzw])
     return _convert.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype)
+
+
+def _weights_in_range(w, axes):
+    """Weights (float64, batch shape) scaled per mean by a power of two where the sums of
+    ``w q qᵀ`` could overflow or its products underflow (weights of 1.5e308 gave the identity):
+    the mean does not depend on their scale.  Ordinary weights are returned as they are."""
+    wmax = np.max(w, axis=axes, keepdims=True)
+    n = prod(w.shape[a] for a in axes)
+    if np.all((wmax == 0) | ((wmax >= 2.0 ** -900) & (wmax <= 2.0 ** 900 / n))):
+        return w
+    return np.ldexp(w, -np.frexp(wmax)[1])
 
 
 def chordal_sums(q, weights, axes, name="rotations to average", unit=False):

@@ -298,8 +298,10 @@ def bezier(q0, a, b, q1, t):
     return QuatArray._wrap(IK.bezier(*qs, t))
 
 
-def _prepared_keys(keys, times, name="keys", times_name="times"):
-    """Validated, normalised and unflipped keys (K, ..., 4) and float64 times (or None)."""
+def _prepared_keys(keys, times, name="keys", times_name="times", unit=False):
+    """Validated, normalised and unflipped keys (K, ..., 4) and float64 times (or None).
+
+    ``unit=True``: the keys are a Rotation's (unit already; see `unit_keys`)."""
     keys = float_array(keys, name)
     if keys.ndim < 2 or keys.shape[-1] != 4:
         raise ValueError(f"expected {name} of shape (K, ..., 4), got {keys.shape}")
@@ -308,7 +310,7 @@ def _prepared_keys(keys, times, name="keys", times_name="times"):
         raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
                          f"(a sequence of at least 2 rotations), got {keys.shape}")
     finite(keys, name)
-    keys = IK.unit_keys(keys, name)
+    keys = IK.unit_keys(keys, name, unit)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
@@ -474,14 +476,15 @@ class Track:
         from ._rotation import Rotation, _is_scipy_rotation
         if _is_scipy_rotation(keys):   # as Slerp accepts them
             keys = Rotation.from_scipy(keys)
-        if isinstance(keys, Rotation):  # its quaternions, scalar-first, without a copy
+        unit = isinstance(keys, Rotation)
+        if unit:  # its quaternions, scalar-first, without a copy
             keys = keys.as_quatarray()
-        self._setup(times, keys, method, extrapolate, "times", "keys")
+        self._setup(times, keys, method, extrapolate, "times", "keys", unit)
 
-    def _setup(self, times, keys, method, extrapolate, times_name, keys_name):
+    def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False):
         self._method = _choice(method, "method", METHODS)
         extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
-        keys, _ = _prepared_keys(keys, None, keys_name)
+        keys, _ = _prepared_keys(keys, None, keys_name, unit=unit)
         times = _check_times(times, keys.shape[0], times_name, keys_name).copy()
         times.flags.writeable = False
         keys.flags.writeable = False
@@ -705,7 +708,8 @@ class Slerp(Track):
                              f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
         if np.any(np.diff(t) <= 0):
             raise ValueError("Times must be in strictly increasing order.")
-        self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations")
+        self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations",
+                    unit=True)
         self._range = (float(t[0]), float(t[-1]))
 
     @property

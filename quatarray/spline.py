@@ -189,14 +189,17 @@ class RotationSpline:
             raise ValueError("Values in `times` must be in a strictly increasing order.")
         if keys.dtype not in (np.float32, np.float64):
             keys = keys.astype(np.float64)
-        with np.errstate(over="ignore", under="ignore"):
-            n = np.linalg.norm(keys, axis=-1, keepdims=True)
-            ordinary = _scale.fits(n * n)
-        if not ordinary:   # keys of extreme magnitude: a norm that neither over- nor underflows
-            n = _kernels.norm(keys)[..., None]
-        keys = keys / n
+        if not isinstance(rotations, Rotation):   # a Rotation's keys are unit already: normalising
+            # them again would move a third of them by an ulp, and equal keys must give the key
+            with np.errstate(over="ignore", under="ignore"):
+                n = np.linalg.norm(keys, axis=-1, keepdims=True)
+                ordinary = _scale.fits(n * n)
+            if not ordinary:   # keys of extreme magnitude: a norm that neither over- nor underflows
+                n = _kernels.norm(keys)[..., None]
+            keys = keys / n
         self.times = times
-        self.rotations = Rotation.from_quat(keys, scalar_first=True)
+        self.rotations = (rotations if isinstance(rotations, Rotation)
+                          else Rotation.from_quat(keys, scalar_first=True))
         self._keys = keys
         self._table = S.table(keys, S.coefficients(times, keys))
         self._index = SegmentIndex(times)

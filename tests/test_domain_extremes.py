@@ -403,6 +403,21 @@ def test_identical_keys_give_the_key_exactly_at_every_time(dtype, times):
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_identical_random_keys_give_the_rotation_s_own_bits(dtype):
+    """Any key, not only one whose norm happens to compute to 1: a Rotation's keys are
+    not normalised again (that moved about a third of them by an ulp)."""
+    rng = np.random.default_rng(27)
+    t = np.concatenate([EXTREME_TIMES, rng.uniform(0, 3e9, 40), rng.uniform(0, 2e-9, 20)])
+    for q in rng.normal(size=(40, 4)).astype(dtype):
+        keys = Rotation.from_quat(np.tile(q, (6, 1)))
+        key = keys[0].as_quat()
+        got = RotationSpline(EXTREME_TIMES, keys)(t).as_quat()
+        np.testing.assert_array_equal(got, np.broadcast_to(key, got.shape))
+        got = np.asarray(Track(EXTREME_TIMES, keys, method="spline")(t))
+        np.testing.assert_array_equal(got, np.broadcast_to(keys[0].as_quat(scalar_first=True), got.shape))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("c", [1e-300, 1e-150, 1e-9, 1e9, 1e150, 1e300])
 def test_spline_is_invariant_under_scaling_of_the_times(dtype, c):
     """Scaling every key time by c scales the spline's time: scipy at spacing 1 is the expected
@@ -494,6 +509,64 @@ def test_spline_of_large_rotations_at_uneven_spacings_is_unit_or_refused():
         scale = 1 + np.abs(spline(times, 2)).max()
         assert np.abs(before - after).max() < 1e-4 * scale
     assert refused <= 3
+
+
+def test_float32_splines_are_refused_only_where_float64_ones_are():
+    """float32 keys: the same spline as their float64 values, to float32 rounding, and never
+    refused where float64 solves (in float32, Newton's method stalled at rounding noise and
+    refused about 2% of these tracks)."""
+    rng = np.random.default_rng(3)
+    eps = np.finfo(np.float32).eps
+    for times, keys in _random_tracks(300, rng):
+        keys32 = keys.as_quat().astype(np.float32)
+        try:
+            ref = RotationSpline(times, Rotation.from_quat(keys32.astype(np.float64)))
+        except ValueError:
+            continue
+        spline = RotationSpline(times, Rotation.from_quat(keys32))
+        t = np.linspace(times[0], times[-1], 40)
+        q = spline(t).as_quat()
+        assert q.dtype == np.float32
+        np.testing.assert_allclose(np.linalg.norm(q.astype(np.float64), axis=1), 1, rtol=0, atol=16 * eps)
+        # float32 rounds the cubics' terms, which grow with the angle swept in a segment (fast
+        # turns between close keys): its bound, the largest rate times the longest spacing
+        swept = 1 + np.abs(ref(t, 1)).max() * np.diff(times).max()
+        assert (Rotation.from_quat(q.astype(np.float64)).inv() * ref(t)).magnitude().max() < 64 * eps * swept
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_rigid_transform_mean_of_translations_near_the_float_maximum(dtype):
+    """The mean of translations near the float maximum is in range (their sum is not): it was
+    inf, as scipy's; expected value: scipy's mean of the same translations scaled down by 2**-8."""
+    big = np.finfo(dtype).max / 1.1
+    rng = np.random.default_rng(5)
+    t = (rng.uniform(0.5, 1, (7, 3)) * np.array([1, -1, 1])).astype(dtype) * dtype(big)
+    rot = Rotation.from_rotvec(rng.uniform(-1, 1, (7, 3)).astype(dtype))
+    w = rng.uniform(0, 1, 7)
+    ours = RigidTransform.from_components(t, rot)
+    theirs = ScipyRigidTransform.from_components(t.astype(np.float64) / 256, ScipyRotation.from_quat(rot.as_quat()))
+    eps = np.finfo(dtype).eps
+    for kw in ({}, {"weights": w}):
+        got = ours.mean(**kw).translation
+        assert got.dtype == dtype and np.isfinite(got).all()
+        np.testing.assert_allclose(got / 256, theirs.mean(**kw).translation, rtol=8 * eps)
+
+
+@pytest.mark.parametrize("scale", [1.5e308, 1e300, 1e-300, 1e-307])
+def test_rotation_mean_does_not_depend_on_the_scale_of_the_weights(scale):
+    """Weights whose sums of w q qᵀ overflow (or products underflow) give scipy's mean at
+    weights of ordinary size (1.5e308 gave the identity, as scipy's does)."""
+    rng = np.random.default_rng(6)
+    q = rng.standard_normal((9, 4))
+    w = rng.uniform(0.5, 1, 9)
+    expected = ScipyRotation.from_quat(q).mean(weights=w)
+    got = Rotation.from_quat(q).mean(weights=w * scale)
+    assert (got.inv() * Rotation.from_quat(expected.as_quat())).magnitude() < 1e-12
+    translations = RigidTransform.from_components(rng.standard_normal((9, 3)), Rotation.from_quat(q))
+    np.testing.assert_allclose(translations.mean(weights=w * scale).translation,
+                               ScipyRigidTransform.from_components(translations.translation,
+                                                                   ScipyRotation.from_quat(q)).mean(weights=w).translation,
+                               rtol=1e-12, atol=1e-15)
 
 
 # --- memory: at most 1.5x the output plus a few blocks ------------------------------------------
