@@ -329,11 +329,11 @@ def reduce(method, times, Q, tol, shared, make_track):
     """Greedy reduction, then the check: ``(kept indices, Tracks, max errors)``.
 
     `make_track(idx, b)` builds the `Track` of samples idx of track b (None:
-    all); `Q` (T, B, 4) holds the reference samples.  Returns a list per
-    track (one entry with `shared`) and the errors per track (B,).
+    all); `Q` holds the reference samples, (T, B, 4) with `shared`, else
+    track-major (B, T, 4) (C-contiguous: a track's samples lie together).
+    Returns a list per track (one entry with `shared`) and the errors per
+    track (B,).
     """
-    if not shared:
-        Q = np.ascontiguousarray(Q.transpose(1, 0, 2))   # track-major
     kept = greedy(method, times, Q, tol, shared)
     tracks, errors, out = [], np.zeros(Q.shape[1] if shared else Q.shape[0]), []
     for j, k in enumerate(kept):

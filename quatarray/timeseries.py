@@ -14,6 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import _blocks
 from . import _convert
 from . import _interp_kernels as IK
 from . import _kernels as Kn
@@ -39,6 +40,11 @@ def _choice(value, name, options):
 
 def _series(keys, name, min_len=2):
     """keys (T, *batch, 4) from a QuatArray, array_like or Rotation: finite, unflipped, unit."""
+    return IK.unit_keys(_raw_series(keys, name, min_len), name)
+
+
+def _raw_series(keys, name, min_len=2):
+    """keys (T, *batch, 4) from a QuatArray, array_like or Rotation, checked finite (not copied)."""
     if isinstance(keys, Rotation):
         if keys.single:
             raise ValueError(f"expected {name} of shape (T, ...) (a sequence of rotations), got a single rotation")
@@ -49,7 +55,19 @@ def _series(keys, name, min_len=2):
     if keys.shape[0] < min_len:
         raise ValueError(f"expected {name} of shape (T, ..., 4) with T >= {min_len}, got {keys.shape}")
     finite(keys, name)
-    return IK.unit_keys(keys, name)
+    return keys
+
+
+def _track_major(raw, name):
+    """`unit_keys` of raw (T, B, 4), returned track-major (B, T, 4), a few tracks at a time:
+    the same values as the whole at once (each track is unflipped and normalised on its
+    own), without temporaries of the whole input."""
+    T, B = raw.shape[:2]
+    out = np.empty((B, T, 4), raw.dtype)
+    step = max(1, _blocks.BLOCK * 8 // T)
+    for j in range(0, B, step):
+        out[j:j + step] = IK.unit_keys(raw[:, j:j + step], name).transpose(1, 0, 2)
+    return out
 
 
 def _positive(x, name):
@@ -128,25 +146,29 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
     """
     method = _choice(method, "method", _reduce.METHODS)
     tol = _positive(tolerance, "tolerance")
-    Q = _series(keys, "keys")
-    times = key_times(times, Q.shape[0], "times", "keys")
-    batch = Q.shape[1:-1]
-    T, B = Q.shape[0], prod(batch)
+    raw = _raw_series(keys, "keys")
+    times = key_times(times, raw.shape[0], "times", "keys")
+    batch = raw.shape[1:-1]
+    T, B = raw.shape[0], prod(batch)
     tol_rad = np.radians(tol) if degrees else tol
-    flat = Q.reshape(T, B, 4)
+    if shared or B == 0:
+        Q = IK.unit_keys(raw, "keys").reshape(T, B, 4)
+    else:
+        Q = _track_major(raw.reshape(T, B, 4), "keys")
 
     def make_track(idx, b):
-        k = flat[idx] if b is None else flat[idx, b]
+        k = Q[idx] if b is None else Q[b, idx]
         return Track(times[idx], k.reshape((len(idx),) + (batch if b is None else ()) + (4,)), method=method)
 
     if B == 0:
         ends = [0, T - 1]   # no track to keep within anything: the two ends make a Track
-        return ReducedKeys(Track(times[ends], Q[ends], method=method) if shared else [], np.zeros(batch, Q.dtype))
-    _, tracks, errors = _reduce.reduce(method, times, flat, tol_rad, bool(shared), make_track)
+        return ReducedKeys(Track(times[ends], Q[ends].reshape((2,) + batch + (4,)), method=method) if shared else [],
+                           np.zeros(batch, raw.dtype))
+    _, tracks, errors = _reduce.reduce(method, times, Q, tol_rad, bool(shared), make_track)
     errors = errors.reshape(batch)
     if degrees:
         errors = np.degrees(errors)
-    return ReducedKeys(tracks[0] if shared else tracks, errors.astype(Q.dtype))
+    return ReducedKeys(tracks[0] if shared else tracks, errors.astype(raw.dtype))
 
 
 # ---------------------------------------------------------------------------
