@@ -12,8 +12,13 @@ the caller gets back.
 
 Algorithm.  Greedy farthest reach: from a key s, the next key is the farthest
 sample c such that the segment [s, c], evaluated with the method's own
-kernels at the samples in between, stays within the tolerance (galloping
-from the previous segment's length, then bisection).  For 'linear' and
+kernels at the samples in between, stays within the tolerance.  The search
+starts at the previous segment's length and tests its neighbour next (lengths
+change slowly: most reaches are bracketed by these two tests), then gallops
+or bisects guided by the error's growth.  A candidate's curve is evaluated
+by `Track`'s own table rows and kernel (`_track.frame_rows`,
+`_track.rotation_block`), so the search and the final check run one
+formula.  For 'linear' and
 'slerp' a segment depends on its two keys only, so that test is exact.
 squad's control points also depend on the neighbouring keys: the test takes
 the previous key and guesses the next one (a segment of the same length), and
@@ -33,10 +38,12 @@ sample reproduces every sample, so this ends).
 
 import numpy as np
 
+from . import _blocks
 from . import _convert
 from . import _interp_curves as IC
 from . import _interp_kernels as IK
 from . import _kernels as Kn
+from . import _track
 
 __all__ = ["METHODS", "CHUNK", "angle_between", "greedy", "reduce"]
 
@@ -65,17 +72,22 @@ def _without(x, drop):
     return x[keep]
 
 
-def _chord2(p, q):
+def _chord2(p, q, work):
     """Squared distance from unit p to the nearer of ±q: the search's test, per sample.
 
-    A monotone function of the angle θ between the rotations (4 sin²(θ/4)),
-    exact for small angles and cheaper than the angle itself, which is
-    formed from it only once per segment.
+    p, q of shape (4, *s), components first; the result (s) is a view into
+    `work` (the caller's scratch frame).  A monotone function of the angle θ
+    between the rotations (4 sin²(θ/4)), exact for small angles and cheaper
+    than the angle itself, which is formed from it only once per segment.
     """
-    d = p - q
-    a = IK.vdot(d, d)
-    np.add(p, q, out=d)
-    return np.minimum(a, IK.vdot(d, d))
+    s = p.shape[1:]
+    D = work.rows(4, s, p.dtype)
+    a = work.rows(2, s, p.dtype)
+    np.subtract(p, q, out=D)
+    IK.sqsum(D, a[0])
+    np.add(p, q, out=D)
+    IK.sqsum(D, a[1])
+    return np.minimum(a[0], a[1], out=a[0])
 
 
 def _hemisphere(ref, q):
@@ -115,6 +127,37 @@ def _take(Q, k, b):
     return np.take(Q.reshape(-1, 4), b * Q.shape[1] + k, axis=0)[:, None]
 
 
+def _components(x):
+    """(m, b, 4) -> C-contiguous float64 (4, m, b)."""
+    return np.ascontiguousarray(np.moveaxis(x, -1, 0), dtype=np.float64)
+
+
+def _segment_table(method, qs, qc, a_s=None, a_c=None, dtype=np.float64):
+    """The `Track` table rows (R, m + 1, b) of the segments from keys qs to qc (m, b, 4)
+    (squad: with control points a_s, a_c), qc taken on the side of qs as a `Track`
+    through them takes it: the curve is evaluated by `Track`'s own kernel."""
+    k0, k1 = _components(qs), _components(_hemisphere(qs, qc))
+    if method == "linear":
+        table = np.concatenate([k0, k1])
+        table = np.concatenate([table, table[:, -1:]], axis=1)
+    elif method == "slerp":
+        table = _track.frame_rows([(k0, k1)], k1[:, -1])
+    else:
+        table = _track.frame_rows([(k0, k1), (_components(a_s), _components(a_c))], k1[:, -1])
+    return np.ascontiguousarray(table, dtype=dtype)
+
+
+def _table_errors(method, table, seg, u, X):
+    """Per sample (n,), the squared chord (`_chord2`, max over tracks) between samples
+    X (n, b, 4) and the curve of segments `seg` (n,) of `table` at parameters u (n,)."""
+    n, b = X.shape[:2]
+    with _blocks.scratch().frame() as work:
+        G = _track.gather(table, seg, slice(None))
+        O = work.rows(4, (n, b), table.dtype)
+        _track.rotation_block(method, G, u[:, None], O)
+        return _chord2(O, np.moveaxis(X, -1, 0), work).max(axis=1)
+
+
 def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
     """Largest angular error, shape (m,), of the segments [s, c] (m,) at the samples
     strictly inside them, of track b (m,) or of all tracks (b None: max over tracks),
@@ -133,6 +176,7 @@ def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
                                      b, first, last)
     else:
         qs, qc = _take(Q, s, b), _take(Q, c, b)
+    table = _segment_table(method, qs, qc, *((a_s, a_c) if method == "squad" else ()), dtype=Q.dtype)
     # the segments in batches of about BATCH interior samples (whole segments per batch)
     per = inner * (1 if b is not None else Q.shape[1])   # (shared: B tracks per sample)
     ends = np.cumsum(per)
@@ -154,18 +198,8 @@ def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
         k = np.arange(tot) - np.repeat(starts, n_in) + s_seg + 1
         t0 = np.repeat(times[s[lo:hi]], n_in)
         u = ((np.take(times, k) - t0) / (np.repeat(times[c[lo:hi]], n_in) - t0)).astype(Q.dtype)
-        uu = np.broadcast_to(u[:, None], (tot, qs.shape[1]))
-
-        def rows(x):   # per-segment rows repeated for their samples
-            return np.repeat(x[lo:hi], n_in, axis=0)
-
-        if method == "linear":
-            curve = IK.nlerp(rows(qs), rows(qc), uu, True)
-        elif method == "slerp":
-            curve = IK.slerp(rows(qs), rows(qc), uu, True)
-        else:
-            curve = IK.squad(rows(qs), rows(a_s), rows(a_c), _hemisphere(rows(qs), rows(qc)), uu)
-        err = _chord2(curve, _take(Q, k, None if b is None else b[seg])).max(axis=1)
+        X = _take(Q, k, None if b is None else b[seg])
+        err = _table_errors(method, table, seg, u, X)
         nz = n_in > 0
         worst = np.maximum.reduceat(err, starts[nz])
         out[lo:hi][nz] = 4 * np.arcsin(np.sqrt(worst) / 2)
@@ -193,6 +227,7 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
     last_len = np.ones(len(s))
     last_err = np.zeros(len(s))
     bisect = np.zeros(len(s), bool)
+    tests = np.zeros_like(s)
     order = 4 if method == "squad" else 2
     found = [a, e]
     active = s < e
@@ -207,6 +242,7 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             lo[commit] = s[commit] + 1
             hi[commit] = -1
             bisect[commit] = False
+            tests[commit] = 0
             active &= s < e
         if not active.any():
             break
@@ -216,10 +252,13 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             pred = np.floor(last_len * (tol / last_err) ** (1 / order) * 0.98)
         pred = np.nan_to_num(pred, nan=0, posinf=1e18).astype(np.int64, copy=False)
         fresh = lo == s + 1
-        gallop = np.minimum(np.clip(s + pred, 2 * lo - s, 4 * lo - 3 * s), e)
+        gallop = np.minimum(np.clip(s + pred, lo + 1, 4 * lo - 3 * s), e)
         gallop = np.where(fresh, np.minimum(np.maximum(s + guess, lo + 1), e), gallop)
         bracket = np.where(bisect, (lo + hi) // 2, np.clip(s + pred, lo + 1, hi - 1))
         cand = np.where(hi < 0, gallop, bracket)
+        # the second test sits next to the first (the previous segment's length):
+        # lengths change slowly, so it mostly brackets the reach at once
+        cand = np.where(tests == 1, np.where(hi < 0, np.minimum(lo + 1, e), hi - 1), cand)
         test = np.flatnonzero(active & (cand > lo))
         if test.size == 0:
             continue
@@ -244,6 +283,7 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
         last_len[test] = c - s[test]
         last_err[test] = err
         bisect[test] = ~bisect[test] & (hi[test] >= 0)
+        tests[test] += 1
     if shared:
         kept = [_unique(np.concatenate([found[0], found[1]] + found[2:]))]
     else:

@@ -145,6 +145,80 @@ def test_recovers_the_keys_of_its_own_curve(rng):
     np.testing.assert_array_equal(tracks[0].times, key_t)
 
 
+def _walk(rng, B, T, step, dtype):
+    """Track-major unit, unflipped random walks (B, T, 4) as `reduce` searches them."""
+    from quatarray._interp_kernels import unit_keys
+    q = np.cumsum(rng.normal(0, step, (T, B, 4)), axis=0) + [1.0, 0, 0, 0]
+    return np.ascontiguousarray(unit_keys(q.astype(dtype)).transpose(1, 0, 2))
+
+
+def _geodesic(p, q, u):
+    """slerp written out: (sin((1-u)W) p + sin(uW) q) / sin W, q on p's side (float64)."""
+    q = np.where(np.sum(p * q, -1, keepdims=True) < 0, -q, q)
+    w = angles(p, q)[..., None] / 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = (np.sin((1 - u) * w) * p + np.sin(u * w) * q) / np.sin(w)
+    return np.where(w > 0, out, p)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_segment_errors_against_the_curve(method, dtype, rng):
+    """The search's error of a candidate segment (Track's table rows and kernel) is the
+    largest angle between the samples inside it and the curve written out independently
+    (slerp, NLERP), or squad's pairwise kernel with the same control points."""
+    from quatarray import _interp_kernels as IK
+    from quatarray import _reduce
+    B, T = 3, 200
+    Q = _walk(rng, B, T, 0.05, dtype)
+    times = np.cumsum(rng.uniform(0.5, 1.5, T))
+    s = rng.integers(0, T - 2, 40)
+    c = np.minimum(s + rng.integers(1, 40, 40), T - 1)
+    b = rng.integers(0, B, 40)
+    err, worst = _reduce.segment_errors(method, times, Q, s, c, None, None, b)
+    Q64 = Q.astype(np.float64)
+    if method == "squad":
+        unknown = np.full(len(s), -1)
+        qs, qc, a_s, a_c = _reduce._controls(Q, times, unknown, s, c, unknown, b, 0, T - 1)
+    atol = 1e3 * np.finfo(dtype).eps
+    for j in range(len(s)):
+        k = np.arange(s[j] + 1, c[j])
+        if k.size == 0:
+            assert err[j] == 0 and worst[j] == s[j]
+            continue
+        u = ((times[k] - times[s[j]]) / (times[c[j]] - times[s[j]]))[:, None]
+        p, q = Q64[b[j], s[j]], Q64[b[j], c[j]]
+        if method == "slerp":
+            curve = _geodesic(p, q, u)
+        elif method == "linear":
+            curve = unit((1 - u) * p + u * np.where(p @ q < 0, -q, q))
+        else:
+            curve = IK.squad(qs[j, 0], a_s[j, 0], a_c[j, 0], qc[j, 0], u[:, 0].astype(dtype))
+        expected = angles(curve, Q64[b[j], k])
+        assert abs(err[j] - expected.max()) <= atol
+        assert abs(expected[worst[j] - s[j] - 1] - expected.max()) <= atol
+
+
+@pytest.mark.parametrize("method", ["linear", "slerp"])
+@pytest.mark.parametrize("tol", [1e-3, 1e-2])
+def test_search_reaches_farthest(method, tol, rng):
+    """linear and slerp segments depend on their two keys only: every segment the search
+    keeps is within `tol` and one sample longer it is not (a farthest reach), whatever
+    order the search tries lengths in."""
+    from quatarray import _reduce
+    T = 1500   # one chunk: no forced boundaries
+    Q = _walk(rng, 4, T, 0.004, np.float64)
+    times = np.cumsum(rng.uniform(0.5, 1.5, T))
+    for b, kept in enumerate(_reduce.greedy(method, times, Q, tol, False)):
+        s, c = kept[:-1], kept[1:]
+        bb = np.full(len(s), b)
+        err, _ = _reduce.segment_errors(method, times, Q, s, c, None, None, bb)
+        assert (err <= tol).all()
+        longer = c < T - 1
+        err, _ = _reduce.segment_errors(method, times, Q, s[longer], c[longer] + 1, None, None, bb[longer])
+        assert (err > tol).all()
+
+
 def test_degrees_and_rotation_input():
     t, q = smooth_series(200)
     r = Rotation.from_quat(q, scalar_first=True)
