@@ -51,7 +51,7 @@ METHODS = ("linear", "slerp", "squad")
 #: Samples per lane of the lock-step greedy search.
 CHUNK = 2048
 #: Interior samples evaluated per batch (bounds the temporaries).
-BATCH = 1 << 16
+BATCH = 1 << 14
 
 
 def angle_between(p, q):
@@ -155,7 +155,9 @@ def _table_errors(method, table, seg, u, X):
         G = _track.gather(table, seg, slice(None))
         O = work.rows(4, (n, b), table.dtype)
         _track.rotation_block(method, G, u[:, None], O)
-        return _chord2(O, np.moveaxis(X, -1, 0), work).max(axis=1)
+        err = _chord2(O, np.moveaxis(X, -1, 0), work)
+        # (one track: a copy out of the scratch; NumPy's max over an axis of length 1 is slow)
+        return err[:, 0].copy() if b == 1 else err.max(axis=1)
 
 
 def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
