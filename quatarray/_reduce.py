@@ -110,8 +110,8 @@ def _controls(Q, times, p, s, c, n, b, first, last):
     tp = np.where(pp == s, times[s] - (times[c] - times[s]), times[pp])
     tn = np.where(n == c, times[c] + (times[c] - times[s]), times[n])
     ts, tc = times[s], times[c]
-    a_s = IC.squad_controls(np.stack([qp, qs, qc]), np.stack([tp, ts, tc]))[1]
-    a_c = IC.squad_controls(np.stack([qs, qc, qn]), np.stack([ts, tc, tn]))[1]
+    # one call for both: a key's control point depends on its two neighbours only
+    _, a_s, a_c, _ = IC.squad_controls(np.stack([qp, qs, qc, qn]), np.stack([tp, ts, tc, tn]))
     # the track's ends: the control point is the key itself (squad_controls' reflection)
     a_s = np.where((s == first)[:, None, None], qs, a_s)
     a_c = np.where((c == last)[:, None, None], qc, a_c)
