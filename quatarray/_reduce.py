@@ -52,6 +52,9 @@ METHODS = ("linear", "slerp", "squad")
 CHUNK = 2048
 #: Interior samples evaluated per batch (bounds the temporaries).
 BATCH = 1 << 14
+#: Segments handled per call of `segment_errors` (bounds the per-segment tables and
+#: control points when the check revisits every segment of every track at once).
+SEGMENTS = 1 << 15
 
 
 def angle_between(p, q):
@@ -166,6 +169,13 @@ def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
     and the sample where it occurs (s where there is none).  p, n (m,) are the keys
     before s and after c (-1: not known) for 'squad'."""
     m = len(s)
+    if m > SEGMENTS:   # in groups: each segment's error is its own, whatever the group
+        def part(x, i):
+            return None if x is None else x[i:i + SEGMENTS]
+
+        parts = [segment_errors(method, times, Q, s[i:i + SEGMENTS], c[i:i + SEGMENTS], part(p, i), part(n, i),
+                                part(b, i)) for i in range(0, m, SEGMENTS)]
+        return np.concatenate([e for e, _ in parts]), np.concatenate([w for _, w in parts])
     inner = c - s - 1
     out = np.zeros(m)
     where = s.copy()

@@ -199,6 +199,25 @@ def test_segment_errors_against_the_curve(method, dtype, rng):
         assert abs(expected[worst[j] - s[j] - 1] - expected.max()) <= atol
 
 
+@pytest.mark.parametrize("method", METHODS)
+def test_segment_errors_in_groups(method, rng, monkeypatch):
+    """Many segments are handled in groups (bounded memory); each segment's error and worst
+    sample are the same bits whatever group it falls in."""
+    from quatarray import _reduce
+    Q = _walk(rng, 3, 500, 0.05, np.float64)
+    times = np.cumsum(rng.uniform(0.5, 1.5, 500))
+    s = rng.integers(0, 480, 300)
+    c = np.minimum(s + rng.integers(1, 60, 300), 499)
+    p = np.where(rng.random(300) < 0.5, -1, np.maximum(s - 5, 0))
+    n = np.where(rng.random(300) < 0.5, -1, np.minimum(c + 7, 499))
+    b = rng.integers(0, 3, 300)
+    whole = _reduce.segment_errors(method, times, Q, s, c, p, n, b)
+    monkeypatch.setattr(_reduce, "SEGMENTS", 37)
+    grouped = _reduce.segment_errors(method, times, Q, s, c, p, n, b)
+    np.testing.assert_array_equal(grouped[0], whole[0])
+    np.testing.assert_array_equal(grouped[1], whole[1])
+
+
 @pytest.mark.parametrize("method", ["linear", "slerp"])
 @pytest.mark.parametrize("tol", [1e-3, 1e-2])
 def test_search_reaches_farthest(method, tol, rng):
