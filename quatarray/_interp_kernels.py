@@ -510,7 +510,7 @@ def unit_keys(keys, name="keys", unit=False):
     if unit:
         return unflip(keys, 0)
     a = np.abs(keys)
-    # the largest of the four, column by column (NumPy's max over a length-4 axis is ~8x slower)
+    # the largest of the four, column by column (NumPy's max over a length-4 axis is much slower)
     _, e = np.frexp(np.maximum(np.maximum(a[..., 0], a[..., 1]), np.maximum(a[..., 2], a[..., 3]))[..., None])
     keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
     n = norm(keys)
