@@ -28,7 +28,7 @@ costs behind these choices are in benchmarks/README.md.
 
 import numpy as np
 
-from . import _blocks, _kernels, _scale
+from . import _blocks, _kernels, _ops, _scale
 from ._kernels import ANGLE_FLOOR, arctan2
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
@@ -156,42 +156,52 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
+def _matrix(w, x, y, z, s, op, o, t):
+    """The nine entries of the rotation matrix of q, row-major, over components in `op`'s
+    arithmetic (`_ops`: a block's rows, or the floats of one rotation), written into
+    ``o`` (nine rows, or `_ops.NONE`) with `t` (nine work rows) and returned as a list.
+    ``s = 2 / |q|²``, or None for a unit q: then scipy's diagonal (w² ∓ z²) ± (x² ∓ y²),
+    with exact zeros where |w| = |z| etc."""
+    o = list(o[:9])
+    xs, ys, zs, xx, yy, zz, a, b, ww = t[:9]
+    if s is None:
+        xs = op.add(x, x, xs)
+        ys = op.add(y, y, ys)
+        zs = op.add(z, z, zs)
+        ww = op.mul(w, w, ww)
+        xx = op.mul(x, x, xx)
+        yy = op.mul(y, y, yy)
+        zz = op.mul(z, z, zz)
+        a = op.sub(ww, zz, a)
+        b = op.sub(xx, yy, b)
+        o[0] = op.add(a, b, o[0])
+        o[4] = op.sub(a, b, o[4])
+        a = op.add(ww, zz, a)
+        b = op.add(xx, yy, b)
+        o[8] = op.sub(a, b, o[8])
+    else:
+        xs = op.mul(x, s, xs)
+        ys = op.mul(y, s, ys)
+        zs = op.mul(z, s, zs)
+        xx = op.mul(x, xs, xx)
+        yy = op.mul(y, ys, yy)
+        zz = op.mul(z, zs, zz)
+        for k, p, r in ((0, yy, zz), (4, xx, zz), (8, xx, yy)):
+            a = op.add(p, r, a)
+            o[k] = op.sub(1.0, a, o[k])
+    # off-diagonal pairs (i, j) = p -/+ r, each output row written once
+    for i, j, p1, p2, r1, r2 in ((1, 3, x, ys, w, zs), (6, 2, x, zs, w, ys), (5, 7, y, zs, w, xs)):
+        a = op.mul(p1, p2, a)
+        b = op.mul(r1, r2, b)
+        o[i] = op.sub(a, b, o[i])
+        o[j] = op.add(a, b, o[j])
+    return o
+
+
 def _k_as_matrix(q, o, unit=False):
-    w, x, y, z = q
     with _blocks.scratch().frame() as work:
-        xs, ys, zs, xx, yy, zz, a, b = work.rows(8, w.shape, o.dtype)
-        if unit:   # |q| = 1: scipy's diagonal, (w² ∓ z²) ± (x² ∓ y²), exact zeros where |w| = |z| etc.
-            np.add(x, x, out=xs)
-            np.add(y, y, out=ys)
-            np.add(z, z, out=zs)
-            ww = work.rows(1, w.shape, o.dtype)[0]
-            for sq, c in ((ww, w), (xx, x), (yy, y), (zz, z)):
-                np.multiply(c, c, out=sq)
-            np.subtract(ww, zz, out=a)
-            np.subtract(xx, yy, out=b)
-            np.add(a, b, out=o[0])
-            np.subtract(a, b, out=o[4])
-            np.add(ww, zz, out=a)
-            np.add(xx, yy, out=b)
-            np.subtract(a, b, out=o[8])
-        else:
-            s = np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
-            np.multiply(x, s, out=xs)
-            np.multiply(y, s, out=ys)
-            np.multiply(z, s, out=zs)
-            np.multiply(x, xs, out=xx)
-            np.multiply(y, ys, out=yy)
-            np.multiply(z, zs, out=zz)
-            for k, (p, r) in ((0, (yy, zz)), (4, (xx, zz)), (8, (xx, yy))):
-                np.add(p, r, out=a)
-                np.subtract(1.0, a, out=o[k])
-        # off-diagonal pairs (i, j) = p -/+ r, each output row written once
-        for (i, j), (p1, p2, r1, r2) in (((1, 3), (x, ys, w, zs)), ((6, 2), (x, zs, w, ys)),
-                                         ((5, 7), (y, zs, w, xs))):
-            np.multiply(p1, p2, out=a)
-            np.multiply(r1, r2, out=b)
-            np.subtract(a, b, out=o[i])
-            np.add(a, b, out=o[j])
+        s = None if unit else np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
+        _matrix(*q, s, _ops.ARRAYS, o, work.rows(9, q.shape[1:], o.dtype))
 
 
 def as_matrix(q, unit=False):
@@ -224,6 +234,9 @@ def as_matrix(q, unit=False):
            [ 0.,  0.,  1.]])
     """
     q = quat_array(q, "quat")
+    one = _ops.floats64(q) if unit else None
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        return np.array(_matrix(*one, None, _ops.FLOATS, _ops.NONE, _ops.NONE)).reshape(q.shape[:-1] + (3, 3))
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
     return out

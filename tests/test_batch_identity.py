@@ -5,8 +5,9 @@ the interpolation functions and `Track`, in float32 and float64: element i of a 
 equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
 inside the batch split into blocks of two elements run on two threads.  The batches mix
 random rotations with near-identity, near-half-turn and gimbal-lock rotations, and (where
-the method accepts any magnitude) quaternions scaled by extreme powers of two.  There is no
-Python-float path for single rotations: a single rotation runs the batch's kernels.
+the method accepts any magnitude) quaternions scaled by extreme powers of two.  A float64
+single rotation or batch of one may run its kernel's formula on Python floats (`quatarray._ops`):
+the same code in the same order, so these checks hold it to the same bits.
 """
 
 import warnings

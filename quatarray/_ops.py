@@ -1,0 +1,40 @@
+"""The arithmetic a formula is written in, for blocks of arrays and for Python floats.
+
+A formula written over components with these operations (``op.mul(a, b, out)``) runs on
+a block's rows, where each operation is the ufunc writing into its preallocated row, and on
+the four Python floats of one float64 rotation, where the row is ignored and the value is
+returned.  ``+ − × ÷`` and ``sqrt`` round alike on floats and float64 arrays (IEEE, no fused
+multiply-add in either), so one formula evaluated in one order gives the same bits on both:
+a single rotation skips the 16–60 ufunc calls of the block kernel without a second copy of
+its maths.  Functions whose results differ between `math` and NumPy (atan2, sin, ...) are
+not offered on floats.
+"""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt)
+"""Each operation writes into its last argument (a row of the block) and returns it."""
+
+FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
+                         mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
+                         sqrt=lambda a, out: math.sqrt(a))
+"""The same operations on Python floats; the row argument is ignored."""
+
+NONE = (None,) * 16
+"""Rows for `FLOATS` (any number up to 16): the results are returned, not written."""
+
+
+def floats64(q):
+    """The components of one float64 quaternion, shape (4,) or (1, 4), as Python floats
+    (so that a formula runs on `FLOATS`), or None for any other input (the block kernel's).
+
+    >>> import numpy as np
+    >>> floats64(np.array([1.0, 0, 0, 0])), floats64(np.ones((2, 4)))
+    ([1.0, 0.0, 0.0, 0.0], None)
+    """
+    if q.dtype == np.float64 and q.size == 4 and q.ndim <= 2:
+        return q.reshape(4).tolist()
+    return None
