@@ -10,7 +10,7 @@ from math import prod
 
 import numpy as np
 
-from . import _blocks, _scale, _trig
+from . import _blocks, _ops, _scale, _trig
 from ._blocks import soa
 from ._validate import all_finite
 
@@ -614,39 +614,59 @@ def rotate(q, v, inverse=False):
     >>> np.allclose(rotate(q, np.array([[1., 0, 0]]), inverse=True), [[0, -1, 0]])
     True
     """
-    dtype = result_dtype(q, v)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    one = _rotate_floats(q, v, inverse) if len(batch) <= 1 and v.size == 3 else None
+    if one is not None:
+        return np.array(one).reshape(batch + (3,))
+    dtype = result_dtype(q, v)
     res = np.empty(batch + (3,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
 
 
+def _rotate_floats(q, v, inverse):
+    """`rotate_block`'s formula on the floats of one float64 pair, or None where the block
+    kernel would rescale (|q|² outside [1/4, 4], a huge vector, non-finite input)."""
+    c = _ops.floats64(q)
+    if c is None or v.dtype != np.float64:
+        return None
+    u = v.reshape(3).tolist()
+    n2 = _scale.squares(c, _ops.FLOATS, None, None)
+    big = 0.5 * _scale.BIG_VECTOR[v.dtype]
+    if not (0.25 <= n2 <= 4.0 and all(-big <= a <= big for a in u)):
+        return None
+    if inverse:
+        c[0] = c[0] * -1.0
+    return _rotated(*c, *u, 2.0 / n2, _ops.FLOATS, _ops.NONE, _ops.NONE)
+
+
+def _rotated(w, x, y, z, ux, uy, uz, s, op, o, t):
+    """u' = u + w t + vec × t with t = s vec × u, over components in `op`'s arithmetic
+    (`_ops`), into ``o`` (three rows) with six work rows `t`; returned as a list."""
+    o = list(o[:3])
+    tx, ty, tz, m, r, v = t[:6]
+    # t = s vec × u
+    tx, ty, tz = [op.mul(op.sub(op.mul(a, b, tk), op.mul(c, d, m), tk), s, tk)
+                  for tk, a, b, c, d in ((tx, y, uz, z, uy), (ty, z, ux, x, uz), (tz, x, uy, y, ux))]
+    # u' = u + w t + vec × t, each row written once into the (strided) output
+    for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
+                                              (uz, tz, x, ty, y, tx))):
+        r = op.add(op.mul(w, tk, r), uk, r)
+        v = op.sub(op.mul(a, b, v), op.mul(c, d, m), v)
+        o[k] = op.add(r, v, o[k])
+    return o
+
+
 def rotate_block(q, u, o, wsign):
     """`rotate`'s block kernel: components-first scratch copies q (4, *s) and u (3, *s), which
     it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q)."""
     n2 = _scale.guarded_sqnorm(q)
-    w, x, y, z = q            # q is the block's scratch copy: w may be negated in place
+    w = q[0]                  # q is the block's scratch copy: w may be negated in place
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
     e = _scale.shrink_vectors(u, n2)   # u is the block's scratch copy; vectors near the float maximum
-    ux, uy, uz = u                 # are scaled down by a power of two, and the result back up
-    s = np.divide(2.0, n2, out=n2)
+    s = np.divide(2.0, n2, out=n2)     # are scaled down by a power of two, and the result back up
     with _blocks.scratch().frame() as work:
-        tx, ty, tz, m, r, v = work.rows(6, n2.shape, o.dtype)
-        # t = s vec × u
-        for t, (a, b, c, d) in ((tx, (y, uz, z, uy)), (ty, (z, ux, x, uz)), (tz, (x, uy, y, ux))):
-            np.multiply(a, b, out=t)
-            np.multiply(c, d, out=m)
-            t -= m
-            t *= s
-        # u' = u + w t + vec × t, each row written once into the (strided) output
-        for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
-                                                  (uz, tz, x, ty, y, tx))):
-            np.multiply(w, tk, out=r)
-            r += uk
-            np.multiply(a, b, out=v)
-            np.multiply(c, d, out=m)
-            v -= m
-            np.add(r, v, out=o[k])
+        _rotated(*q, *u, s, _ops.ARRAYS, o, work.rows(6, n2.shape, o.dtype))
     _scale.unscale(o, e)
