@@ -26,6 +26,8 @@ arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
 costs behind these choices are in benchmarks/README.md.
 """
 
+import math
+
 import numpy as np
 
 from . import _blocks, _kernels, _ops, _scale
@@ -463,17 +465,36 @@ def _vector_norm(q):
     return _scale.small_norms(q[1:], v2)   # |v| also where |v|² underflows (angles down to subnormal)
 
 
+def _norm_floats(q):
+    """(w, x, y, z, |v|) of one float64 quaternion as Python floats, by `_vector_norm`'s
+    formula, where that kernel would neither rescale nor take the underflow path and w ≠ 0;
+    else None (the block kernel's case)."""
+    c = _ops.floats64(q)
+    if c is None:
+        return None
+    w = c[0]
+    v2 = _scale.squares(c[1:], _ops.FLOATS, None, None)
+    n2 = w * w + v2
+    lo, hi = _scale.LOW[q.dtype], _scale.HIGH[q.dtype]
+    if w == 0 or not (lo <= n2 <= hi) or 0 < v2 < lo:
+        return None
+    return (*c, math.sqrt(v2))
+
+
+def _rotvec(w, x, y, z, nv, flip, factor, op, o):
+    """The rotation vector of q with |v| = `nv` and `flip` (not canonical) in `op`'s
+    arithmetic (`_ops`), into ``o`` (three rows); returned as a list."""
+    half = arctan2(nv, abs(w), x_nonneg=True)
+    # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
+    scale = op.div(half, op.where(nv > 0, nv, 1.0), None)
+    scale = op.where(flip, -scale, scale)   # not a masked negative: cheaper
+    scale = op.mul(scale, factor, scale)
+    return [op.mul(c, scale, r) for c, r in zip((x, y, z), o[:3])]
+
+
 def _k_as_rotvec(q, o, factor):
     nv = _vector_norm(q)
-    w, x, y, z = q
-    half = arctan2(nv, np.abs(w), x_nonneg=True)
-    # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
-    scale = half / np.where(nv > 0, nv, 1.0)
-    scale = np.where(_flip_mask(w, x, y, z), -scale, scale)   # not a masked negative: cheaper
-    scale *= factor
-    np.multiply(x, scale, out=o[0])
-    np.multiply(y, scale, out=o[1])
-    np.multiply(z, scale, out=o[2])
+    _rotvec(*q, nv, _flip_mask(*q), factor, _ops.ARRAYS, o)
 
 
 def as_rotvec(q, degrees=False):
@@ -502,6 +523,9 @@ def as_rotvec(q, degrees=False):
     array([ 0.,  0., 90.])
     """
     q = quat_array(q, "quat")
+    one = _norm_floats(q)
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        return np.array(_rotvec(*one, one[0] < 0, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE)).reshape(q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=_ROTVEC_FACTOR[degrees])
     return out
@@ -605,6 +629,9 @@ def magnitude(q):
     array([0.        , 3.14159265, 1.57079633])
     """
     q = quat_array(q, "quat")
+    one = _norm_floats(q)
+    if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
+        return np.full(q.shape[:-1], arctan2(one[4], abs(one[0]), x_nonneg=True) * 2.0)
     out = np.empty(q.shape[:-1], q.dtype)
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
     return out

@@ -106,7 +106,15 @@ def arctan2(y, x, out=None, x_nonneg=False):
     >>> y, x = np.array([1.0, 0.0, -0.0, -2.0]), np.array([-0.0, -1.0, -1.0, 0.5])
     >>> np.allclose(arctan2(y, x), np.arctan2(y, x), rtol=4e-16, atol=0)
     True
+
+    On Python floats (one rotation's; x > 0 only) it is the same ratio and NumPy's
+    ``arctan`` on it, which gives the array loop's bits:
+
+    >>> bool(arctan2(1.0, 2.0) == arctan2(np.array([1.0]), np.array([2.0]))[0])
+    True
     """
+    if type(y) is float:
+        return np.arctan(y / x)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
     if out.size and np.isnan(np.minimum.reduce(out, axis=None)):   # a reduction, no mask, when none

@@ -15,12 +15,14 @@ from types import SimpleNamespace
 
 import numpy as np
 
-ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt)
-"""Each operation writes into its last argument (a row of the block) and returns it."""
+ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
+                         where=np.where)
+"""Each operation writes into its last argument (a row of the block) and returns it;
+``where(c, a, b)`` picks by a condition."""
 
 FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
                          mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
-                         sqrt=lambda a, out: math.sqrt(a))
+                         sqrt=lambda a, out: math.sqrt(a), where=lambda c, a, b: a if c else b)
 """The same operations on Python floats; the row argument is ignored."""
 
 NONE = (None,) * 16
