@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from . import _blocks, _kernels, _ops, _scale
+from . import _blocks, _kernels, _ops, _scale, _trig
 from ._kernels import ANGLE_FLOOR, arctan2
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
@@ -536,27 +536,34 @@ _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 
 
 def _k_from_rotvec(r, q, factor):
-    x, y, z = r
     with _blocks.scratch().frame() as work:
-        theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
-        e = _scale.true_norm(r, theta)       # |r|; r scaled by 2**-e where |r|² overflows
-        if factor != 1.0:
-            theta *= factor
-        np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
-        np.multiply(theta, 0.5, out=t)
-        _cos_sin(t, c, d, (u, v))            # cos(θ/2), sin(θ/2)
-        np.copyto(q[0], c)
-        # sin(θ/2) / θ, times the degree factor that converts v itself
-        d /= theta
-        if factor != 1.0:
-            d *= factor
-        if e is not None:
-            np.ldexp(d, e, out=d)
-        np.multiply(x, d, out=q[1])
-        np.multiply(y, d, out=q[2])
-        np.multiply(z, d, out=q[3])
-        if e is not None and not np.isfinite(theta).all():
-            _huge_rotvecs(r, q, e, ~np.isfinite(theta), factor)
+        rows = work.rows(6, r.shape[1:], q.dtype)
+        e = _scale.true_norm(r, rows[0])     # |r|; r scaled by 2**-e where |r|² overflows
+        _rotvec_quat(*r, rows[0], factor, e, _ops.ARRAYS, q, rows)
+        if e is not None and not np.isfinite(rows[0]).all():
+            _huge_rotvecs(r, q, e, ~np.isfinite(rows[0]), factor)
+
+
+def _rotvec_quat(x, y, z, theta, factor, e, op, q, rows):
+    """The unit quaternion of the rotation vector (x, y, z) of norm `theta` (times `factor`;
+    `e` the exponents by which a block's x, y, z were scaled down, or None) in `op`'s
+    arithmetic (`_ops`), into ``q`` (four rows) with the six work rows `rows`; returned."""
+    q = list(q[:4])
+    _, t, u, v, c, d = rows[:6]
+    if factor != 1.0:
+        theta = op.mul(theta, factor, theta)
+    theta = op.max(theta, ANGLE_FLOOR[np.dtype(np.float64) if type(theta) is float else theta.dtype], theta)
+    t = op.mul(theta, 0.5, t)
+    c, d = _cos_sin(t, c, d, (u, v))     # cos(θ/2), sin(θ/2)
+    q[0] = op.copy(c, q[0])
+    # sin(θ/2) / θ, times the degree factor that converts v itself
+    d = op.div(d, theta, d)
+    if factor != 1.0:
+        d = op.mul(d, factor, d)
+    if e is not None:
+        np.ldexp(d, e, out=d)
+    q[1:] = [op.mul(a, d, r) for a, r in zip((x, y, z), q[1:])]
+    return q
 
 
 def _huge_rotvecs(r, q, e, huge, factor):
@@ -600,6 +607,11 @@ def from_rotvec(rotvec, degrees=False):
     """
     v = finite(_vec3(rotvec, "rotvec"), "rotvec")
     factor = np.pi / 180.0 if degrees else 1.0
+    one = _ops.floats64(v, 3) if _trig.SIMD_TAN else None   # else the tangent is `_trig`'s rational
+    n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
+    if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one float64 vector that `true_norm` keeps
+        q = _rotvec_quat(*one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.NONE, _ops.NONE)
+        return np.array(q).reshape(v.shape[:-1] + (4,))
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
     return out

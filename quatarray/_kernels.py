@@ -59,24 +59,36 @@ def cos_sin(angle, c=None, s=None, rows=None):
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
     [0.707106781187, 0.707106781187]
     """
+    if type(angle) is float and _trig.SIMD_TAN:   # one rotation's float64 angle: the same formula
+        return _cos_sin_tan(angle, _ops.FLOATS, _tan_float, None, None, _ops.NONE)
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)
     if c is None:
         c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
         rows = (np.empty_like(c), np.empty_like(c))
-    u, v = rows
-    np.multiply(angle, 0.5, out=s)
-    t = _trig.tan(s, out=s, rows=(c, u, v))
-    np.multiply(t, t, out=c)
-    c += 1.0
-    d = np.divide(2.0, c, out=c)            # 2 / (1 + t²)
-    np.subtract(1.0, t, out=u)
-    np.add(t, 1.0, out=v)
-    u *= v
-    u *= d
-    s *= d                                  # sin a = t · 2 / (1 + t²)
-    return np.multiply(u, 0.5, out=c), s    # cos a (halving is exact)
+    return _cos_sin_tan(angle, _ops.ARRAYS, _trig.tan, c, s, rows)
+
+
+def _tan_float(x, out=None, rows=None):
+    """`_trig.tan` on a Python float, where that is NumPy's (SIMD) loop; the caller checks."""
+    return float(np.tan(x))
+
+
+def _cos_sin_tan(angle, op, tan, c, s, rows):
+    """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`."""
+    u, v = rows[:2]
+    s = op.mul(angle, 0.5, s)
+    t = tan(s, out=s, rows=(c, u, v))
+    c = op.mul(t, t, c)
+    c = op.add(c, 1.0, c)
+    d = op.div(2.0, c, c)                   # 2 / (1 + t²)
+    u = op.sub(1.0, t, u)
+    v = op.add(t, 1.0, v)
+    u = op.mul(u, v, u)
+    u = op.mul(u, d, u)
+    s = op.mul(t, d, t)                     # sin a = t · 2 / (1 + t²)
+    return op.mul(u, 0.5, c), s             # cos a (halving is exact)
 
 
 def half_angle(angle, scale):

@@ -16,27 +16,30 @@ from types import SimpleNamespace
 import numpy as np
 
 ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
-                         where=np.where)
+                         where=np.where, max=lambda a, b, out: np.maximum(a, b, out=out),
+                         copy=lambda a, out: np.copyto(out, a) or out)
 """Each operation writes into its last argument (a row of the block) and returns it;
 ``where(c, a, b)`` picks by a condition."""
 
 FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
                          mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
-                         sqrt=lambda a, out: math.sqrt(a), where=lambda c, a, b: a if c else b)
+                         sqrt=lambda a, out: math.sqrt(a), where=lambda c, a, b: a if c else b,
+                         max=lambda a, b, out: max(a, b), copy=lambda a, out: a)
 """The same operations on Python floats; the row argument is ignored."""
 
 NONE = (None,) * 16
 """Rows for `FLOATS` (any number up to 16): the results are returned, not written."""
 
 
-def floats64(q):
-    """The components of one float64 quaternion, shape (4,) or (1, 4), as Python floats
-    (so that a formula runs on `FLOATS`), or None for any other input (the block kernel's).
+def floats64(q, k=4):
+    """The `k` components of one float64 quaternion (or vector), shape (k,) or (1, k), as
+    Python floats (so that a formula runs on `FLOATS`), or None for any other input (the
+    block kernel's).
 
     >>> import numpy as np
     >>> floats64(np.array([1.0, 0, 0, 0])), floats64(np.ones((2, 4)))
     ([1.0, 0.0, 0.0, 0.0], None)
     """
-    if q.dtype == np.float64 and q.size == 4 and q.ndim <= 2:
-        return q.reshape(4).tolist()
+    if q.dtype == np.float64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:
+        return q.reshape(k).tolist()
     return None
