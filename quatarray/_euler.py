@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from . import _blocks, _scale
+from . import _blocks, _ops, _scale
 from ._convert import _blockwise, _half_angle, from_rotvec
 from ._kernels import arctan2, multiply, multiply_rows
 from ._validate import finite, float_array, quat_array
@@ -178,12 +178,8 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
     with _blocks.scratch().frame() as work:
         mid, r, u, v, f, g = work.rows(6, a.shape, o.dtype)
         for attempt in (0, 1):
-            np.multiply(c, c, out=r)
-            np.multiply(d, d, out=v)
-            r += v                           # |(c, d)|²
-            np.multiply(a, a, out=u)
-            np.multiply(b, b, out=v)
-            u += v                           # |(a, b)|²
+            r = _scale.squares([c, d], _ops.ARRAYS, r, v)   # |(c, d)|²
+            u = _scale.squares([a, b], _ops.ARRAYS, u, v)   # |(a, b)|²
             # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²), which the
             # two sums give for one more pass: blocks of extreme magnitude are rescaled
             if attempt or _scale.fits(np.add(r, u, out=mid)):
@@ -193,20 +189,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)
             _scale.rescale(abcd, _scale.outside(mid))   # by powers of two: the angles are unchanged
-        np.sqrt(r, out=r)                    # |(c, d)|
-        np.sqrt(u, out=u)                    # |(a, b)|
-        arctan2(r, u, out=mid, x_nonneg=True)
-        mid *= 2.0                           # the middle angle, in [0, π]
-        np.multiply(a, c, out=f)
-        np.multiply(b, d, out=g)
-        np.add(f, g, out=u)                  # Re (a + ib)(c - id)
-        f -= g                               # Re (a + ib)(c + id)
-        np.multiply(b, c, out=g)
-        np.multiply(a, d, out=v)
-        np.subtract(g, v, out=r)             # Im (a + ib)(c - id)
-        g += v                               # Im (a + ib)(c + id)
-        rows = {first: arctan2(r, u, out=v)}          # (out may not alias an argument)
-        rows[third] = arctan2(g, f, out=r)
+        mid, rows = _outer_angles(a, b, c, d, r, u, first, third, _ops.ARRAYS, (mid, v, f, g))
         gimbal = bool(mid.min() <= _GIMBAL_EPS or mid.max() >= np.pi - _GIMBAL_EPS)
         if gimbal:
             case1 = mid <= _GIMBAL_EPS
@@ -218,16 +201,52 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
                                   np.where(lock_angle > np.pi, lock_angle - 2 * np.pi, lock_angle))
             rows[2][at] = 0
             rows[0][at] = lock_angle
-        if symmetric:
-            np.copyto(o[1], mid)
-        else:
-            np.subtract(mid, lamb, out=o[1])
-        np.copyto(o[first], rows[first])
-        if not symmetric and sign < 0:
-            np.multiply(rows[third], -1, out=o[third])
-        else:
-            np.copyto(o[third], rows[third])
+        _euler_rows(mid, rows, first, third, symmetric, sign, lamb, _ops.ARRAYS, o)
     return gimbal
+
+
+def _outer_angles(a, b, c, d, r, u, first, third, op, rows):
+    """The middle angle and the rows {first, third} of the other two, from a, b, c, d and the
+    squared norms r = |(c, d)|², u = |(a, b)|², in `op`'s arithmetic (`_ops`) with four work
+    rows `rows` (r and u are overwritten).
+
+    The first and third angles are half_sum ∓ half_diff with half_sum = arg(a + ib) and
+    half_diff = arg(c + id); each is read as one argument, of (a + ib)(c ∓ id)."""
+    mid, v, f, g = rows[:4]
+    r = op.sqrt(r, r)                    # |(c, d)|
+    u = op.sqrt(u, u)                    # |(a, b)|
+    mid = arctan2(r, u, out=mid, x_nonneg=True)
+    mid = op.mul(mid, 2.0, mid)          # the middle angle, in [0, π]
+    f = op.mul(a, c, f)
+    g = op.mul(b, d, g)
+    u = op.add(f, g, u)                  # Re (a + ib)(c - id)
+    f = op.sub(f, g, f)                  # Re (a + ib)(c + id)
+    g = op.mul(b, c, g)
+    v = op.mul(a, d, v)
+    r = op.sub(g, v, r)                  # Im (a + ib)(c - id)
+    g = op.add(g, v, g)                  # Im (a + ib)(c + id)
+    angles = {first: arctan2(r, u, out=v)}          # (out may not alias an argument)
+    angles[third] = arctan2(g, f, out=r)
+    return mid, angles
+
+
+def _euler_rows(mid, angles, first, third, symmetric, sign, lamb, op, o):
+    """The three Euler angles from `_outer_angles`, into ``o`` (three rows); returned."""
+    o = list(o[:3])
+    o[1] = op.copy(mid, o[1]) if symmetric else op.sub(mid, lamb, o[1])
+    o[first] = op.copy(angles[first], o[first])
+    if not symmetric and sign < 0:
+        o[third] = op.mul(angles[third], -1, o[third])
+    else:
+        o[third] = op.copy(angles[third], o[third])
+    return o
+
+
+def _abcd(w, qi, qj, qk, symmetric, op, rows):
+    """Bernardes & Viollet's a, b, c, d from the components a sequence reads."""
+    if symmetric:
+        return [op.copy(src, row) for row, src in zip(rows, (w, qi, qj, qk))]
+    return [op.sub(w, qj, rows[0]), op.add(qi, qk, rows[1]), op.add(qj, w, rows[2]), op.sub(qk, qi, rows[3])]
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
@@ -236,15 +255,29 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
         _negate(qk)                          # q is the block's scratch copy
     with _blocks.scratch().frame() as work:
         abcd = work.rows(4, q.shape[1:], q.dtype)
-        if symmetric:
-            for row, src in zip(abcd, (w, qi, qj, qk)):
-                np.copyto(row, src)
-        else:
-            np.subtract(w, qj, out=abcd[0])
-            np.add(qi, qk, out=abcd[1])
-            np.add(qj, w, out=abcd[2])
-            np.subtract(qk, qi, out=abcd[3])
+        _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
         return _angles(abcd, o, extrinsic, symmetric, sign, np.pi / 2)
+
+
+def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
+    """`_k_as_euler` on the floats of one float64 quaternion, or None where the kernel would
+    rescale or find gimbal lock (its own path, with the warning)."""
+    comps = _ops.floats64(q)
+    if comps is None:
+        return None
+    w, qi, qj, qk = comps[0], comps[i + 1], comps[j + 1], comps[k + 1]
+    if sign < 0:
+        qk = qk * -1
+    a, b, c, d = _abcd(w, qi, qj, qk, symmetric, _ops.FLOATS, _ops.NONE)
+    r = _scale.squares([c, d], _ops.FLOATS, None, None)
+    u = _scale.squares([a, b], _ops.FLOATS, None, None)
+    if not _scale.LOW[q.dtype] <= r + u <= _scale.HIGH[q.dtype]:
+        return None
+    first, third = (0, 2) if extrinsic else (2, 0)
+    mid, angles = _outer_angles(a, b, c, d, r, u, first, third, _ops.FLOATS, _ops.NONE)
+    if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
+        return None
+    return _euler_rows(mid, angles, first, third, symmetric, sign, np.pi / 2, _ops.FLOATS, _ops.NONE)
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -298,10 +331,14 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     check_seq(seq, 3)
     q = quat_array(q, "quat")
     i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
-                        symmetric=symmetric, sign=sign, extrinsic=extrinsic)
-    _warn_gimbal(gimbal, suppress_warnings)
+    one = _euler_floats(q, i, j, k, symmetric, sign, extrinsic)
+    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+        out = np.array(one).reshape(q.shape[:-1] + (3,))
+    else:
+        out = np.empty(q.shape[:-1] + (3,), q.dtype)
+        gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
+                            symmetric=symmetric, sign=sign, extrinsic=extrinsic)
+        _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 
 

@@ -6,6 +6,7 @@ Long inputs are processed in cache-sized blocks by the block engine
 (`_blocks`) into a preallocated output.
 """
 
+import math
 from math import prod
 
 import numpy as np
@@ -119,14 +120,18 @@ def arctan2(y, x, out=None, x_nonneg=False):
     >>> np.allclose(arctan2(y, x), np.arctan2(y, x), rtol=4e-16, atol=0)
     True
 
-    On Python floats (one rotation's; x > 0 only) it is the same ratio and NumPy's
-    ``arctan`` on it, which gives the array loop's bits:
+    On Python floats (one rotation's) it is the same ratio, NumPy's ``arctan`` on it
+    (the array loop's bits) and the same ±π fix; x = ±0 and NaN take the array code:
 
-    >>> bool(arctan2(1.0, 2.0) == arctan2(np.array([1.0]), np.array([2.0]))[0])
+    >>> bool(arctan2(1.0, -2.0) == arctan2(np.array([1.0]), np.array([-2.0]))[0])
     True
     """
     if type(y) is float:
-        return np.arctan(y / x)
+        if x > 0:
+            return float(np.arctan(y / x))
+        if x < 0:
+            return float(np.arctan(y / x)) + math.copysign(math.pi, y)
+        return float(arctan2(np.array(y), np.array(x), out=np.empty(()), x_nonneg=x_nonneg))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
     if out.size and np.isnan(np.minimum.reduce(out, axis=None)):   # a reduction, no mask, when none
