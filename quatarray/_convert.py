@@ -167,13 +167,8 @@ def _matrix(w, x, y, z, s, op, o, t):
     o = list(o[:9])
     xs, ys, zs, xx, yy, zz, a, b, ww = t[:9]
     if s is None:
-        xs = op.add(x, x, xs)
-        ys = op.add(y, y, ys)
-        zs = op.add(z, z, zs)
-        ww = op.mul(w, w, ww)
-        xx = op.mul(x, x, xx)
-        yy = op.mul(y, y, yy)
-        zz = op.mul(z, z, zz)
+        xs, ys, zs = [op.add(c, c, r) for c, r in ((x, xs), (y, ys), (z, zs))]
+        ww, xx, yy, zz = [op.mul(c, c, r) for c, r in ((w, ww), (x, xx), (y, yy), (z, zz))]
         a = op.sub(ww, zz, a)
         b = op.sub(xx, yy, b)
         o[0] = op.add(a, b, o[0])
@@ -182,12 +177,8 @@ def _matrix(w, x, y, z, s, op, o, t):
         b = op.add(xx, yy, b)
         o[8] = op.sub(a, b, o[8])
     else:
-        xs = op.mul(x, s, xs)
-        ys = op.mul(y, s, ys)
-        zs = op.mul(z, s, zs)
-        xx = op.mul(x, xs, xx)
-        yy = op.mul(y, ys, yy)
-        zz = op.mul(z, zs, zz)
+        xs, ys, zs = [op.mul(c, s, r) for c, r in ((x, xs), (y, ys), (z, zs))]
+        xx, yy, zz = [op.mul(c, cs, r) for c, cs, r in ((x, xs, xx), (y, ys, yy), (z, zs, zz))]
         for k, p, r in ((0, yy, zz), (4, xx, zz), (8, xx, yy)):
             a = op.add(p, r, a)
             o[k] = op.sub(1.0, a, o[k])
