@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from . import _blocks, _ops, _scale
+from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise, _half_angle, from_rotvec
 from ._kernels import arctan2, multiply, multiply_rows
 from ._validate import finite, float_array, quat_array
@@ -70,41 +70,49 @@ def _negate(x):
     return np.multiply(x, -1, out=x)
 
 
-def _lin(c, a, sign, s, b, out=None):
-    """c*a + sign*s*b for rows or None (a zero row); None if both are zero."""
+def _lin(c, a, sign, s, b, op, out=None):
+    """c*a + sign*s*b for rows or None (a zero row) in `op`'s arithmetic (`_ops`); None if
+    both are zero."""
     if a is None and b is None:
         return None
     if b is None:
-        return np.multiply(c, a, out=out)
-    sb = np.multiply(s, b, out=out if a is None else None)
+        return op.mul(c, a, out)
+    sb = op.mul(s, b, out if a is None else None)
     if a is None:
-        return sb if sign > 0 else _negate(sb)
-    ca = np.multiply(c, a, out=out)
-    return np.add(ca, sb, out=ca) if sign > 0 else np.subtract(ca, sb, out=ca)
+        return sb if sign > 0 else op.mul(sb, -1, sb)   # not np.negative in place: see `_negate`
+    ca = op.mul(c, a, out)
+    return op.add(ca, sb, ca) if sign > 0 else op.sub(ca, sb, ca)
 
 
-def _times_axis(p, c, s, k, right, out=None):
+def _times_axis(p, c, s, k, right, op, out=None):
     """p (c + s e_k) if `right` else (c + s e_k) p, on rows [w, x, y, z] (None = 0)."""
     i, j = (k + 1) % 3, (k + 2) % 3
     w, pk, pi, pj = p[0], p[k + 1], p[i + 1], p[j + 1]
     sg = 1 if right else -1
     o = out if out is not None else [None] * 4
     res = [None] * 4
-    res[0] = _lin(c, w, -1, s, pk, o[0])
-    res[k + 1] = _lin(c, pk, 1, s, w, o[k + 1])
-    res[i + 1] = _lin(c, pi, sg, s, pj, o[i + 1])
-    res[j + 1] = _lin(c, pj, -sg, s, pi, o[j + 1])
+    res[0] = _lin(c, w, -1, s, pk, op, o[0])
+    res[k + 1] = _lin(c, pk, 1, s, w, op, o[k + 1])
+    res[i + 1] = _lin(c, pi, sg, s, pj, op, o[i + 1])
+    res[j + 1] = _lin(c, pj, -sg, s, pi, op, o[j + 1])
     return res
 
 
-def _k_from_euler(angles, q, axes, intrinsic, scale):
+def _euler_quat(angles, axes, intrinsic, scale, op, q):
+    """The product of the elementary quaternions of `angles` (rows, or one rotation's floats)
+    in `op`'s arithmetic (`_ops`), the last written into ``q``: [w, x, y, z], None = 0."""
     c, s = _half_angle(angles[0], scale)
     p = [c, None, None, None]
     p[axes[0] + 1] = s
     last = len(axes) - 1
     for n in range(1, len(axes)):
         c, s = _half_angle(angles[n], scale)
-        p = _times_axis(p, c, s, axes[n], intrinsic, out=q if n == last else None)
+        p = _times_axis(p, c, s, axes[n], intrinsic, op, out=q if n == last else None)
+    return p
+
+
+def _k_from_euler(angles, q, axes, intrinsic, scale):
+    p = _euler_quat(angles, axes, intrinsic, scale, _ops.ARRAYS, q)
     for row, value in zip(q, p):  # rows not written through `out`
         if value is None:
             row.fill(0)
@@ -155,6 +163,10 @@ def from_euler(seq, angles, degrees=False):
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
+    one = _ops.floats64(a, len(axes)) if _trig.SIMD_TAN else None   # else `_trig`'s rational tangent
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        p = _euler_quat(one, axes, intrinsic, scale, _ops.FLOATS, _ops.NONE)
+        return np.array([0.0 if v is None else v for v in p]).reshape(a.shape[:-1] + (4,))
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
