@@ -408,6 +408,20 @@ def normalize(q, out=None):
     return res
 
 
+def _divided(comps, n, op, outs):
+    """Each component over the norm `n`, in `op`'s arithmetic (`_ops`), into `outs`."""
+    return [op.div(c, n, o) for c, o in zip(comps, outs)]
+
+
+def normalize_floats(comps):
+    """`_normalize_flat`'s q / |q| on the four floats of one float64 quaternion, or None
+    where its squared norm does not `_scale.fits` (the block kernel's case)."""
+    n2 = _scale.squares(comps, _ops.FLOATS, None, None)
+    if not _scale.LOW[np.dtype(np.float64)] <= n2 <= _scale.HIGH[np.dtype(np.float64)]:
+        return None
+    return _divided(comps, math.sqrt(n2), _ops.FLOATS, _ops.NONE)
+
+
 def _normalize_flat(q, out):
     """Blocked q / |q| on (N, 4) C-contiguous arrays: one einsum for the squared
     norms, then one division per component column (long inner loops)."""
@@ -424,8 +438,7 @@ def _normalize_flat(q, out):
             _k_normalize(soa(blk).copy(), soa(o))
             return
         np.sqrt(t, t)
-        for c in range(4):
-            np.divide(blk[:, c], t, o[:, c])
+        _divided([blk[:, c] for c in range(4)], t, _ops.ARRAYS, [o[:, c] for c in range(4)])
 
     _blocks.run(block, _blocks.split((len(q),), _blocks.block_size(q.dtype)), len(q))
 
