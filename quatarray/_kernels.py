@@ -395,6 +395,11 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
+    one = _ops.floats64(q) if out is None else None
+    if one is not None:   # one float64 quaternion: the same formula on its floats
+        one = normalize_floats(one)
+        if one is not None:
+            return np.array(one).reshape(q.shape)
     res = _out(out, q.shape, result_dtype(q))
     if (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype
             and (res is q or not np.may_share_memory(q, res))):   # in place is safe: row by row
