@@ -37,6 +37,7 @@ def floats64(q, k=4):
     block kernel's).
 
     >>> import numpy as np
+    >>> from quatarray._ops import floats64
     >>> floats64(np.array([1.0, 0, 0, 0])), floats64(np.ones((2, 4)))
     ([1.0, 0.0, 0.0, 0.0], None)
     """
