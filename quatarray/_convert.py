@@ -472,7 +472,7 @@ def _norm_floats(q):
     v2 = _scale.squares(c[1:], _ops.FLOATS, None, None)
     n2 = w * w + v2
     lo, hi = _scale.LOW[q.dtype], _scale.HIGH[q.dtype]
-    if w == 0 or not (lo <= n2 <= hi) or 0 < v2 < lo:
+    if w == 0 or not (lo <= n2 <= hi) or (v2 < lo and any(c[1:])):   # |v|² underflowed
         return None
     return (*c, math.sqrt(v2))
 
