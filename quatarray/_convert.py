@@ -26,9 +26,11 @@ arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
 costs behind these choices are in benchmarks/README.md.
 """
 
+import math
+
 import numpy as np
 
-from . import _blocks, _kernels, _scale
+from . import _blocks, _kernels, _ops, _scale, _trig
 from ._kernels import ANGLE_FLOOR, arctan2
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
@@ -87,6 +89,11 @@ def from_quat(quat, scalar_first=False, name="quat"):
     array([0.8, 0. , 0. , 0.6])
     """
     q = quat_array(quat, "quat")
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: `_kernels.normalize`'s formula on its floats
+        one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3])
+        if one is not None:
+            return np.array(one).reshape(q.shape)
     if scalar_first:
         src = q if q.flags.c_contiguous else np.ascontiguousarray(q)
     else:
@@ -156,42 +163,43 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
+def _matrix(w, x, y, z, s, op, o, t):
+    """The nine entries of the rotation matrix of q, row-major, over components in `op`'s
+    arithmetic (`_ops`: a block's rows, or the floats of one rotation), written into
+    ``o`` (nine rows, or `_ops.NONE`) with `t` (nine work rows) and returned as a list.
+    ``s = 2 / |q|²``, or None for a unit q: then scipy's diagonal (w² ∓ z²) ± (x² ∓ y²),
+    with exact zeros where |w| = |z| etc."""
+    o = list(o[:9])
+    xs, ys, zs, xx, yy, zz, a, b, ww = t[:9]
+    if s is None:
+        xs, ys, zs = [op.add(c, c, r) for c, r in ((x, xs), (y, ys), (z, zs))]
+        ww, xx, yy, zz = [op.mul(c, c, r) for c, r in ((w, ww), (x, xx), (y, yy), (z, zz))]
+        a = op.sub(ww, zz, a)
+        b = op.sub(xx, yy, b)
+        o[0] = op.add(a, b, o[0])
+        o[4] = op.sub(a, b, o[4])
+        a = op.add(ww, zz, a)
+        b = op.add(xx, yy, b)
+        o[8] = op.sub(a, b, o[8])
+    else:
+        xs, ys, zs = [op.mul(c, s, r) for c, r in ((x, xs), (y, ys), (z, zs))]
+        xx, yy, zz = [op.mul(c, cs, r) for c, cs, r in ((x, xs, xx), (y, ys, yy), (z, zs, zz))]
+        for k, p, r in ((0, yy, zz), (4, xx, zz), (8, xx, yy)):
+            a = op.add(p, r, a)
+            o[k] = op.sub(1.0, a, o[k])
+    # off-diagonal pairs (i, j) = p -/+ r, each output row written once
+    for i, j, p1, p2, r1, r2 in ((1, 3, x, ys, w, zs), (6, 2, x, zs, w, ys), (5, 7, y, zs, w, xs)):
+        a = op.mul(p1, p2, a)
+        b = op.mul(r1, r2, b)
+        o[i] = op.sub(a, b, o[i])
+        o[j] = op.add(a, b, o[j])
+    return o
+
+
 def _k_as_matrix(q, o, unit=False):
-    w, x, y, z = q
     with _blocks.scratch().frame() as work:
-        xs, ys, zs, xx, yy, zz, a, b = work.rows(8, w.shape, o.dtype)
-        if unit:   # |q| = 1: scipy's diagonal, (w² ∓ z²) ± (x² ∓ y²), exact zeros where |w| = |z| etc.
-            np.add(x, x, out=xs)
-            np.add(y, y, out=ys)
-            np.add(z, z, out=zs)
-            ww = work.rows(1, w.shape, o.dtype)[0]
-            for sq, c in ((ww, w), (xx, x), (yy, y), (zz, z)):
-                np.multiply(c, c, out=sq)
-            np.subtract(ww, zz, out=a)
-            np.subtract(xx, yy, out=b)
-            np.add(a, b, out=o[0])
-            np.subtract(a, b, out=o[4])
-            np.add(ww, zz, out=a)
-            np.add(xx, yy, out=b)
-            np.subtract(a, b, out=o[8])
-        else:
-            s = np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
-            np.multiply(x, s, out=xs)
-            np.multiply(y, s, out=ys)
-            np.multiply(z, s, out=zs)
-            np.multiply(x, xs, out=xx)
-            np.multiply(y, ys, out=yy)
-            np.multiply(z, zs, out=zz)
-            for k, (p, r) in ((0, (yy, zz)), (4, (xx, zz)), (8, (xx, yy))):
-                np.add(p, r, out=a)
-                np.subtract(1.0, a, out=o[k])
-        # off-diagonal pairs (i, j) = p -/+ r, each output row written once
-        for (i, j), (p1, p2, r1, r2) in (((1, 3), (x, ys, w, zs)), ((6, 2), (x, zs, w, ys)),
-                                         ((5, 7), (y, zs, w, xs))):
-            np.multiply(p1, p2, out=a)
-            np.multiply(r1, r2, out=b)
-            np.subtract(a, b, out=o[i])
-            np.add(a, b, out=o[j])
+        s = None if unit else np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
+        _matrix(*q, s, _ops.ARRAYS, o, work.rows(9, q.shape[1:], o.dtype))
 
 
 def as_matrix(q, unit=False):
@@ -224,6 +232,9 @@ def as_matrix(q, unit=False):
            [ 0.,  0.,  1.]])
     """
     q = quat_array(q, "quat")
+    one = _ops.floats64(q) if unit else None
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        return np.array(_matrix(*one, None, _ops.FLOATS, _ops.NONE, _ops.NONE)).reshape(q.shape[:-1] + (3, 3))
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
     return out
@@ -450,17 +461,36 @@ def _vector_norm(q):
     return _scale.small_norms(q[1:], v2)   # |v| also where |v|² underflows (angles down to subnormal)
 
 
+def _norm_floats(q):
+    """(w, x, y, z, |v|) of one float64 quaternion as Python floats, by `_vector_norm`'s
+    formula, where that kernel would neither rescale nor take the underflow path and w ≠ 0;
+    else None (the block kernel's case)."""
+    c = _ops.floats64(q)
+    if c is None:
+        return None
+    w = c[0]
+    v2 = _scale.squares(c[1:], _ops.FLOATS, None, None)
+    n2 = w * w + v2
+    lo, hi = _scale.LOW[q.dtype], _scale.HIGH[q.dtype]
+    if w == 0 or not (lo <= n2 <= hi) or (v2 < lo and any(c[1:])):   # |v|² underflowed
+        return None
+    return (*c, math.sqrt(v2))
+
+
+def _rotvec(w, x, y, z, nv, flip, factor, op, o):
+    """The rotation vector of q with |v| = `nv` and `flip` (not canonical) in `op`'s
+    arithmetic (`_ops`), into ``o`` (three rows); returned as a list."""
+    half = arctan2(nv, abs(w), x_nonneg=True)
+    # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
+    scale = op.div(half, op.where(nv > 0, nv, 1.0), None)
+    scale = op.where(flip, -scale, scale)   # not a masked negative: cheaper
+    scale = op.mul(scale, factor, scale)
+    return [op.mul(c, scale, r) for c, r in zip((x, y, z), o[:3])]
+
+
 def _k_as_rotvec(q, o, factor):
     nv = _vector_norm(q)
-    w, x, y, z = q
-    half = arctan2(nv, np.abs(w), x_nonneg=True)
-    # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
-    scale = half / np.where(nv > 0, nv, 1.0)
-    scale = np.where(_flip_mask(w, x, y, z), -scale, scale)   # not a masked negative: cheaper
-    scale *= factor
-    np.multiply(x, scale, out=o[0])
-    np.multiply(y, scale, out=o[1])
-    np.multiply(z, scale, out=o[2])
+    _rotvec(*q, nv, _flip_mask(*q), factor, _ops.ARRAYS, o)
 
 
 def as_rotvec(q, degrees=False):
@@ -489,6 +519,9 @@ def as_rotvec(q, degrees=False):
     array([ 0.,  0., 90.])
     """
     q = quat_array(q, "quat")
+    one = _norm_floats(q)
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        return np.array(_rotvec(*one, one[0] < 0, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE)).reshape(q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=_ROTVEC_FACTOR[degrees])
     return out
@@ -499,27 +532,34 @@ _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 
 
 def _k_from_rotvec(r, q, factor):
-    x, y, z = r
     with _blocks.scratch().frame() as work:
-        theta, t, u, v, c, d = work.rows(6, x.shape, q.dtype)
-        e = _scale.true_norm(r, theta)       # |r|; r scaled by 2**-e where |r|² overflows
-        if factor != 1.0:
-            theta *= factor
-        np.maximum(theta, ANGLE_FLOOR[theta.dtype], out=theta)
-        np.multiply(theta, 0.5, out=t)
-        _cos_sin(t, c, d, (u, v))            # cos(θ/2), sin(θ/2)
-        np.copyto(q[0], c)
-        # sin(θ/2) / θ, times the degree factor that converts v itself
-        d /= theta
-        if factor != 1.0:
-            d *= factor
-        if e is not None:
-            np.ldexp(d, e, out=d)
-        np.multiply(x, d, out=q[1])
-        np.multiply(y, d, out=q[2])
-        np.multiply(z, d, out=q[3])
-        if e is not None and not np.isfinite(theta).all():
-            _huge_rotvecs(r, q, e, ~np.isfinite(theta), factor)
+        rows = work.rows(6, r.shape[1:], q.dtype)
+        e = _scale.true_norm(r, rows[0])     # |r|; r scaled by 2**-e where |r|² overflows
+        _rotvec_quat(*r, rows[0], factor, e, _ops.ARRAYS, q, rows)
+        if e is not None and not np.isfinite(rows[0]).all():
+            _huge_rotvecs(r, q, e, ~np.isfinite(rows[0]), factor)
+
+
+def _rotvec_quat(x, y, z, theta, factor, e, op, q, rows):
+    """The unit quaternion of the rotation vector (x, y, z) of norm `theta` (times `factor`;
+    `e` the exponents by which a block's x, y, z were scaled down, or None) in `op`'s
+    arithmetic (`_ops`), into ``q`` (four rows) with the six work rows `rows`; returned."""
+    q = list(q[:4])
+    _, t, u, v, c, d = rows[:6]
+    if factor != 1.0:
+        theta = op.mul(theta, factor, theta)
+    theta = op.max(theta, ANGLE_FLOOR[np.dtype(np.float64) if type(theta) is float else theta.dtype], theta)
+    t = op.mul(theta, 0.5, t)
+    c, d = _cos_sin(t, c, d, (u, v))     # cos(θ/2), sin(θ/2)
+    q[0] = op.copy(c, q[0])
+    # sin(θ/2) / θ, times the degree factor that converts v itself
+    d = op.div(d, theta, d)
+    if factor != 1.0:
+        d = op.mul(d, factor, d)
+    if e is not None:
+        np.ldexp(d, e, out=d)
+    q[1:] = [op.mul(a, d, r) for a, r in zip((x, y, z), q[1:])]
+    return q
 
 
 def _huge_rotvecs(r, q, e, huge, factor):
@@ -563,6 +603,11 @@ def from_rotvec(rotvec, degrees=False):
     """
     v = finite(_vec3(rotvec, "rotvec"), "rotvec")
     factor = np.pi / 180.0 if degrees else 1.0
+    one = _ops.floats64(v, 3) if _trig.SIMD_TAN else None   # else the tangent is `_trig`'s rational
+    n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
+    if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one float64 vector that `true_norm` keeps
+        q = _rotvec_quat(*one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.NONE, _ops.NONE)
+        return np.array(q).reshape(v.shape[:-1] + (4,))
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
     return out
@@ -592,6 +637,9 @@ def magnitude(q):
     array([0.        , 3.14159265, 1.57079633])
     """
     q = quat_array(q, "quat")
+    one = _norm_floats(q)
+    if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
+        return np.full(q.shape[:-1], arctan2(one[4], abs(one[0]), x_nonneg=True) * 2.0)
     out = np.empty(q.shape[:-1], q.dtype)
     _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
     return out

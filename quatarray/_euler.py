@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from . import _blocks, _scale
+from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise, _half_angle, from_rotvec
 from ._kernels import arctan2, multiply, multiply_rows
 from ._validate import finite, float_array, quat_array
@@ -70,41 +70,49 @@ def _negate(x):
     return np.multiply(x, -1, out=x)
 
 
-def _lin(c, a, sign, s, b, out=None):
-    """c*a + sign*s*b for rows or None (a zero row); None if both are zero."""
+def _lin(c, a, sign, s, b, op, out=None):
+    """c*a + sign*s*b for rows or None (a zero row) in `op`'s arithmetic (`_ops`); None if
+    both are zero."""
     if a is None and b is None:
         return None
     if b is None:
-        return np.multiply(c, a, out=out)
-    sb = np.multiply(s, b, out=out if a is None else None)
+        return op.mul(c, a, out)
+    sb = op.mul(s, b, out if a is None else None)
     if a is None:
-        return sb if sign > 0 else _negate(sb)
-    ca = np.multiply(c, a, out=out)
-    return np.add(ca, sb, out=ca) if sign > 0 else np.subtract(ca, sb, out=ca)
+        return sb if sign > 0 else op.mul(sb, -1, sb)   # not np.negative in place: see `_negate`
+    ca = op.mul(c, a, out)
+    return op.add(ca, sb, ca) if sign > 0 else op.sub(ca, sb, ca)
 
 
-def _times_axis(p, c, s, k, right, out=None):
+def _times_axis(p, c, s, k, right, op, out=None):
     """p (c + s e_k) if `right` else (c + s e_k) p, on rows [w, x, y, z] (None = 0)."""
     i, j = (k + 1) % 3, (k + 2) % 3
     w, pk, pi, pj = p[0], p[k + 1], p[i + 1], p[j + 1]
     sg = 1 if right else -1
     o = out if out is not None else [None] * 4
     res = [None] * 4
-    res[0] = _lin(c, w, -1, s, pk, o[0])
-    res[k + 1] = _lin(c, pk, 1, s, w, o[k + 1])
-    res[i + 1] = _lin(c, pi, sg, s, pj, o[i + 1])
-    res[j + 1] = _lin(c, pj, -sg, s, pi, o[j + 1])
+    res[0] = _lin(c, w, -1, s, pk, op, o[0])
+    res[k + 1] = _lin(c, pk, 1, s, w, op, o[k + 1])
+    res[i + 1] = _lin(c, pi, sg, s, pj, op, o[i + 1])
+    res[j + 1] = _lin(c, pj, -sg, s, pi, op, o[j + 1])
     return res
 
 
-def _k_from_euler(angles, q, axes, intrinsic, scale):
+def _euler_quat(angles, axes, intrinsic, scale, op, q):
+    """The product of the elementary quaternions of `angles` (rows, or one rotation's floats)
+    in `op`'s arithmetic (`_ops`), the last written into ``q``: [w, x, y, z], None = 0."""
     c, s = _half_angle(angles[0], scale)
     p = [c, None, None, None]
     p[axes[0] + 1] = s
     last = len(axes) - 1
     for n in range(1, len(axes)):
         c, s = _half_angle(angles[n], scale)
-        p = _times_axis(p, c, s, axes[n], intrinsic, out=q if n == last else None)
+        p = _times_axis(p, c, s, axes[n], intrinsic, op, out=q if n == last else None)
+    return p
+
+
+def _k_from_euler(angles, q, axes, intrinsic, scale):
+    p = _euler_quat(angles, axes, intrinsic, scale, _ops.ARRAYS, q)
     for row, value in zip(q, p):  # rows not written through `out`
         if value is None:
             row.fill(0)
@@ -155,6 +163,10 @@ def from_euler(seq, angles, degrees=False):
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
+    one = _ops.floats64(a, len(axes)) if _trig.SIMD_TAN else None   # else `_trig`'s rational tangent
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        p = _euler_quat(one, axes, intrinsic, scale, _ops.FLOATS, _ops.NONE)
+        return np.array([0.0 if v is None else v for v in p]).reshape(a.shape[:-1] + (4,))
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
@@ -178,12 +190,8 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
     with _blocks.scratch().frame() as work:
         mid, r, u, v, f, g = work.rows(6, a.shape, o.dtype)
         for attempt in (0, 1):
-            np.multiply(c, c, out=r)
-            np.multiply(d, d, out=v)
-            r += v                           # |(c, d)|²
-            np.multiply(a, a, out=u)
-            np.multiply(b, b, out=v)
-            u += v                           # |(a, b)|²
+            r = _scale.squares([c, d], _ops.ARRAYS, r, v)   # |(c, d)|²
+            u = _scale.squares([a, b], _ops.ARRAYS, u, v)   # |(a, b)|²
             # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²), which the
             # two sums give for one more pass: blocks of extreme magnitude are rescaled
             if attempt or _scale.fits(np.add(r, u, out=mid)):
@@ -193,20 +201,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)
             _scale.rescale(abcd, _scale.outside(mid))   # by powers of two: the angles are unchanged
-        np.sqrt(r, out=r)                    # |(c, d)|
-        np.sqrt(u, out=u)                    # |(a, b)|
-        arctan2(r, u, out=mid, x_nonneg=True)
-        mid *= 2.0                           # the middle angle, in [0, π]
-        np.multiply(a, c, out=f)
-        np.multiply(b, d, out=g)
-        np.add(f, g, out=u)                  # Re (a + ib)(c - id)
-        f -= g                               # Re (a + ib)(c + id)
-        np.multiply(b, c, out=g)
-        np.multiply(a, d, out=v)
-        np.subtract(g, v, out=r)             # Im (a + ib)(c - id)
-        g += v                               # Im (a + ib)(c + id)
-        rows = {first: arctan2(r, u, out=v)}          # (out may not alias an argument)
-        rows[third] = arctan2(g, f, out=r)
+        mid, rows = _outer_angles(a, b, c, d, r, u, first, third, _ops.ARRAYS, (mid, v, f, g))
         gimbal = bool(mid.min() <= _GIMBAL_EPS or mid.max() >= np.pi - _GIMBAL_EPS)
         if gimbal:
             case1 = mid <= _GIMBAL_EPS
@@ -218,16 +213,52 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
                                   np.where(lock_angle > np.pi, lock_angle - 2 * np.pi, lock_angle))
             rows[2][at] = 0
             rows[0][at] = lock_angle
-        if symmetric:
-            np.copyto(o[1], mid)
-        else:
-            np.subtract(mid, lamb, out=o[1])
-        np.copyto(o[first], rows[first])
-        if not symmetric and sign < 0:
-            np.multiply(rows[third], -1, out=o[third])
-        else:
-            np.copyto(o[third], rows[third])
+        _euler_rows(mid, rows, first, third, symmetric, sign, lamb, _ops.ARRAYS, o)
     return gimbal
+
+
+def _outer_angles(a, b, c, d, r, u, first, third, op, rows):
+    """The middle angle and the rows {first, third} of the other two, from a, b, c, d and the
+    squared norms r = |(c, d)|², u = |(a, b)|², in `op`'s arithmetic (`_ops`) with four work
+    rows `rows` (r and u are overwritten).
+
+    The first and third angles are half_sum ∓ half_diff with half_sum = arg(a + ib) and
+    half_diff = arg(c + id); each is read as one argument, of (a + ib)(c ∓ id)."""
+    mid, v, f, g = rows[:4]
+    r = op.sqrt(r, r)                    # |(c, d)|
+    u = op.sqrt(u, u)                    # |(a, b)|
+    mid = arctan2(r, u, out=mid, x_nonneg=True)
+    mid = op.mul(mid, 2.0, mid)          # the middle angle, in [0, π]
+    f = op.mul(a, c, f)
+    g = op.mul(b, d, g)
+    u = op.add(f, g, u)                  # Re (a + ib)(c - id)
+    f = op.sub(f, g, f)                  # Re (a + ib)(c + id)
+    g = op.mul(b, c, g)
+    v = op.mul(a, d, v)
+    r = op.sub(g, v, r)                  # Im (a + ib)(c - id)
+    g = op.add(g, v, g)                  # Im (a + ib)(c + id)
+    angles = {first: arctan2(r, u, out=v)}          # (out may not alias an argument)
+    angles[third] = arctan2(g, f, out=r)
+    return mid, angles
+
+
+def _euler_rows(mid, angles, first, third, symmetric, sign, lamb, op, o):
+    """The three Euler angles from `_outer_angles`, into ``o`` (three rows); returned."""
+    o = list(o[:3])
+    o[1] = op.copy(mid, o[1]) if symmetric else op.sub(mid, lamb, o[1])
+    o[first] = op.copy(angles[first], o[first])
+    if not symmetric and sign < 0:
+        o[third] = op.mul(angles[third], -1, o[third])
+    else:
+        o[third] = op.copy(angles[third], o[third])
+    return o
+
+
+def _abcd(w, qi, qj, qk, symmetric, op, rows):
+    """Bernardes & Viollet's a, b, c, d from the components a sequence reads."""
+    if symmetric:
+        return [op.copy(src, row) for row, src in zip(rows, (w, qi, qj, qk))]
+    return [op.sub(w, qj, rows[0]), op.add(qi, qk, rows[1]), op.add(qj, w, rows[2]), op.sub(qk, qi, rows[3])]
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
@@ -236,15 +267,29 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
         _negate(qk)                          # q is the block's scratch copy
     with _blocks.scratch().frame() as work:
         abcd = work.rows(4, q.shape[1:], q.dtype)
-        if symmetric:
-            for row, src in zip(abcd, (w, qi, qj, qk)):
-                np.copyto(row, src)
-        else:
-            np.subtract(w, qj, out=abcd[0])
-            np.add(qi, qk, out=abcd[1])
-            np.add(qj, w, out=abcd[2])
-            np.subtract(qk, qi, out=abcd[3])
+        _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
         return _angles(abcd, o, extrinsic, symmetric, sign, np.pi / 2)
+
+
+def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
+    """`_k_as_euler` on the floats of one float64 quaternion, or None where the kernel would
+    rescale or find gimbal lock (its own path, with the warning)."""
+    comps = _ops.floats64(q)
+    if comps is None:
+        return None
+    w, qi, qj, qk = comps[0], comps[i + 1], comps[j + 1], comps[k + 1]
+    if sign < 0:
+        qk = qk * -1
+    a, b, c, d = _abcd(w, qi, qj, qk, symmetric, _ops.FLOATS, _ops.NONE)
+    r = _scale.squares([c, d], _ops.FLOATS, None, None)
+    u = _scale.squares([a, b], _ops.FLOATS, None, None)
+    if not _scale.LOW[q.dtype] <= r + u <= _scale.HIGH[q.dtype]:
+        return None
+    first, third = (0, 2) if extrinsic else (2, 0)
+    mid, angles = _outer_angles(a, b, c, d, r, u, first, third, _ops.FLOATS, _ops.NONE)
+    if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
+        return None
+    return _euler_rows(mid, angles, first, third, symmetric, sign, np.pi / 2, _ops.FLOATS, _ops.NONE)
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -298,10 +343,14 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     check_seq(seq, 3)
     q = quat_array(q, "quat")
     i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
-                        symmetric=symmetric, sign=sign, extrinsic=extrinsic)
-    _warn_gimbal(gimbal, suppress_warnings)
+    one = _euler_floats(q, i, j, k, symmetric, sign, extrinsic)
+    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+        out = np.array(one).reshape(q.shape[:-1] + (3,))
+    else:
+        out = np.empty(q.shape[:-1] + (3,), q.dtype)
+        gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
+                            symmetric=symmetric, sign=sign, extrinsic=extrinsic)
+        _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 
 

@@ -6,11 +6,12 @@ Long inputs are processed in cache-sized blocks by the block engine
 (`_blocks`) into a preallocated output.
 """
 
+import math
 from math import prod
 
 import numpy as np
 
-from . import _blocks, _scale, _trig
+from . import _blocks, _ops, _scale, _trig
 from ._blocks import soa
 from ._validate import all_finite
 
@@ -59,24 +60,36 @@ def cos_sin(angle, c=None, s=None, rows=None):
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
     [0.707106781187, 0.707106781187]
     """
+    if type(angle) is float and _trig.SIMD_TAN:   # one rotation's float64 angle: the same formula
+        return _cos_sin_tan(angle, _ops.FLOATS, _tan_float, None, None, _ops.NONE)
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)
     if c is None:
         c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
         rows = (np.empty_like(c), np.empty_like(c))
-    u, v = rows
-    np.multiply(angle, 0.5, out=s)
-    t = _trig.tan(s, out=s, rows=(c, u, v))
-    np.multiply(t, t, out=c)
-    c += 1.0
-    d = np.divide(2.0, c, out=c)            # 2 / (1 + t²)
-    np.subtract(1.0, t, out=u)
-    np.add(t, 1.0, out=v)
-    u *= v
-    u *= d
-    s *= d                                  # sin a = t · 2 / (1 + t²)
-    return np.multiply(u, 0.5, out=c), s    # cos a (halving is exact)
+    return _cos_sin_tan(angle, _ops.ARRAYS, _trig.tan, c, s, rows)
+
+
+def _tan_float(x, out=None, rows=None):
+    """`_trig.tan` on a Python float, where that is NumPy's (SIMD) loop; the caller checks."""
+    return float(np.tan(x))
+
+
+def _cos_sin_tan(angle, op, tan, c, s, rows):
+    """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`."""
+    u, v = rows[:2]
+    s = op.mul(angle, 0.5, s)
+    t = tan(s, out=s, rows=(c, u, v))
+    c = op.mul(t, t, c)
+    c = op.add(c, 1.0, c)
+    d = op.div(2.0, c, c)                   # 2 / (1 + t²)
+    u = op.sub(1.0, t, u)
+    v = op.add(t, 1.0, v)
+    u = op.mul(u, v, u)
+    u = op.mul(u, d, u)
+    s = op.mul(t, d, t)                     # sin a = t · 2 / (1 + t²)
+    return op.mul(u, 0.5, c), s             # cos a (halving is exact)
 
 
 def half_angle(angle, scale):
@@ -106,7 +119,19 @@ def arctan2(y, x, out=None, x_nonneg=False):
     >>> y, x = np.array([1.0, 0.0, -0.0, -2.0]), np.array([-0.0, -1.0, -1.0, 0.5])
     >>> np.allclose(arctan2(y, x), np.arctan2(y, x), rtol=4e-16, atol=0)
     True
+
+    On Python floats (one rotation's) it is the same ratio, NumPy's ``arctan`` on it
+    (the array loop's bits) and the same ±π fix; x = ±0 and NaN take the array code:
+
+    >>> bool(arctan2(1.0, -2.0) == arctan2(np.array([1.0]), np.array([-2.0]))[0])
+    True
     """
+    if type(y) is float:
+        if x > 0:
+            return float(np.arctan(y / x))
+        if x < 0:
+            return float(np.arctan(y / x)) + math.copysign(math.pi, y)
+        return float(arctan2(np.array(y), np.array(x), out=np.empty(()), x_nonneg=x_nonneg))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
     if out.size and np.isnan(np.minimum.reduce(out, axis=None)):   # a reduction, no mask, when none
@@ -370,6 +395,11 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
+    one = _ops.floats64(q) if out is None else None
+    if one is not None:   # one float64 quaternion: the same formula on its floats
+        one = normalize_floats(one)
+        if one is not None:
+            return np.array(one).reshape(q.shape)
     res = _out(out, q.shape, result_dtype(q))
     if (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype
             and (res is q or not np.may_share_memory(q, res))):   # in place is safe: row by row
@@ -381,6 +411,20 @@ def normalize(q, out=None):
         _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
+
+
+def _divided(comps, n, op, outs):
+    """Each component over the norm `n`, in `op`'s arithmetic (`_ops`), into `outs`."""
+    return [op.div(c, n, o) for c, o in zip(comps, outs)]
+
+
+def normalize_floats(comps):
+    """`_normalize_flat`'s q / |q| on the four floats of one float64 quaternion, or None
+    where its squared norm does not `_scale.fits` (the block kernel's case)."""
+    n2 = _scale.squares(comps, _ops.FLOATS, None, None)
+    if not _scale.LOW[np.dtype(np.float64)] <= n2 <= _scale.HIGH[np.dtype(np.float64)]:
+        return None
+    return _divided(comps, math.sqrt(n2), _ops.FLOATS, _ops.NONE)
 
 
 def _normalize_flat(q, out):
@@ -399,8 +443,7 @@ def _normalize_flat(q, out):
             _k_normalize(soa(blk).copy(), soa(o))
             return
         np.sqrt(t, t)
-        for c in range(4):
-            np.divide(blk[:, c], t, o[:, c])
+        _divided([blk[:, c] for c in range(4)], t, _ops.ARRAYS, [o[:, c] for c in range(4)])
 
     _blocks.run(block, _blocks.split((len(q),), _blocks.block_size(q.dtype)), len(q))
 
@@ -614,39 +657,59 @@ def rotate(q, v, inverse=False):
     >>> np.allclose(rotate(q, np.array([[1., 0, 0]]), inverse=True), [[0, -1, 0]])
     True
     """
-    dtype = result_dtype(q, v)
     batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    one = _rotate_floats(q, v, inverse) if len(batch) <= 1 and v.size == 3 else None
+    if one is not None:
+        return np.array(one).reshape(batch + (3,))
+    dtype = result_dtype(q, v)
     res = np.empty(batch + (3,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
     return res
 
 
+def _rotate_floats(q, v, inverse):
+    """`rotate_block`'s formula on the floats of one float64 pair, or None where the block
+    kernel would rescale (|q|² outside [1/4, 4], a huge vector, non-finite input)."""
+    c = _ops.floats64(q)
+    if c is None or v.dtype != np.float64:
+        return None
+    u = v.reshape(3).tolist()
+    n2 = _scale.squares(c, _ops.FLOATS, None, None)
+    big = 0.5 * _scale.BIG_VECTOR[v.dtype]
+    if not (0.25 <= n2 <= 4.0 and all(-big <= a <= big for a in u)):
+        return None
+    if inverse:
+        c[0] = c[0] * -1.0
+    return _rotated(*c, *u, 2.0 / n2, _ops.FLOATS, _ops.NONE, _ops.NONE)
+
+
+def _rotated(w, x, y, z, ux, uy, uz, s, op, o, t):
+    """u' = u + w t + vec × t with t = s vec × u, over components in `op`'s arithmetic
+    (`_ops`), into ``o`` (three rows) with six work rows `t`; returned as a list."""
+    o = list(o[:3])
+    tx, ty, tz, m, r, v = t[:6]
+    # t = s vec × u
+    tx, ty, tz = [op.mul(op.sub(op.mul(a, b, tk), op.mul(c, d, m), tk), s, tk)
+                  for tk, a, b, c, d in ((tx, y, uz, z, uy), (ty, z, ux, x, uz), (tz, x, uy, y, ux))]
+    # u' = u + w t + vec × t, each row written once into the (strided) output
+    for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
+                                              (uz, tz, x, ty, y, tx))):
+        r = op.add(op.mul(w, tk, r), uk, r)
+        v = op.sub(op.mul(a, b, v), op.mul(c, d, m), v)
+        o[k] = op.add(r, v, o[k])
+    return o
+
+
 def rotate_block(q, u, o, wsign):
     """`rotate`'s block kernel: components-first scratch copies q (4, *s) and u (3, *s), which
     it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q)."""
     n2 = _scale.guarded_sqnorm(q)
-    w, x, y, z = q            # q is the block's scratch copy: w may be negated in place
+    w = q[0]                  # q is the block's scratch copy: w may be negated in place
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
     e = _scale.shrink_vectors(u, n2)   # u is the block's scratch copy; vectors near the float maximum
-    ux, uy, uz = u                 # are scaled down by a power of two, and the result back up
-    s = np.divide(2.0, n2, out=n2)
+    s = np.divide(2.0, n2, out=n2)     # are scaled down by a power of two, and the result back up
     with _blocks.scratch().frame() as work:
-        tx, ty, tz, m, r, v = work.rows(6, n2.shape, o.dtype)
-        # t = s vec × u
-        for t, (a, b, c, d) in ((tx, (y, uz, z, uy)), (ty, (z, ux, x, uz)), (tz, (x, uy, y, ux))):
-            np.multiply(a, b, out=t)
-            np.multiply(c, d, out=m)
-            t -= m
-            t *= s
-        # u' = u + w t + vec × t, each row written once into the (strided) output
-        for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
-                                                  (uz, tz, x, ty, y, tx))):
-            np.multiply(w, tk, out=r)
-            r += uk
-            np.multiply(a, b, out=v)
-            np.multiply(c, d, out=m)
-            v -= m
-            np.add(r, v, out=o[k])
+        _rotated(*q, *u, s, _ops.ARRAYS, o, work.rows(6, n2.shape, o.dtype))
     _scale.unscale(o, e)

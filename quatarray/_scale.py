@@ -21,7 +21,7 @@ that need it are rescaled, so a row's bits never depend on its block.
 
 import numpy as np
 
-from . import _blocks
+from . import _blocks, _ops
 
 __all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
            "outside", "unscale", "true_norm", "BIG_VECTOR", "shrink_vectors", "small_norms"]
@@ -67,12 +67,17 @@ def sum_squares(q, out, start=0):
 
     Squares may overflow (that is what `guard` looks for): callers run under
     ``np.errstate(over="ignore")``, once per call rather than once per block."""
-    np.multiply(q[start], q[start], out=out)
-    with _blocks.scratch().frame() as work:
-        t = work.rows(1, out.shape, out.dtype)[0]   # no temporary allocated per component
-        for k in range(start + 1, len(q)):
-            np.multiply(q[k], q[k], out=t)
-            out += t
+    with _blocks.scratch().frame() as work:   # no temporary allocated per component
+        return squares(list(q[start:]), _ops.ARRAYS, out, work.rows(1, out.shape, out.dtype)[0])
+
+
+def squares(comps, op, out, t):
+    """``comps[0]² + comps[1]² + ...``, left to right, in `op`'s arithmetic (`_ops`), into
+    `out` with the work row `t`; returned."""
+    out = op.mul(comps[0], comps[0], out)
+    for c in comps[1:]:
+        t = op.mul(c, c, t)
+        out = op.add(out, t, out)
     return out
 
 

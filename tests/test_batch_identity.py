@@ -5,8 +5,9 @@ the interpolation functions and `Track`, in float32 and float64: element i of a 
 equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
 inside the batch split into blocks of two elements run on two threads.  The batches mix
 random rotations with near-identity, near-half-turn and gimbal-lock rotations, and (where
-the method accepts any magnitude) quaternions scaled by extreme powers of two.  There is no
-Python-float path for single rotations: a single rotation runs the batch's kernels.
+the method accepts any magnitude) quaternions scaled by extreme powers of two.  A float64
+single rotation or batch of one may run its kernel's formula on Python floats (`quatarray._ops`):
+the same code in the same order, so these checks hold it to the same bits.
 """
 
 import warnings
@@ -264,3 +265,24 @@ def test_one_normalisation(dtype, b):
     _same(Rotation.from_quat(q, scalar_first=True).as_quat(scalar_first=True), want, "from_quat scalar_first")
     _same(Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_quat(scalar_first=True), want, "from_quat scalar last")
     _same(Rotation(q, scalar_first=True).as_quat(scalar_first=True), want, "Rotation()")
+
+
+@pytest.mark.parametrize("s", [1e-150, 1e-160, 1e-200, 1e-300, 5e-324, 1e-8])
+def test_one_rotation_at_the_kernels_branches(s):
+    """A float64 rotation whose |v|² underflows, or sits at the edges of the kernels' common
+    path, gives the bits of the same row in a batch (a single rotation may run the formula
+    on Python floats only where the block kernel takes its common path)."""
+    rows = np.array([[s, 0, 0, 1], [0, s, s, 1], [s, 0, 0, 0], [0, 1, 0, 0], [s, -s, 0, -1]])
+    r = Rotation.from_quat(rows)
+    v = np.array([3.0, -1e-300, 2e300])
+    ops = [("as_rotvec", lambda x: x.as_rotvec()), ("magnitude", lambda x: x.magnitude()),
+           ("as_matrix", lambda x: x.as_matrix()), ("apply", lambda x: x.apply(v)),
+           ("as_euler xyz", lambda x: x.as_euler("xyz")), ("as_euler ZYZ", lambda x: x.as_euler("ZYZ")),
+           ("from_rotvec", lambda x: Rotation.from_rotvec(x.as_rotvec()).as_quat()),
+           ("from_euler", lambda x: Rotation.from_euler("zyx", x.as_euler("zyx")).as_quat())]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # gimbal lock
+        for name, f in ops:
+            whole = np.asarray(f(r))
+            for i in range(len(rows)):
+                _same(f(r[i]), whole[i], f"{name}, row {i}")

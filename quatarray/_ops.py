@@ -1,0 +1,46 @@
+"""The arithmetic a formula is written in, for blocks of arrays and for Python floats.
+
+A formula written over components with these operations (``op.mul(a, b, out)``) runs on
+a block's rows, where each operation is the ufunc writing into its preallocated row, and on
+the four Python floats of one float64 rotation, where the row is ignored and the value is
+returned.  ``+ − × ÷`` and ``sqrt`` round alike on floats and float64 arrays (IEEE, no fused
+multiply-add in either), so one formula evaluated in one order gives the same bits on both:
+a single rotation skips the 16–60 ufunc calls of the block kernel without a second copy of
+its maths.  Functions whose results differ between `math` and NumPy (atan2, sin, ...) are
+not offered on floats.
+"""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+
+ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
+                         where=np.where, max=lambda a, b, out: np.maximum(a, b, out=out),
+                         copy=lambda a, out: np.copyto(out, a) or out)
+"""Each operation writes into its last argument (a row of the block) and returns it;
+``where(c, a, b)`` picks by a condition."""
+
+FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
+                         mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
+                         sqrt=lambda a, out: math.sqrt(a), where=lambda c, a, b: a if c else b,
+                         max=lambda a, b, out: max(a, b), copy=lambda a, out: a)
+"""The same operations on Python floats; the row argument is ignored."""
+
+NONE = (None,) * 16
+"""Rows for `FLOATS` (any number up to 16): the results are returned, not written."""
+
+
+def floats64(q, k=4):
+    """The `k` components of one float64 quaternion (or vector), shape (k,) or (1, k), as
+    Python floats (so that a formula runs on `FLOATS`), or None for any other input (the
+    block kernel's).
+
+    >>> import numpy as np
+    >>> from quatarray._ops import floats64
+    >>> floats64(np.array([1.0, 0, 0, 0])), floats64(np.ones((2, 4)))
+    ([1.0, 0.0, 0.0, 0.0], None)
+    """
+    if q.dtype == np.float64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:
+        return q.reshape(k).tolist()
+    return None
