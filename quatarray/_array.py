@@ -25,9 +25,9 @@ comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 import numpy as np
 
 from . import _blocks
-from . import _convert as C
-from . import _euler as E
-from . import _kernels as K
+from . import _convert
+from . import _euler
+from . import _kernels
 from ._validate import all_finite, batch_shape, finite, float_array
 
 __all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCTIONS", "PLAIN_FUNCTIONS"]
@@ -303,7 +303,7 @@ class QuatArray(np.ndarray):
         QuatArray([ 1., -2., -3., -4.])
         """
         q = _raw(self)
-        res, ok = K.conjugate(q, check=True)
+        res, ok = _kernels.conjugate(q, check=True)
         if not ok:
             finite(q, "the quaternions")
         return self._wrap(res)
@@ -317,7 +317,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([[1, 2, 2, 4]]).norm()
         array([5.])
         """
-        return K.norm(_raw(self))
+        return _kernels.norm(_raw(self))
 
     def normalized(self):
         """q / |q|; zero quaternions raise `ValueError`.
@@ -326,7 +326,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 3, 0, 4]).normalized()
         QuatArray([0. , 0.6, 0. , 0.8])
         """
-        return self._wrap(K.normalize(_raw(self)))
+        return self._wrap(_kernels.normalize(_raw(self)))
 
     def inverse(self):
         """conj(q) / |q|² (general quaternions); a zero quaternion raises `ZeroDivisionError`.
@@ -336,7 +336,7 @@ class QuatArray(np.ndarray):
         >>> q * q.inverse()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(K.inverse(_raw(self)))
+        return self._wrap(_kernels.inverse(_raw(self)))
 
     def exp(self):
         """Quaternion exponential; also ``np.exp(q)``.
@@ -345,7 +345,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 0]).exp()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(K.exp(finite(_raw(self), "the quaternions")))
+        return self._wrap(_kernels.exp(finite(_raw(self), "the quaternions")))
 
     def log(self):
         """Principal logarithm (ln|q|, θ v/|v|) with θ in [0, π]; also ``np.log(q)``.
@@ -354,7 +354,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([1, 0, 0, 0]).log()
         QuatArray([0., 0., 0., 0.])
         """
-        return self._wrap(K.log(_raw(self)))
+        return self._wrap(_kernels.log(_raw(self)))
 
     def power(self, t):
         """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped); also ``q ** t``.
@@ -365,7 +365,7 @@ class QuatArray(np.ndarray):
         >>> np.allclose(k.power(2), [-1, 0, 0, 0])
         True
         """
-        return self._wrap(K.power(_raw(self), finite(_real(t, "t"), "t")))
+        return self._wrap(_kernels.power(_raw(self), finite(_real(t, "t"), "t")))
 
     def dot(self, other):
         """4-D inner product with `other` (a QuatArray), batch shape.
@@ -376,7 +376,7 @@ class QuatArray(np.ndarray):
         """
         p, q = _raw(self), _operand(other, "other")
         _check_batches("dot", p, True, q, True)
-        return _finite_result(K.dot(p, q), ("the quaternions", p), ("other", q))
+        return _finite_result(_kernels.dot(p, q), ("the quaternions", p), ("other", q))
 
     def rotate(self, v):
         """Rotate vectors `v` (..., 3) by q/|q|, i.e. q v q⁻¹, broadcasting batch shapes.
@@ -397,7 +397,7 @@ class QuatArray(np.ndarray):
             except ValueError:
                 raise ValueError(f"expected v of a batch shape that broadcasts with the quaternions' "
                                  f"{q.shape[:-1]}, got v of batch shape {v.shape[:-1]}") from None
-        res = K.rotate(q, v)
+        res = _kernels.rotate(q, v)
         if not all_finite(res) and all_finite(q):
             raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
         return res
@@ -428,7 +428,7 @@ class QuatArray(np.ndarray):
                [ 0., -1.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return C.as_matrix(_raw(self))
+        return _convert.as_matrix(_raw(self))
 
     @classmethod
     def from_matrix(cls, matrix, *, assume_valid=False):
@@ -439,7 +439,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray.from_matrix(np.eye(3))
         QuatArray([1., 0., 0., 0.])
         """
-        return cls._wrap(C.from_matrix(matrix, assume_valid=assume_valid))
+        return cls._wrap(_convert.from_matrix(matrix, assume_valid=assume_valid))
 
     def as_rotvec(self, degrees=False):
         """Rotation vectors (axis × angle, angle in [0, π]) of q/|q|, shape (..., 3).
@@ -448,7 +448,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 1]).as_rotvec()
         array([0.        , 0.        , 3.14159265])
         """
-        return C.as_rotvec(_raw(self), degrees=degrees)
+        return _convert.as_rotvec(_raw(self), degrees=degrees)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -459,7 +459,7 @@ class QuatArray(np.ndarray):
         >>> np.allclose(QuatArray.from_rotvec([0, 0, 180], degrees=True), [0, 0, 0, 1])
         True
         """
-        return cls._wrap(C.from_rotvec(rotvec, degrees=degrees))
+        return cls._wrap(_convert.from_rotvec(rotvec, degrees=degrees))
 
     def as_mrp(self):
         """Modified Rodrigues parameters ``axis · tan(angle / 4)`` of q/|q|, shape (..., 3).
@@ -468,7 +468,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 1]).as_mrp()
         array([0., 0., 1.])
         """
-        return C.as_mrp(_raw(self))
+        return _convert.as_mrp(_raw(self))
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -478,7 +478,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray.from_mrp([0, 0, 1])
         QuatArray([0., 0., 0., 1.])
         """
-        return cls._wrap(C.from_mrp(mrp))
+        return cls._wrap(_convert.from_mrp(mrp))
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles (..., 3) of q/|q|, scipy's conventions ('xyz' extrinsic, 'XYZ' intrinsic).
@@ -487,7 +487,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray.from_euler("ZXY", [30, 20, 10], degrees=True).as_euler("ZXY", degrees=True).round(9)
         array([30., 20., 10.])
         """
-        return E.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        return _euler.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_euler(cls, seq, angles, degrees=False):
@@ -498,7 +498,7 @@ class QuatArray(np.ndarray):
         >>> np.allclose(QuatArray.from_euler("z", 180, degrees=True), [0, 0, 0, 1])
         True
         """
-        return cls._wrap(E.from_euler(seq, angles, degrees=degrees))
+        return cls._wrap(_euler.from_euler(seq, angles, degrees=degrees))
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles (..., 3) of q/|q| about three axes (3, 3).
@@ -509,7 +509,7 @@ class QuatArray(np.ndarray):
         >>> q.as_davenport(np.eye(3)[[2, 0, 2]], "e", degrees=True).round(9)
         array([10., 20., 30.])
         """
-        return E.as_davenport(_raw(self), axes, order, degrees=degrees, suppress_warnings=suppress_warnings)
+        return _euler.as_davenport(_raw(self), axes, order, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -520,7 +520,7 @@ class QuatArray(np.ndarray):
         >>> np.allclose(QuatArray.from_davenport([0, 0, 1], "e", 180, degrees=True), [0, 0, 0, 1])
         True
         """
-        return cls._wrap(E.from_davenport(axes, order, angles, degrees=degrees))
+        return cls._wrap(_euler.from_davenport(axes, order, angles, degrees=degrees))
 
     # --- operators (direct calls: cheaper than the ufunc protocol for small inputs) ---
     def __mul__(self, other):
@@ -685,7 +685,7 @@ def _binary(ufunc, a, b, out=None):
         res = np.all(A == B, axis=-1)
         return _finish_plain(res if ufunc is np.equal else ~res, out)
     if ufunc is np.multiply and qa and qb:   # the product's blocks are judged while in cache
-        res, ok = K.multiply(A, B, check=True)
+        res, ok = _kernels.multiply(A, B, check=True)
     else:
         res = _compute(ufunc, A, qa, B, qb, a, b)
         ok = all_finite(res)
@@ -700,12 +700,12 @@ def _compute(ufunc, A, qa, B, qb, a, b):
     """The raw result of a binary operation (the quaternion meaning of `ufunc`)."""
     if ufunc is np.multiply:
         if qa and qb:
-            return K.multiply(A, B)
+            return _kernels.multiply(A, B)
         return np.multiply(A if qa else _per_quat(A), B if qb else _per_quat(B))
     if ufunc is np.divide:
         if qb:
-            Binv = K.inverse(B)
-            return K.multiply(A, Binv) if qa else _per_quat(A) * Binv
+            Binv = _kernels.inverse(B)
+            return _kernels.multiply(A, Binv) if qa else _per_quat(A) * Binv
         return np.divide(A, _per_quat(B))
     if ufunc in (np.add, np.subtract):
         if not qa:
@@ -718,7 +718,7 @@ def _compute(ufunc, A, qa, B, qb, a, b):
             raise TypeError(f"expected a QuatArray raised to a real exponent, got {type(a).__name__} ** {type(b).__name__}")
         if ufunc is np.float_power:
             A = A.astype(np.float64)
-        return K.power(A, B)
+        return _kernels.power(A, B)
     if ufunc in (np.equal, np.not_equal):
         if not qa:
             A = _lift(A, B)
@@ -732,14 +732,14 @@ _BINARY = {np.multiply, np.divide, np.add, np.subtract, np.power, np.float_power
 
 
 _UNARY = {
-    np.exp: lambda q: K.exp(finite(q, "the argument of exp")),   # exp(-inf) is finite
-    np.log: K.log,
-    np.sqrt: lambda q: K.power(q, 0.5),
-    np.conjugate: K.conjugate,
-    np.invert: K.conjugate,  # ~q
+    np.exp: lambda q: _kernels.exp(finite(q, "the argument of exp")),   # exp(-inf) is finite
+    np.log: _kernels.log,
+    np.sqrt: lambda q: _kernels.power(q, 0.5),
+    np.conjugate: _kernels.conjugate,
+    np.invert: _kernels.conjugate,  # ~q
     np.negative: np.negative,
     np.positive: np.positive,
-    np.absolute: K.norm,
+    np.absolute: _kernels.norm,
     np.isnan: lambda q: np.isnan(q).any(axis=-1),
     np.isfinite: lambda q: np.isfinite(q).all(axis=-1),
 }
@@ -767,7 +767,7 @@ def _ordered_product(a, axis):
         a = np.stack([_ordered_product(a[i:i + chunk], 0) for i in range(0, a.shape[0], chunk)])
     while a.shape[0] > 1:
         n = a.shape[0]
-        head = K.multiply(a[0:n - 1:2], a[1:n:2])
+        head = _kernels.multiply(a[0:n - 1:2], a[1:n:2])
         a = np.concatenate([head, a[n - 1:]]) if n % 2 else head
     return a[0]
 
@@ -777,7 +777,7 @@ def _ordered_scan(a, axis):
     res = np.moveaxis(a, axis, 0).astype(a.dtype, copy=True)
     shift = 1
     while shift < res.shape[0]:
-        res[shift:] = K.multiply(res[:-shift], res[shift:])
+        res[shift:] = _kernels.multiply(res[:-shift], res[shift:])
         shift *= 2
     return np.moveaxis(res, 0, axis)
 

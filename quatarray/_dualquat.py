@@ -11,8 +11,7 @@ interpolation) is ``a (a* b)^s``, where the power follows the screw of
 
 import numpy as np
 
-from . import _kernels as Kn
-
+from . import _kernels
 _TINY_ANGLE = {np.dtype(np.float64): 1e-12, np.dtype(np.float32): 1e-6}
 
 
@@ -28,13 +27,13 @@ def multiply(a, b):
     """Dual-quaternion product ``a b`` (the motion ``b`` then ``a``), broadcasting."""
     ra, da = _parts(a)
     rb, db = _parts(b)
-    return _join(Kn.multiply(ra, rb), Kn.multiply(ra, db) + Kn.multiply(da, rb))
+    return _join(_kernels.multiply(ra, rb), _kernels.multiply(ra, db) + _kernels.multiply(da, rb))
 
 
 def conjugate(dq):
     """Quaternion conjugate of both parts: the inverse of a unit dual quaternion."""
     r, d = _parts(dq)
-    return _join(Kn.conjugate(r), Kn.conjugate(d))
+    return _join(_kernels.conjugate(r), _kernels.conjugate(d))
 
 
 def from_rotation_translation(quat, translation):
@@ -44,13 +43,13 @@ def from_rotation_translation(quat, translation):
     t = np.zeros(batch + (4,), dtype)
     t[..., 1:] = translation
     real = np.broadcast_to(quat, batch + (4,)).astype(dtype)
-    return _join(real, 0.5 * Kn.multiply(t, real))
+    return _join(real, 0.5 * _kernels.multiply(t, real))
 
 
 def as_rotation_translation(dq):
     """(unit quaternions, translations) of unit dual quaternions: ``t = 2 vec(dual real*)``."""
     r, d = _parts(dq)
-    return r.copy(), 2 * Kn.multiply(d, Kn.conjugate(r))[..., 1:]
+    return r.copy(), 2 * _kernels.multiply(d, _kernels.conjugate(r))[..., 1:]
 
 
 def normalize(dq):
@@ -59,7 +58,7 @@ def normalize(dq):
     A zero real part becomes the identity rotation (the dual part is kept), as in scipy.
     """
     r, d = _parts(dq)
-    n = Kn.norm(r)[..., None]   # |r| also where its square over- or underflows
+    n = _kernels.norm(r)[..., None]   # |r| also where its square over- or underflows
     zero = n == 0
     if zero.any():
         r = np.where(zero, np.array([1, 0, 0, 0], r.dtype), r)
@@ -104,7 +103,7 @@ def power(dq, s):
     half = 0.5 * s * angle
     vec = np.sin(half)[..., None] * axis
     real = np.concatenate([np.broadcast_to(np.cos(half)[..., None], vec.shape[:-1] + (1,)), vec], axis=-1)
-    trans = (s * disp)[..., None] * axis + point - Kn.rotate(real, np.broadcast_to(point, real.shape[:-1] + (3,)))
+    trans = (s * disp)[..., None] * axis + point - _kernels.rotate(real, np.broadcast_to(point, real.shape[:-1] + (3,)))
     return from_rotation_translation(real, trans)
 
 

@@ -20,9 +20,9 @@ holds components.  float32 stays float32.
 import numpy as np
 
 from . import _blocks
-from . import _convert as C
-from . import _kernels as Kn
-from . import _track as TR
+from . import _convert
+from . import _kernels
+from . import _track
 from ._blocks import soa
 from ._trig import tan
 
@@ -217,7 +217,7 @@ def relative_rotvecs(keys):
     rel[..., 0] = p[..., 0] * q[..., 0] + np.sum(p[..., 1:] * q[..., 1:], axis=-1)
     rel[..., 1:] = p[..., :1] * q[..., 1:] - q[..., :1] * p[..., 1:]
     rel[..., 1:] -= np.cross(p[..., 1:], q[..., 1:])
-    return C.as_rotvec(rel)
+    return _convert.as_rotvec(rel)
 
 
 def _solve_rates(dt, rates, rotvecs):
@@ -385,7 +385,7 @@ def table(keys, coeff):
     for k in range(3):
         c = coeff[k]
         pure = np.concatenate([np.zeros(c.shape[:-1] + (1,), c.dtype), c], axis=-1)
-        out[4 + 4 * k:8 + 4 * k] = soa(Kn.multiply(q, pure).reshape(K1, B, 4))
+        out[4 + 4 * k:8 + 4 * k] = soa(_kernels.multiply(q, pure).reshape(K1, B, 4))
         out[16 + 3 * k:19 + 3 * k] = soa(c.reshape(K1, B, 3))
     return out
 
@@ -492,7 +492,7 @@ def evaluate(index, times, tab, t, order, batch):
         span = np.take(times, i + 1) - t0
         # the segment's own time (in float64, then the table's dtype): see `coefficients`
         s = (np.subtract(tb, t0) / span).astype(dtype, copy=False)[:, None]
-        G = TR.gather(tab, i, sb)
+        G = _track.gather(tab, i, sb)
         O = soa(out[sm, sb])
         if order == 0:
             umax = max(1.0, float(np.abs(s).max(initial=0.0)))
@@ -504,5 +504,5 @@ def evaluate(index, times, tab, t, order, batch):
             if order == 2:                         # not by dt², which may leave the range)
                 O /= span
 
-    _blocks.run(block, TR.qt_blocks(M, B), M * B)
+    _blocks.run(block, _track.qt_blocks(M, B), M * B)
     return out.reshape(t.shape + tuple(batch) + (width,))

@@ -40,9 +40,9 @@ import numpy as np
 
 from . import _blocks
 from . import _convert
-from . import _interp_curves as IC
-from . import _interp_kernels as IK
-from . import _kernels as Kn
+from . import _interp_curves
+from . import _interp_kernels
+from . import _kernels
 from . import _track
 
 __all__ = ["METHODS", "CHUNK", "angle_between", "greedy", "reduce"]
@@ -59,7 +59,7 @@ SEGMENTS = 1 << 15
 
 def angle_between(p, q):
     """Angle in [0, π] of the rotation from p to q, ``|q p*|``, for (..., 4) arrays (broadcasting)."""
-    return _convert.magnitude(Kn.multiply(q, Kn.conjugate(p)))
+    return _convert.magnitude(_kernels.multiply(q, _kernels.conjugate(p)))
 
 
 def _unique(x):
@@ -87,15 +87,15 @@ def _chord2(p, q, work):
     D = work.rows(4, s, p.dtype)
     a = work.rows(2, s, p.dtype)
     np.subtract(p, q, out=D)
-    IK.sqsum(D, a[0])
+    _interp_kernels.sqsum(D, a[0])
     np.add(p, q, out=D)
-    IK.sqsum(D, a[1])
+    _interp_kernels.sqsum(D, a[1])
     return np.minimum(a[0], a[1], out=a[0])
 
 
 def _hemisphere(ref, q):
     """q with its sign flipped where it points away from `ref` (shape (..., 4) both)."""
-    d = IK.vdot(ref, q)
+    d = _interp_kernels.vdot(ref, q)
     return np.where((d < 0)[..., None], -q, q)
 
 
@@ -114,7 +114,7 @@ def _controls(Q, times, p, s, c, n, b, first, last):
     tn = np.where(n == c, times[c] + (times[c] - times[s]), times[n])
     ts, tc = times[s], times[c]
     # one call for both: a key's control point depends on its two neighbours only
-    _, a_s, a_c, _ = IC.squad_controls(np.stack([qp, qs, qc, qn]), np.stack([tp, ts, tc, tn]))
+    _, a_s, a_c, _ = _interp_curves.squad_controls(np.stack([qp, qs, qc, qn]), np.stack([tp, ts, tc, tn]))
     # the track's ends: the control point is the key itself (squad_controls' reflection)
     a_s = np.where((s == first)[:, None, None], qs, a_s)
     a_c = np.where((c == last)[:, None, None], qc, a_c)

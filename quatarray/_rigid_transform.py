@@ -20,10 +20,10 @@ The maths lives in `_motion` (apply, compose, invert), `_convert` and
 
 import numpy as np
 
-from . import _convert as C
-from . import _dualquat as DQ
-from . import _kernels as Kn
-from . import _motion as MO
+from . import _convert
+from . import _dualquat
+from . import _kernels
+from . import _motion
 from . import _scale
 from ._rotation import Rotation
 
@@ -164,7 +164,7 @@ class RigidTransform:
         self._single = m.ndim == 2
         if normalize:
             self._m = None
-            self._q = C.from_matrix(m[..., :3, :3])
+            self._q = _convert.from_matrix(m[..., :3, :3])
             self._t = m[..., :3, 3].copy()
         else:
             self._m = m.copy() if copy and m is matrix else m
@@ -196,7 +196,7 @@ class RigidTransform:
     def _quat(self):
         if self._m is None:
             return self._q
-        return C.from_matrix(self._m[..., :3, :3], assume_valid=True)
+        return _convert.from_matrix(self._m[..., :3, :3], assume_valid=True)
 
     @property
     def _translation(self):
@@ -242,7 +242,7 @@ class RigidTransform:
         t = _left_jacobian(theta, k, u)
         if scale is not None:
             t = np.ldexp(t, scale)
-        q = C.from_rotvec(phi).astype(e.dtype, copy=False)
+        q = _convert.from_rotvec(phi).astype(e.dtype, copy=False)
         return cls._from_parts(q, t.astype(e.dtype, copy=False), e.ndim == 1)
 
     @classmethod
@@ -252,8 +252,8 @@ class RigidTransform:
         _check_last(dq, "dual_quat", 8)
         if not scalar_first:
             dq = dq[..., _TO_FIRST]
-        dq = DQ.normalize(dq)
-        q, t = DQ.as_rotation_translation(dq)
+        dq = _dualquat.normalize(dq)
+        q, t = _dualquat.as_rotation_translation(dq)
         return cls._from_parts(q, t, dq.ndim == 1)
 
     @staticmethod
@@ -295,7 +295,7 @@ class RigidTransform:
             # change: no item assignment, and `rotation` and `translation` are copies)
             return self._matrix_of_one.copy()
         m = np.zeros(q.shape[:-1] + (4, 4), q.dtype)
-        m[..., :3, :3] = C.as_matrix(q)
+        m[..., :3, :3] = _convert.as_matrix(q)
         m[..., :3, 3] = t
         m[..., 3, 3] = 1
         if q.ndim == 1:
@@ -310,7 +310,7 @@ class RigidTransform:
     def as_exp_coords(self):
         """Exponential coordinates (..., 6): rotation vector, then the se(3) translation part."""
         q = self._quat
-        phi = C.as_rotvec(q).astype(q.dtype, copy=False)
+        phi = _convert.as_rotvec(q).astype(q.dtype, copy=False)
         theta, k = _axis_angle(phi)
         small = theta < 1e-3
         th = np.where(small, 1.0, theta)
@@ -328,7 +328,7 @@ class RigidTransform:
         """Unit dual quaternions (..., 8): the real part with w >= 0 as scipy, then the dual part."""
         q = self._quat
         q = np.where(q[..., :1] < 0, -q, q)
-        dq = DQ.from_rotation_translation(q, self._translation)
+        dq = _dualquat.from_rotation_translation(q, self._translation)
         return dq if scalar_first else dq[..., _TO_LAST]
 
     # ------------------------------------------------------------------ operations
@@ -344,9 +344,9 @@ class RigidTransform:
             raise ValueError("operands could not be broadcast together with transforms of shape "
                              f"{self.shape} and vectors of shape {v.shape}") from None
         if q.shape == (4,) and v.shape == (3,):
-            out = Kn.rotate(q, v - t if inverse else v, inverse=inverse)
+            out = _kernels.rotate(q, v - t if inverse else v, inverse=inverse)
             return out if inverse else out + t
-        out = MO.apply(q, t, v, inverse)
+        out = _motion.apply(q, t, v, inverse)
         if self._single and v.ndim == 1:
             return out
         if self._single and out.ndim == 1:
@@ -355,7 +355,7 @@ class RigidTransform:
 
     def inv(self):
         """The inverse transforms."""
-        q, t = MO.inverse(self._quat, self._translation)
+        q, t = _motion.inverse(self._quat, self._translation)
         return type(self)._from_parts(q, t, self._single)
 
     def __mul__(self, other):
@@ -375,7 +375,7 @@ class RigidTransform:
         if not single:
             q1, t1 = (q1[None], t1[None]) if self._single else (q1, t1)
             q2, t2 = (q2[None], t2[None]) if other._single else (q2, t2)
-        q, t = MO.compose(q1, t1, q2, t2)
+        q, t = _motion.compose(q1, t1, q2, t2)
         return type(self)._from_parts(q, np.asarray(t), single)
 
     def __rmul__(self, other):

@@ -15,9 +15,9 @@ import warnings
 
 import numpy as np
 
-from . import _convert as C
-from . import _euler as E
-from . import _kernels as K
+from . import _convert
+from . import _euler
+from . import _kernels
 from . import _rotation_algorithms
 from ._array import QuatArray
 from ._rotation_groups import group_quats
@@ -100,9 +100,9 @@ class Rotation:
         if q.ndim == 0 or q.shape[-1] != 4:
             raise ValueError(f"Expected `quat` to have shape (..., 4), got {q.shape}.")
         if normalize:
-            q = C.from_quat(q, scalar_first=scalar_first)
+            q = _convert.from_quat(q, scalar_first=scalar_first)
         elif not scalar_first:
-            q = C.to_scalar_first(q)
+            q = _convert.to_scalar_first(q)
         elif copy and (q is quat or isinstance(quat, np.ndarray) and np.may_share_memory(q, quat)):
             q = q.copy()
         self._q = q
@@ -175,7 +175,7 @@ class Rotation:
         array([30.,  0.,  0.])
         """
         from scipy.spatial.transform import Rotation as ScipyRotation
-        q = C.from_quat(self._q.astype(np.float64), scalar_first=True, name="rotations")   # nan: not "zero norm"
+        q = _convert.from_quat(self._q.astype(np.float64), scalar_first=True, name="rotations")   # nan: not "zero norm"
         return ScipyRotation.from_quat(q, scalar_first=True)
 
     # --- quaternions ---------------------------------------------------------------------
@@ -215,10 +215,10 @@ class Rotation:
         (array([ 0.,  0.,  0., -1.]), array([0., 0., 0., 1.]), array([-1.,  0.,  0.,  0.]))
         """
         q = self._q
-        q = C.canonical(q) if canonical else q
+        q = _convert.canonical(q) if canonical else q
         if scalar_first:
             return q if canonical else q.copy()
-        return C.to_scalar_last(q)
+        return _convert.to_scalar_last(q)
 
     # --- matrices, rotation vectors, MRPs ------------------------------------------------
     @classmethod
@@ -237,7 +237,7 @@ class Rotation:
         m = float_array(matrix, "matrix")
         if m.ndim < 2 or m.shape[-2:] != (3, 3):
             raise ValueError(f"Expected `matrix` to have shape (3, 3) or (..., 3, 3), got {m.shape}")
-        return cls._wrap(C.from_matrix(m, assume_valid=assume_valid), unit=True)
+        return cls._wrap(_convert.from_matrix(m, assume_valid=assume_valid), unit=True)
 
     def as_matrix(self):
         """Rotation matrices, shape (..., 3, 3).
@@ -249,7 +249,7 @@ class Rotation:
                [ 1.,  0.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return C.as_matrix(self._q, unit=self._unit)
+        return _convert.as_matrix(self._q, unit=self._unit)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -263,7 +263,7 @@ class Rotation:
         v = float_array(rotvec, "rotvec")
         if v.ndim == 0 or v.shape[-1] != 3:
             raise ValueError(f"Expected `rot_vec` to have shape (3,) or (..., 3), got {v.shape}")
-        return cls._wrap(C.from_rotvec(v, degrees=degrees), unit=True)
+        return cls._wrap(_convert.from_rotvec(v, degrees=degrees), unit=True)
 
     def as_rotvec(self, degrees=False):
         """Rotation vectors, shape (..., 3), angle (the norm) in [0, π].
@@ -272,7 +272,7 @@ class Rotation:
         >>> Rotation.from_euler("x", 1e-9).as_rotvec()
         array([1.e-09, 0.e+00, 0.e+00])
         """
-        return C.as_rotvec(self._q, degrees=degrees)
+        return _convert.as_rotvec(self._q, degrees=degrees)
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -286,7 +286,7 @@ class Rotation:
         p = float_array(mrp, "mrp")
         if p.ndim == 0 or p.shape[-1] != 3:
             raise ValueError(f"Expected `mrp` to have shape (3,) or (..., 3), got {p.shape}")
-        return cls._wrap(C.from_mrp(p), unit=True)
+        return cls._wrap(_convert.from_mrp(p), unit=True)
 
     def as_mrp(self):
         """Modified Rodrigues parameters, shape (..., 3), norm ≤ 1.
@@ -296,7 +296,7 @@ class Rotation:
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
         """
-        return C.as_mrp(self._q)
+        return _convert.as_mrp(self._q)
 
     # --- Euler and Davenport angles -----------------------------------------------------
     @classmethod
@@ -317,7 +317,7 @@ class Rotation:
         array([[ 0.,  0., 90.],
                [ 0., 45.,  0.]])
         """
-        E.check_seq(seq)
+        _euler.check_seq(seq)
         a = float_array(angles, "angles")
         if a.ndim == 0:
             a = a.reshape(1)
@@ -325,7 +325,7 @@ class Rotation:
             raise ValueError(f"Expected last dimension of `angles` to match number of sequence "
                              f"axes specified, got {a.shape[-1]}: expected angles of shape "
                              f"(..., {len(seq)}) for seq {seq!r}, got {a.shape}")
-        return cls._wrap(E.from_euler(seq, a, degrees=degrees), unit=True)
+        return cls._wrap(_euler.from_euler(seq, a, degrees=degrees), unit=True)
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):
         """Euler angles, shape (..., 3), in scipy's ranges, with its gimbal-lock warning.
@@ -336,8 +336,8 @@ class Rotation:
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
         array([30., 20., 10.])
         """
-        E.check_seq(seq, 3)
-        return E.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        _euler.check_seq(seq, 3)
+        return _euler.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -356,7 +356,7 @@ class Rotation:
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        extrinsic = E.check_order(order)
+        extrinsic = _euler.check_order(order)
         ax = float_array(axes, "axes")
         if ax.ndim == 0 or ax.shape[-1] != 3:
             raise ValueError("Axes must be vectors of length 3.")
@@ -373,11 +373,11 @@ class Rotation:
         if ax2.ndim == 2:
             if any(abs(c) > 1e-7 for c in _cosines(ax2)):
                 raise ValueError("Consecutive axes must be orthogonal.")
-            return cls._wrap(E.from_davenport(ax2, order, a, degrees=degrees), unit=True)
+            return cls._wrap(_euler.from_davenport(ax2, order, a, degrees=degrees), unit=True)
         unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
         if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
-        return cls._wrap(E.from_davenport_batched(unit, a, extrinsic, degrees))
+        return cls._wrap(_euler.from_davenport_batched(unit, a, extrinsic, degrees))
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the middle one orthogonal to the others), shape (..., 3).
@@ -389,7 +389,7 @@ class Rotation:
         >>> np.round(r.as_davenport([ez, ex, ey], "e", degrees=True), 9)
         array([90., 30., 10.])
         """
-        E.check_order(order)
+        _euler.check_order(order)
         ax = float_array(axes, "axes")
         if ax.ndim < 2 or ax.shape[-2] != 3:
             raise ValueError(f"Expected 3 axes, got {ax.shape}.")
@@ -401,12 +401,12 @@ class Rotation:
         if ax.ndim == 2:
             if any(c >= 1e-7 for c in _cosines(ax)):   # scipy's test, without abs
                 raise ValueError("Consecutive axes must be orthogonal.")
-            return E.as_davenport(self._q, ax, order, degrees=degrees,
+            return _euler.as_davenport(self._q, ax, order, degrees=degrees,
                                   suppress_warnings=suppress_warnings)
         unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
         if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
             raise ValueError("Consecutive axes must be orthogonal.")
-        return E.as_davenport_batched(self._q, ax, order, degrees, suppress_warnings)
+        return _euler.as_davenport_batched(self._q, ax, order, degrees, suppress_warnings)
 
     # --- acting on vectors, composing, inverting, measuring -------------------------------
     def apply(self, vectors, inverse=False):
@@ -430,7 +430,7 @@ class Rotation:
             _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[0]} rotations to {v.shape[0]} vectors."
                        if q.ndim <= 2 and v.ndim <= 2 else  # scipy's two wordings
                        f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape} vectors.")
-        return K.rotate(q, v, inverse)
+        return _kernels.rotate(q, v, inverse)
 
     def __mul__(self, other):
         """Composition ``self * other``: apply `other`, then `self` (batch shapes broadcast)."""
@@ -443,8 +443,8 @@ class Rotation:
         p = self._q
         _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
                          f"{q.shape[:-1]} rotations in second object.")
-        pq = K.multiply(p, q)
-        return type(self)._wrap(K.normalize(pq, out=pq), unit=True)
+        pq = _kernels.multiply(p, q)
+        return type(self)._wrap(_kernels.normalize(pq, out=pq), unit=True)
 
     def __rmul__(self, other):
         if _is_scipy_rotation(other):
@@ -478,7 +478,7 @@ class Rotation:
                                      f"scipy's) broadcast with the rotations' shape "
                                      f"{q.shape[:-1]}: got shape {t.shape}")
                 t = finite(t.astype(np.result_type(t.dtype, q.dtype), copy=False), "the exponent n")
-                return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * t[..., None]))
+                return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q) * t[..., None]))
             n = float(t)
         if not np.isfinite(n):
             raise ValueError(f"expected a finite exponent n, got {n}")
@@ -488,7 +488,7 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
-        return type(self)._wrap(C.from_rotvec(C.as_rotvec(q) * n))
+        return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q) * n))
 
     def inv(self):
         """The inverse rotations.
@@ -497,7 +497,7 @@ class Rotation:
         >>> Rotation.from_rotvec([0, 0, 1]).inv().as_rotvec() + 0.0
         array([ 0.,  0., -1.])
         """
-        return type(self)._wrap(K.conjugate(self._q), unit=self._unit)
+        return type(self)._wrap(_kernels.conjugate(self._q), unit=self._unit)
 
     def magnitude(self):
         """Rotation angles in [0, π], batch shape (a NumPy float for one rotation).
@@ -506,7 +506,7 @@ class Rotation:
         >>> Rotation.from_rotvec([[0, 0, 1], [0, 4, 0]]).magnitude()
         array([1.        , 2.28318531])
         """
-        m = C.magnitude(self._q)
+        m = _convert.magnitude(self._q)
         return m[()] if m.ndim == 0 else m
 
     def approx_equal(self, other, atol=None, degrees=False):
@@ -537,8 +537,8 @@ class Rotation:
             raise TypeError(f"expected other to be a Rotation, got {type(other).__name__}")
         # quaternions held as given (`from_quatarray`) may have any magnitude: their
         # product could overflow, so they are normalised first
-        p = self._q if self._unit else K.normalize(self._q)
-        q = other._q if other._unit else K.normalize(other._q)
+        p = self._q if self._unit else _kernels.normalize(self._q)
+        q = other._q if other._unit else _kernels.normalize(other._q)
         if atol is None:
             if degrees:
                 warnings.warn("atol must be set to use the degrees flag, defaulting to 1e-8 radians.",
@@ -549,7 +549,7 @@ class Rotation:
         if p.ndim > 1 or q.ndim > 1:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        res = C.magnitude(K.multiply(q, K.conjugate(p))) < atol
+        res = _convert.magnitude(_kernels.multiply(q, _kernels.conjugate(p))) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
@@ -571,7 +571,7 @@ class Rotation:
         """
         q = self._q
         if q.ndim == 1 and weights is None and axis is None:  # the mean of one rotation is itself
-            return type(self)._wrap(C.canonical(q))
+            return type(self)._wrap(_convert.canonical(q))
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]

@@ -8,8 +8,7 @@ from itertools import permutations, product
 
 import numpy as np
 
-from . import _convert as C
-
+from . import _convert
 __all__ = ["group_quats"]
 
 _PHI = (1 + 5 ** 0.5) / 2
@@ -55,7 +54,7 @@ def _cyclic(n, axis):
     """n turns by 2πk/n about basis `axis` (0, 1, 2)."""
     rotvec = np.zeros((n, 3))
     rotvec[:, axis] = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    return C.from_rotvec(rotvec)
+    return _convert.from_rotvec(rotvec)
 
 
 def _dicyclic(n, axis):
@@ -65,7 +64,7 @@ def _dicyclic(n, axis):
     rotvec[:, (axis + 1) % 3] = np.pi * np.cos(theta)
     rotvec[:, (axis + 2) % 3] = np.pi * np.sin(theta)
     # scipy round-trips Cn through rotation vectors here: turns above π come out with w > 0
-    return C.from_rotvec(np.concatenate([C.as_rotvec(_cyclic(n, axis)), rotvec]))
+    return _convert.from_rotvec(np.concatenate([_convert.as_rotvec(_cyclic(n, axis)), rotvec]))
 
 
 def group_quats(symbol, order=1, axis=2):

@@ -26,8 +26,7 @@ by a parallel prefix scan (log₂ T batched products, no loop over samples).
 import numpy as np
 
 from . import _convert
-from . import _kernels as Kn
-
+from . import _kernels
 __all__ = ["poly_weights", "stencil", "local_coordinates", "derivatives", "increments", "accumulate",
            "integrate", "swing_twist", "karcher", "smooth"]
 
@@ -57,7 +56,7 @@ def poly_weights(times, at, idx, order, derivs):
 
 def local_coordinates(q, idx, j):
     """r = log(q_k* q_idx[k, j]) (T, B, 3): the j-th stencil sample seen from each sample k."""
-    return _convert.as_rotvec(Kn.multiply(Kn.conjugate(q), q[idx[:, j]]))
+    return _convert.as_rotvec(_kernels.multiply(_kernels.conjugate(q), q[idx[:, j]]))
 
 
 def derivatives(times, q, derivs, points=7):
@@ -110,7 +109,7 @@ def accumulate(dq, frame):
     P[1:] = dq
     d = 1
     while d < len(P):
-        P[d:] = Kn.multiply(P[d:], P[:-d]) if frame == "world" else Kn.multiply(P[:-d], P[d:])
+        P[d:] = _kernels.multiply(P[d:], P[:-d]) if frame == "world" else _kernels.multiply(P[:-d], P[d:])
         d *= 2
     return P
 
@@ -124,8 +123,8 @@ def integrate(times, omega, initial, method, frame, points=6, substeps=2):
         P = accumulate(dq.reshape((-1,) + dq.shape[2:]), frame)[::n]
     else:
         P = accumulate(dq, frame)
-    q = Kn.multiply(P, initial[None]) if frame == "world" else Kn.multiply(initial[None], P)
-    return Kn.normalize(q)
+    q = _kernels.multiply(P, initial[None]) if frame == "world" else _kernels.multiply(initial[None], P)
+    return _kernels.normalize(q)
 
 
 def swing_twist(q, axis):
@@ -137,7 +136,7 @@ def swing_twist(q, axis):
     n = np.sqrt(np.sum(twist * twist, axis=-1, keepdims=True))
     twist = np.divide(twist, n, out=np.broadcast_to(np.array([1.0, 0, 0, 0], q.dtype), twist.shape).copy(),
                       where=n > 0)
-    swing = Kn.multiply(q, Kn.conjugate(twist))
+    swing = _kernels.multiply(q, _kernels.conjugate(twist))
     return swing, twist
 
 
@@ -148,9 +147,9 @@ def karcher(q, w, start, tol, max_iter):
     mu = start
     step = np.inf
     for it in range(1, max_iter + 1):
-        r = _convert.as_rotvec(Kn.multiply(Kn.conjugate(mu)[..., None, :], q))
+        r = _convert.as_rotvec(_kernels.multiply(_kernels.conjugate(mu)[..., None, :], q))
         v = np.sum(w[..., None] * r, axis=-2)
-        mu = Kn.normalize(Kn.multiply(mu, _convert.from_rotvec(v)))
+        mu = _kernels.normalize(_kernels.multiply(mu, _convert.from_rotvec(v)))
         step = float(np.sqrt(np.sum(v * v, axis=-1)).max()) if v.size else 0.0
         if step <= tol:
             return mu, it, step
@@ -167,8 +166,8 @@ def smooth(times, q, points, order, passes=2):
     centre = q
     for _ in range(passes):
         v = np.zeros(q.shape[:-1] + (3,))
-        conj = Kn.conjugate(centre)
+        conj = _kernels.conjugate(centre)
         for j in range(idx.shape[1]):
-            v += c[:, j, None, None] * _convert.as_rotvec(Kn.multiply(conj, q[idx[:, j]]))
-        centre = Kn.normalize(Kn.multiply(centre, _convert.from_rotvec(v)))
+            v += c[:, j, None, None] * _convert.as_rotvec(_kernels.multiply(conj, q[idx[:, j]]))
+        centre = _kernels.normalize(_kernels.multiply(centre, _convert.from_rotvec(v)))
     return centre

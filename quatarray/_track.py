@@ -20,9 +20,9 @@ from math import prod
 import numpy as np
 
 from . import _blocks
-from . import _interp_curves as IC
-from . import _interp_kernels as IK
-from . import _kernels as Kn
+from . import _interp_curves
+from . import _interp_kernels
+from . import _kernels
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
 from ._validate import finite, float_array
@@ -130,10 +130,10 @@ def frame_rows(pieces, last):
     if n > 1 and n * K1 * B <= _blocks.BLOCK:   # small: one call on the stacked pieces
         k0 = np.stack([p[0] for p in pieces], 1)
         k1 = np.stack([p[1] for p in pieces], 1)
-        IK.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), table[8 * n:, :K1])
+        _interp_kernels.frames(k0, k1, Fv[:, :, :K1].transpose(1, 0, 2, 3), table[8 * n:, :K1])
     else:                                   # large: piece by piece, no stacked copies
         for j, (k0, k1) in enumerate(pieces):
-            IK.frames(k0, k1, Fv[j, :, :K1], table[8 * n + j, :K1])
+            _interp_kernels.frames(k0, k1, Fv[j, :, :K1], table[8 * n + j, :K1])
     Fv[:, :4, K1] = last[None]
     Fv[:, 4:, K1] = 0
     table[8 * n:, K1] = 0
@@ -156,11 +156,11 @@ def rotation_table(method, times, keys):
     elif method == "slerp":
         table = frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
     elif method == "squad":
-        s = controls = IC.squad_controls(keys, times)
+        s = controls = _interp_curves.squad_controls(keys, times)
         S = components_first(s, K, B)
         table = frame_rows([(Q[:, :-1], Q[:, 1:]), (S[:, :-1], S[:, 1:])], Q[:, -1])
     else:
-        a, b = controls = IC.bezier_controls(keys, times)
+        a, b = controls = _interp_curves.bezier_controls(keys, times)
         A = components_first(a, K, B)
         Bc = components_first(b, K, B)
         table = frame_rows([(Q[:, :-1], A[:, :-1]), (A[:, :-1], Bc[:, 1:]), (Bc[:, 1:], Q[:, 1:])], Q[:, -1])
@@ -187,7 +187,7 @@ def rotation_block(method, G, u, O):
     s = O.shape[1:]
     work = _blocks.scratch()
     if method == "slerp":
-        IK.frame_core(G[:8], G[8], u, O)
+        _interp_kernels.frame_core(G[:8], G[8], u, O)
     elif method == "linear":
         Gv = G.reshape((2, 4) + s)
         W = work.rows(2, s, O.dtype)
@@ -197,20 +197,20 @@ def rotation_block(method, G, u, O):
         np.add(Gv[0], Gv[1], out=O)
         n = work.rows(1, s, O.dtype)[0]
         np.copyto(Gv[0], O)
-        IK.sqsum(Gv[0], n)
+        _interp_kernels.sqsum(Gv[0], n)
         np.sqrt(n, out=n)
         np.divide(O, n, out=O)
     elif method == "squad":
         P = work.rows(4, s, O.dtype)
         S = work.rows(4, s, O.dtype)
-        IK.frame_core(G[:8], G[16], u, P)
-        IK.frame_core(G[8:16], G[17], u, S)
-        IK.squad_blend(P, S, u, O)
+        _interp_kernels.frame_core(G[:8], G[16], u, P)
+        _interp_kernels.frame_core(G[8:16], G[17], u, S)
+        _interp_kernels.squad_blend(P, S, u, O)
     else:
         L = work.rows(12, s, O.dtype).reshape((4, 3) + s)
         for j in range(3):
-            IK.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j])
-        IK.bezier_levels(L, u, O)
+            _interp_kernels.frame_core(G[8 * j:8 * j + 8], G[24 + j], u, L[:, j])
+        _interp_kernels.bezier_levels(L, u, O)
 
 
 def rotation_deriv(method, G, u):
@@ -219,14 +219,14 @@ def rotation_deriv(method, G, u):
         k0, k1 = G[:4], G[4:]
         return (1 - u) * k0 + u * k1, k1 - k0
     if method == "slerp":
-        return IC.frame_deriv(G[:8], G[8], u)
+        return _interp_curves.frame_deriv(G[:8], G[8], u)
     if method == "squad":
-        A, dA = IC.frame_deriv(G[:8], G[16], u)
-        S, dS = IC.frame_deriv(G[8:16], G[17], u)
-        return IC.slerp_deriv(A, dA, S, dS, IK.squad_param(u), 2 - 4 * u)
-    L = [IC.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
-    M = [IC.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
-    return IC.slerp_deriv(*M[0], *M[1], u, 1.0)
+        A, dA = _interp_curves.frame_deriv(G[:8], G[16], u)
+        S, dS = _interp_curves.frame_deriv(G[8:16], G[17], u)
+        return _interp_curves.slerp_deriv(A, dA, S, dS, _interp_kernels.squad_param(u), 2 - 4 * u)
+    L = [_interp_curves.frame_deriv(G[8 * j:8 * j + 8], G[24 + j], u) for j in range(3)]
+    M = [_interp_curves.slerp_deriv(*L[j], *L[j + 1], u, 1.0) for j in range(2)]
+    return _interp_curves.slerp_deriv(*M[0], *M[1], u, 1.0)
 
 
 def evaluate(timeline, table, flat, block_fn, width):
@@ -266,7 +266,7 @@ def angular_velocity(timeline, method, table, flat, outside, frame):
         G = np.take(tab, i, axis=1, mode="clip").astype(np.float64, copy=False)
         uu = u[:, None]
         q, dq = rotation_deriv(method, G, uu)
-        w = IC.omega_from(q, dq, frame) / np.take(timeline.dt, i)[:, None]
+        w = _interp_curves.omega_from(q, dq, frame) / np.take(timeline.dt, i)[:, None]
         if outside is not None:
             w[:, outside[sm]] = 0
         soa(out[sm, sb])[...] = w
@@ -300,7 +300,7 @@ def rigid_table(keys, translations):
     T = components_first(translations, K, B)
     table = np.zeros((RIGID_ROWS, K, B))
     table[:9] = frame_rows([(Q[:, :-1], Q[:, 1:])], Q[:, -1])
-    rel = Kn.multiply(np.moveaxis(Q[:, 1:], 0, -1), Kn.conjugate(np.moveaxis(Q[:, :-1], 0, -1)))
+    rel = _kernels.multiply(np.moveaxis(Q[:, 1:], 0, -1), _kernels.conjugate(np.moveaxis(Q[:, :-1], 0, -1)))
     vec = rel[..., 1:]
     s = np.sqrt(np.sum(vec * vec, axis=-1, keepdims=True))
     axis = np.divide(vec, s, out=np.zeros_like(vec), where=s > 0)

@@ -25,11 +25,11 @@ Conventions
 
 import numpy as np
 
-from . import _interp_curves as IC
-from . import _interp_kernels as IK
-from . import _interp_spline as ISp
-from . import _kernels as Kn
-from . import _track as TR
+from . import _interp_curves
+from . import _interp_kernels
+from . import _interp_spline
+from . import _kernels
+from . import _track
 from ._array import QuatArray
 from ._validate import batch_axis, finite, float_array, key_times, quat_array
 
@@ -42,7 +42,7 @@ __all__ = [
 METHODS = ("linear", "slerp", "squad", "bezier", "spline")
 EXTRAPOLATE = ("raise", "clamp", "extend")
 FRAMES = ("world", "body")
-EXTEND_LIMIT = TR.EXTEND_LIMIT
+EXTEND_LIMIT = _track.EXTEND_LIMIT
 
 
 
@@ -107,7 +107,7 @@ def lerp(q0, q1, t):
     """
     q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
-    return QuatArray._wrap(IK.lerp(q0, q1, t))
+    return QuatArray._wrap(_interp_kernels.lerp(q0, q1, t))
 
 
 def nlerp(q0, q1, t, *, shortest=True):
@@ -145,7 +145,7 @@ def nlerp(q0, q1, t, *, shortest=True):
     """
     q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
-    return QuatArray._wrap(IK.nlerp(q0, q1, t, bool(shortest)))
+    return QuatArray._wrap(_interp_kernels.nlerp(q0, q1, t, bool(shortest)))
 
 
 def slerp(q0, q1, t, *, shortest=True):
@@ -194,7 +194,7 @@ def slerp(q0, q1, t, *, shortest=True):
     q0, q1, t = quat_array(q0, "q0"), quat_array(q1, "q1"), float_array(t, "t")
     _pairwise(("q0", "q1"), (q0, q1), t)
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):   # non-finite input: named below
-        res, ok = IK.slerp(q0, q1, t, bool(shortest), check=True)
+        res, ok = _interp_kernels.slerp(q0, q1, t, bool(shortest), check=True)
     if not ok:   # finite input gives finite output: one of them is not finite
         for a, name in ((q0, "q0"), (q1, "q1"), (t, "t")):
             finite(a, name)
@@ -228,7 +228,7 @@ def unflip(q, axis=0):
                [-0.6, -0.8, -0. , -0. ]])
     """
     q = _finite_quat(q, "q")
-    return QuatArray._wrap(IK.unflip(q, batch_axis(axis, q.shape[:-1])))
+    return QuatArray._wrap(_interp_kernels.unflip(q, batch_axis(axis, q.shape[:-1])))
 
 
 def squad(q0, a, b, q1, t):
@@ -262,7 +262,7 @@ def squad(q0, a, b, q1, t):
     qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
-    return QuatArray._wrap(IK.squad(*qs, t))
+    return QuatArray._wrap(_interp_kernels.squad(*qs, t))
 
 
 def bezier(q0, a, b, q1, t):
@@ -295,7 +295,7 @@ def bezier(q0, a, b, q1, t):
     qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
-    return QuatArray._wrap(IK.bezier(*qs, t))
+    return QuatArray._wrap(_interp_kernels.bezier(*qs, t))
 
 
 def _prepared_keys(keys, times, name="keys", times_name="times", unit=False):
@@ -310,7 +310,7 @@ def _prepared_keys(keys, times, name="keys", times_name="times", unit=False):
         raise ValueError(f"expected {name} of shape (K, ..., 4) with K >= 2 "
                          f"(a sequence of at least 2 rotations), got {keys.shape}")
     finite(keys, name)
-    keys = IK.unit_keys(keys, name, unit)
+    keys = _interp_kernels.unit_keys(keys, name, unit)
     if times is not None:
         times = _check_times(times, K, times_name, name)
     return keys, times
@@ -361,7 +361,7 @@ def squad_control_points(keys, times=None):
     True
     """
     keys, times = _prepared_keys(keys, times)
-    return QuatArray._wrap(IC.squad_controls(keys, times))
+    return QuatArray._wrap(_interp_curves.squad_controls(keys, times))
 
 
 def bezier_control_points(keys, times=None):
@@ -407,7 +407,7 @@ def bezier_control_points(keys, times=None):
     True
     """
     keys, times = _prepared_keys(keys, times)
-    a, b = IC.bezier_controls(keys, times)
+    a, b = _interp_curves.bezier_controls(keys, times)
     return QuatArray._wrap(a), QuatArray._wrap(b)
 
 
@@ -488,17 +488,17 @@ class Track:
         times = _check_times(times, keys.shape[0], times_name, keys_name).copy()
         times.flags.writeable = False
         keys.flags.writeable = False
-        self._timeline = TR.Timeline(times, extrapolate)
+        self._timeline = _track.Timeline(times, extrapolate)
         self._keys = keys
         self._batch = keys.shape[1:-1]
         self._dtype = keys.dtype
         self._controls = None
         if self._method == "spline":
             # scipy's RotationSpline: its own evaluator, no frame table
-            self._spline = ISp.table(keys, ISp.coefficients(times, keys))
+            self._spline = _interp_spline.table(keys, _interp_spline.coefficients(times, keys))
             self._table = None
             return
-        self._table, controls = TR.rotation_table(self._method, times, keys)
+        self._table, controls = _track.rotation_table(self._method, times, keys)
         if isinstance(controls, tuple):
             self._controls = tuple(QuatArray._wrap(c) for c in controls)
         elif controls is not None:
@@ -577,17 +577,17 @@ class Track:
     def _evaluate(self, t, name):
         tshape, flat, _ = self._timeline.queries(t, name)
         if self._method == "spline":
-            out = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch)
+            out = _interp_spline.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch)
         else:
             method = self._method
-            out = TR.evaluate(self._timeline, self._table, flat,
-                              lambda G, u, O: TR.rotation_block(method, G, u, O), 4)
+            out = _track.evaluate(self._timeline, self._table, flat,
+                              lambda G, u, O: _track.rotation_block(method, G, u, O), 4)
         if self._timeline.extrapolate == "extend" and flat.size:
             # far out, squad's and Bézier's rounding grows like eps u² off the unit sphere
             far = (flat < self.times[0]) | (flat > self.times[-1])
             if far.any():
                 rows = out.reshape(flat.size, -1, 4)
-                rows[far] = Kn.normalize(rows[far])
+                rows[far] = _kernels.normalize(rows[far])
         return QuatArray._wrap(out.reshape(tshape + self._batch + (4,)))
 
     def angular_velocity(self, t, *, frame="world"):
@@ -623,13 +623,13 @@ class Track:
         tshape, flat, outside = self._timeline.queries(t, "t")
         if self._method == "spline":
             # the spline's rate (scipy's order=1) is in the body frame
-            w = ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 1, self._batch)
+            w = _interp_spline.evaluate(self._timeline.index, self.times, self._spline, flat, 1, self._batch)
             if frame == "world":
-                w = Kn.rotate(ISp.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch), w)
+                w = _kernels.rotate(_interp_spline.evaluate(self._timeline.index, self.times, self._spline, flat, 0, self._batch), w)
             if outside is not None:
                 w[outside] = 0
         else:
-            w = TR.angular_velocity(self._timeline, self._method, self._table, flat, outside, frame)
+            w = _track.angular_velocity(self._timeline, self._method, self._table, flat, outside, frame)
         return w.reshape(tshape + self._batch + (3,))
 
 
@@ -639,11 +639,11 @@ def _scipy_ties(keys):
     ``conj(q[k]) q[k+1]`` canonical (first non-zero of its vector part positive).
     Other pairs are left to `unflip` (the same choice as scipy's)."""
     keys = np.asarray(keys)   # raw array (the kernels' arguments)
-    d = IK.vdot(keys[1:].astype(np.float64), keys[:-1])
+    d = _interp_kernels.vdot(keys[1:].astype(np.float64), keys[:-1])
     if not (d == 0).any():
         return keys
     from ._convert import _flip_mask
-    rel = Kn.multiply(Kn.conjugate(keys[:-1]), keys[1:])
+    rel = _kernels.multiply(_kernels.conjugate(keys[:-1]), keys[1:])
     x, y, z = rel[..., 1], rel[..., 2], rel[..., 3]
     step = np.where((d < 0) | ((d == 0) & _flip_mask(np.zeros_like(x), x, y, z)), -1, 1)
     sign = np.concatenate([np.ones_like(step[:1]), np.cumprod(step, axis=0)])

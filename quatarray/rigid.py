@@ -9,8 +9,8 @@ back; float32 stays float32.
 
 import numpy as np
 
-from . import _dualquat as D
-from . import _track as TR
+from . import _dualquat
+from . import _track
 from ._validate import finite, float_array
 
 __all__ = ["sclerp", "dual_quaternion_blend", "normalize_dual_quaternion", "RigidTrack"]
@@ -49,7 +49,7 @@ def normalize_dual_quaternion(dual_quat, *, scalar_first=False):
     >>> normalize_dual_quaternion([0, 0, 0, 2, 0, 0, 0, 1])
     array([0., 0., 0., 1., 0., 0., 0., 0.])
     """
-    return _out(D.normalize(_dual(dual_quat, "dual_quat", scalar_first)), scalar_first)
+    return _out(_dualquat.normalize(_dual(dual_quat, "dual_quat", scalar_first)), scalar_first)
 
 
 def sclerp(a, b, t, *, scalar_first=False):
@@ -88,7 +88,7 @@ def sclerp(a, b, t, *, scalar_first=False):
     a = np.broadcast_to(a, batch + (8,))
     b = np.broadcast_to(b, batch + (8,))
     dtype = np.result_type(a.dtype, b.dtype)
-    return _out(D.sclerp(D.normalize(a.astype(dtype)), D.normalize(b.astype(dtype)), t.astype(dtype)), scalar_first)
+    return _out(_dualquat.sclerp(_dualquat.normalize(a.astype(dtype)), _dualquat.normalize(b.astype(dtype)), t.astype(dtype)), scalar_first)
 
 
 def dual_quaternion_blend(dual_quats, weights, *, axis=0, scalar_first=False):
@@ -128,7 +128,7 @@ def dual_quaternion_blend(dual_quats, weights, *, axis=0, scalar_first=False):
     w = finite(float_array(weights, "weights"), "weights")
     if w.shape != (dq.shape[axis],):
         raise ValueError(f"expected weights of shape ({dq.shape[axis]},), got {w.shape}")
-    return _out(D.blend(dq, w.astype(dq.dtype), axis=axis), scalar_first)
+    return _out(_dualquat.blend(dq, w.astype(dq.dtype), axis=axis), scalar_first)
 
 
 class RigidTrack:
@@ -190,9 +190,9 @@ class RigidTrack:
         times.flags.writeable = False
         t = np.asarray(transforms.translation, q.dtype)
         self._cls = RigidTransform
-        self._timeline = TR.Timeline(times, extrapolate)
+        self._timeline = _track.Timeline(times, extrapolate)
         self._batch = q.shape[1:-1]
-        self._table = TR.rigid_table(q, t)
+        self._table = _track.rigid_table(q, t)
 
     @property
     def times(self):
@@ -245,7 +245,7 @@ class RigidTrack:
                [1. , 1. , 0. ]])
         """
         tshape, flat, _ = self._timeline.queries(t, "t")
-        out = TR.evaluate(self._timeline, self._table, flat, TR.rigid_block, 7)
+        out = _track.evaluate(self._timeline, self._table, flat, _track.rigid_block, 7)
         shape = tshape + self._batch
         return self._cls._from_parts(out[..., :4].reshape(shape + (4,)), out[..., 4:].reshape(shape + (3,)),
                                      len(shape) == 0)

@@ -7,7 +7,7 @@ as `Rotation`.  Beyond scipy, the keys may hold any batch of tracks
 
 import numpy as np
 
-from . import _interp_spline as S
+from . import _interp_spline
 from . import _kernels, _scale
 from ._array import QuatArray
 from ._interp_lookup import SegmentIndex
@@ -36,7 +36,7 @@ def angular_rate_to_rotvec_dot_matrix(rotvecs):
     >>> np.allclose(angular_rate_to_rotvec_dot_matrix(r) @ r, r)   # rate along r: dr/dt = w
     True
     """
-    return S.rate_to_rotvec_dot(_rotvecs(rotvecs, "rotvecs"))
+    return _interp_spline.rate_to_rotvec_dot(_rotvecs(rotvecs, "rotvecs"))
 
 
 def rotvec_dot_to_angular_rate_matrix(rotvecs):
@@ -50,7 +50,7 @@ def rotvec_dot_to_angular_rate_matrix(rotvecs):
     >>> np.allclose(rotvec_dot_to_angular_rate_matrix(r) @ angular_rate_to_rotvec_dot_matrix(r), np.eye(3))
     True
     """
-    return S.rotvec_dot_to_rate(_rotvecs(rotvecs, "rotvecs"))
+    return _interp_spline.rotvec_dot_to_rate(_rotvecs(rotvecs, "rotvecs"))
 
 
 def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
@@ -70,7 +70,7 @@ def angular_acceleration_nonlinear_term(rotvecs, rotvecs_dot):
     """
     r = _rotvecs(rotvecs, "rotvecs")
     rd = _rotvecs(rotvecs_dot, "rotvecs_dot")
-    return S.acceleration_term(*np.broadcast_arrays(r, rd))
+    return _interp_spline.acceleration_term(*np.broadcast_arrays(r, rd))
 
 
 def block_tridiagonal_banded(A, B, d):
@@ -169,8 +169,8 @@ class RotationSpline:
            [0.      , 0.      , 1.570796]])
     """
 
-    MAX_ITER = S.MAX_ITER
-    TOL = S.TOL[np.dtype(np.float64)]   # scipy's class attribute (float32 keys iterate to their own)
+    MAX_ITER = _interp_spline.MAX_ITER
+    TOL = _interp_spline.TOL[np.dtype(np.float64)]   # scipy's class attribute (float32 keys iterate to their own)
 
     def __init__(self, times, rotations):
         keys = _keys(rotations)
@@ -201,7 +201,7 @@ class RotationSpline:
         self.rotations = (rotations if isinstance(rotations, Rotation)
                           else Rotation.from_quat(keys, scalar_first=True))
         self._keys = keys
-        self._table = S.table(keys, S.coefficients(times, keys))
+        self._table = _interp_spline.table(keys, _interp_spline.coefficients(times, keys))
         self._index = SegmentIndex(times)
 
     def __call__(self, times, order=0):
@@ -224,7 +224,7 @@ class RotationSpline:
             raise ValueError("`times` must be at most 1-dimensional.")
         finite(t, "times")   # scipy: "Found zero norm quaternions"
         single = t.ndim == 0
-        res = S.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
+        res = _interp_spline.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
         if single:
             res = res[0]
         if order:

@@ -16,10 +16,10 @@ import numpy as np
 
 from . import _blocks
 from . import _convert
-from . import _interp_kernels as IK
-from . import _kernels as Kn
+from . import _interp_kernels
+from . import _kernels
 from . import _reduce
-from . import _timeseries as TS
+from . import _timeseries
 from ._array import QuatArray
 from ._rotation import Rotation
 from ._validate import batch_axis, finite, float_array, key_times
@@ -40,7 +40,7 @@ def _choice(value, name, options):
 
 def _series(keys, name, min_len=2):
     """keys (T, *batch, 4) from a QuatArray, array_like or Rotation: finite, unflipped, unit."""
-    return IK.unit_keys(_raw_series(keys, name, min_len), name)
+    return _interp_kernels.unit_keys(_raw_series(keys, name, min_len), name)
 
 
 def _raw_series(keys, name, min_len=2):
@@ -66,7 +66,7 @@ def _track_major(raw, name):
     out = np.empty((B, T, 4), raw.dtype)
     step = max(1, _blocks.BLOCK * 8 // T)
     for j in range(0, B, step):
-        out[j:j + step] = IK.unit_keys(raw[:, j:j + step], name).transpose(1, 0, 2)
+        out[j:j + step] = _interp_kernels.unit_keys(raw[:, j:j + step], name).transpose(1, 0, 2)
     return out
 
 
@@ -152,7 +152,7 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
     T, B = raw.shape[0], prod(batch)
     tol_rad = np.radians(tol) if degrees else tol
     if shared or B == 0:
-        Q = IK.unit_keys(raw, "keys").reshape(T, B, 4)
+        Q = _interp_kernels.unit_keys(raw, "keys").reshape(T, B, 4)
     else:
         Q = _track_major(raw.reshape(T, B, 4), "keys")
 
@@ -252,9 +252,9 @@ def integrate_angular_velocity(times, omega, *, initial=None, frame="world", met
         if not fits:
             raise ValueError(f"expected initial of shape (..., 4) broadcasting to the batch shape {batch}, "
                              f"got {q0.shape}")
-        q0 = Kn.normalize(np.ascontiguousarray(np.broadcast_to(q0, batch + (4,)).reshape(-1, 4)))
+        q0 = _kernels.normalize(np.ascontiguousarray(np.broadcast_to(q0, batch + (4,)).reshape(-1, 4)))
     T, B = len(times), prod(batch)
-    q = TS.integrate(times, w.reshape(T, B, 3).astype(np.float64), np.asarray(q0).reshape(B, 4), method, frame)
+    q = _timeseries.integrate(times, w.reshape(T, B, 3).astype(np.float64), np.asarray(q0).reshape(B, 4), method, frame)
     return _wrap_rotation(q.reshape((T,) + batch + (4,)), w.dtype)
 
 
@@ -315,11 +315,11 @@ def angular_velocity(times, rotations, *, frame="world", acceleration=False, poi
     T, batch = Q.shape[0], Q.shape[1:-1]
     q = Q.reshape(T, -1, 4).astype(np.float64)
     derivs = (1, 2) if acceleration and min(points, T) > 2 else (1,)
-    out = TS.derivatives(times, q, derivs, int(points))
+    out = _timeseries.derivatives(times, q, derivs, int(points))
     if acceleration and len(out) == 1:   # two samples: a straight great circle, no acceleration
         out.append(np.zeros_like(out[0]))
     if frame == "world":
-        out = [Kn.rotate(q, v) for v in out]
+        out = [_kernels.rotate(q, v) for v in out]
     out = [v.reshape((T,) + batch + (3,)).astype(Q.dtype) for v in out]
     return tuple(out) if acceleration else out[0]
 
@@ -370,12 +370,12 @@ def minimal_rotation(times, rotations, axis=(0.0, 0.0, 1.0), *, iterations=2):
     a = np.broadcast_to(a / n, batch + (3,)).reshape(1, -1, 3)
     q = Q.reshape(T, -1, 4).astype(np.float64)
     for _ in range(int(iterations)):
-        wb = TS.derivatives(times, q, (1,))[0]
+        wb = _timeseries.derivatives(times, q, (1,))[0]
         along = np.sum(wb * a, axis=-1)
         dt = np.diff(times)[:, None]
         gamma = np.concatenate([np.zeros((1, along.shape[1])),
                                 np.cumsum(0.5 * (along[1:] + along[:-1]) * dt, axis=0)])
-        q = Kn.multiply(q, _convert.from_rotvec(-gamma[..., None] * a))
+        q = _kernels.multiply(q, _convert.from_rotvec(-gamma[..., None] * a))
     return _wrap_rotation(q.reshape((T,) + batch + (4,)), Q.dtype)
 
 
@@ -424,8 +424,8 @@ def swing_twist(rotations, axis):
     if not (n > 0).all():
         raise ValueError("expected a non-zero axis, got a zero vector")
     batch = np.broadcast_shapes(q.shape[:-1], a.shape[:-1])
-    q64 = Kn.normalize(np.ascontiguousarray(np.broadcast_to(q.astype(np.float64), batch + (4,))))
-    swing, twist = TS.swing_twist(q64, np.broadcast_to(a / n, batch + (3,)).astype(np.float64))
+    q64 = _kernels.normalize(np.ascontiguousarray(np.broadcast_to(q.astype(np.float64), batch + (4,))))
+    swing, twist = _timeseries.swing_twist(q64, np.broadcast_to(a / n, batch + (3,)).astype(np.float64))
     return _wrap_rotation(swing, q.dtype), _wrap_rotation(twist, q.dtype)
 
 
@@ -487,7 +487,7 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     if not (total > 0).all():
         raise ValueError("expected weights with a positive sum along the averaged axes, got a zero sum")
     mu0 = np.asarray(start.as_quatarray(), np.float64).reshape(kshape + (4,))
-    mu, it, step = TS.karcher(qm, wm / total, mu0, tol, int(max_iter))
+    mu, it, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
     if step > tol:
         raise ValueError(f"expected the geodesic mean to converge within max_iter={max_iter} iterations "
                          f"to tol={tol!r}, got a last step of {step!r} rad")
@@ -543,7 +543,7 @@ def smooth(times, rotations, window, *, order=2):
     T, batch = Q.shape[0], Q.shape[1:-1]
     dt = float(np.median(np.diff(times)))
     points = max(int(order) + 2, 2 * int(round(window / (2 * dt))) + 1)
-    q = TS.smooth(times, Q.reshape(T, -1, 4).astype(np.float64), points, int(order))
+    q = _timeseries.smooth(times, Q.reshape(T, -1, 4).astype(np.float64), points, int(order))
     given = _given_quats(rotations).reshape(T, -1, 4)
     q = q * np.where(np.sum(q * given, axis=-1, keepdims=True) < 0, -1.0, 1.0)   # the input's signs
     return _wrap_rotation(q.reshape(Q.shape), Q.dtype)

@@ -18,7 +18,7 @@ component order, squad and Bézier do, so those see scalar-first keys.
 
 import numpy as np
 
-from .. import _interp_kernels as IK
+from .. import _interp_kernels
 from .._interp_lookup import SegmentIndex
 from ..interpolate import Track
 
@@ -76,7 +76,7 @@ def evaluate_sampler(times, values, interpolation, t, rotation=False):
     u = (t - times[i]) / td
     if interpolation == "LINEAR":
         if rotation:
-            return IK.slerp(v[i], v[i + 1], u, shortest=True)
+            return _interp_kernels.slerp(v[i], v[i + 1], u, shortest=True)
         return v[i] * (1 - u)[:, None] + v[i + 1] * u[:, None]
     u2, u3 = u * u, u * u * u
     h00 = 2 * u3 - 3 * u2 + 1
@@ -126,5 +126,5 @@ def resample_sampler(times, values, interpolation, t, rotation=False, method=Non
         track = Track(times, np.roll(keys, 1, axis=-1), method=method, extrapolate="clamp")
         out = np.roll(np.asarray(track(np.asarray(t, np.float64))), -1, axis=-1)
     if rotation:
-        out = IK.unflip(_normalise(out), 0)
+        out = _interp_kernels.unflip(_normalise(out), 0)
     return out
