@@ -17,7 +17,7 @@ import numpy as np
 
 from . import bvh, csv, gltf, npz, zarr
 from .keyframes import fps_times, read_times, resample_keyframes
-from .text import FormatError, TextStyle, echo, option
+from .text import FormatError, TextStyle, echo, not_a_store, option, refuse_existing
 
 __all__ = ["Format", "FORMATS", "format_of", "resample_file"]
 
@@ -195,8 +195,7 @@ def check_output(src, dst, kind_out, force):
     never a file where a store (a directory) goes, or the reverse."""
     if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
         if FORMATS[kind_out].directory:
-            raise FileExistsError(errno.EEXIST, f"exists and is not a {FORMATS[kind_out].name} store (a directory)",
-                                  os.fspath(dst))
+            raise not_a_store(dst, FORMATS[kind_out].name)
         raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(dst))
     if _same_file(src, dst):
         if not FORMATS[kind_out].replaces_input:
@@ -204,8 +203,8 @@ def check_output(src, dst, kind_out, force):
                               "read, so they cannot replace it: write elsewhere, then rename", dst)
         if not force:
             raise FormatError(f"is the input file; give {option('force')} to replace it", dst)
-    elif not force and os.path.lexists(dst):
-        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(dst))
+    else:
+        refuse_existing(os.path.lexists(dst), dst, force)
 
 
 def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="raise", scalar_last=False,

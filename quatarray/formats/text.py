@@ -106,6 +106,18 @@ def option(name, *values):
     return f"{name}=" + (" or ".join(map(repr, values)) if values else "True")
 
 
+def refuse_existing(exists, name, force):
+    """The overwrite rule, in one wording for every writer: an output that `exists` is replaced
+    only with `force`."""
+    if exists and not force:
+        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(name))
+
+
+def not_a_store(name, store):
+    """The error for a file where a `store` (a directory format such as ``"Zarr"``) is to be written."""
+    return FileExistsError(errno.EEXIST, f"exists and is not a {store} store (a directory)", os.fspath(name))
+
+
 # --------------------------------------------------------------------------- how numbers were printed
 
 @dataclasses.dataclass(frozen=True)

@@ -61,7 +61,7 @@ import numpy as np
 
 from .._validate import float_array
 from .keyframes import Keyframes, fps_steps, read_times
-from .text import FormatError, check_arrays, check_query, check_size, echo, option
+from .text import FormatError, check_arrays, check_query, check_size, echo, not_a_store, refuse_existing
 
 __all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
 
@@ -404,11 +404,6 @@ def _atomic(loc, force):
         raise
 
 
-def _refuse_existing(exists, name, force):
-    if exists and not force:
-        raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", name)
-
-
 @contextlib.contextmanager
 def _atomic_dir(path, name, force):
     """A temporary directory beside `path`, renamed onto `path` on success, removed on failure."""
@@ -416,8 +411,8 @@ def _atomic_dir(path, name, force):
     if not os.path.isdir(folder):
         raise FileNotFoundError(errno.ENOENT, "No such file or directory (its folder does not exist)", name)
     if os.path.lexists(path) and not os.path.isdir(path):    # never replace a file by a store
-        raise FileExistsError(errno.EEXIST, "exists and is not a Zarr store (a directory)", name)
-    _refuse_existing(os.path.lexists(path), name, force)
+        raise not_a_store(name, "Zarr")
+    refuse_existing(os.path.lexists(path), name, force)
     tmp = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
     try:
         yield {"store": tmp}
@@ -438,7 +433,7 @@ def _atomic_prefix(loc, force):
     """A temporary prefix beside `loc` on its object store, copied under `loc` on success (the
     metadata last) and removed either way."""
     fs = loc.fs
-    _refuse_existing(fs.exists(loc.path), loc.name, force)
+    refuse_existing(fs.exists(loc.path), loc.name, force)
     parent, _, base = loc.path.rpartition("/")
     tmp = f"{parent}/.{base}.{uuid.uuid4().hex[:8]}.part"
     try:
