@@ -25,7 +25,7 @@ from .. import _euler, _reduce
 from ..timeseries import reduce_keys
 from .bvh import resample_motion
 from .keyframes import Keyframes
-from .registry import FORMATS, Request, check_output, format_of
+from .registry import FORMATS, Request, check_output, format_of, formats_of
 from .text import FormatError
 
 __all__ = ["reduce_file", "parse_tolerance"]
@@ -175,14 +175,12 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     >>> [(name, before, after < before // 4, bool(err <= np.radians(0.1))) for name, before, after, err in rows]
     [('shoulder', 481, True, True), ('elbow', 481, True, True), ('wrist', 481, True, True)]
     """
-    kind_in, kind_out = format_of(src), format_of(dst)
+    kind_in, _ = format_of(src), format_of(dst)     # both extensions known before anything else
     family = FORMATS[kind_in].family
     if family not in _REDUCERS:
         raise FormatError(f"reducing {FORMATS[kind_in].name} files is not supported (expected "
                           f"{', '.join(e for e, f in FORMATS.items() if f.family in _REDUCERS)})", src)
-    if family != FORMATS[kind_out].family:
-        raise FormatError(f"cannot write {kind_out} from {kind_in} input ({family} files convert into "
-                          f"{', '.join(e for e, f in FORMATS.items() if f.family == family)} only)", dst)
+    kind_out = formats_of(src, dst)[1]
     tolerance = parse_tolerance(tolerance) if isinstance(tolerance, str) else float(tolerance)
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"expected tolerance > 0, got {tolerance!r}")

@@ -182,6 +182,16 @@ def format_of(path):
     return ext
 
 
+def formats_of(src, dst):
+    """The extensions of `src` and `dst`, checked to be of one family (formats that convert into each other)."""
+    kind_in, kind_out = format_of(src), format_of(dst)
+    family = FORMATS[kind_in].family
+    if family != FORMATS[kind_out].family:
+        raise FormatError(f"cannot write {kind_out} from {kind_in} input ({family} files convert into "
+                          f"{', '.join(e for e, f in FORMATS.items() if f.family == family)} only)", dst)
+    return kind_in, kind_out
+
+
 def _same_file(src, dst):
     try:
         return os.path.samefile(src, dst)
@@ -279,12 +289,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     >>> resample_file(example_path("arm.csv"), os.path.join(tmp.name, "arm.npz"), fps=60, method="squad")
     (11, 241)
     """
-    kind_in, kind_out = format_of(src), format_of(dst)
+    kind_in, kind_out = formats_of(src, dst)
     family = FORMATS[kind_in].family
     chunked = FORMATS[kind_in].chunked if kind_in == kind_out else None
-    if family != FORMATS[kind_out].family:
-        raise FormatError(f"cannot write {kind_out} from {kind_in} input ({family} files convert into "
-                          f"{', '.join(e for e, f in FORMATS.items() if f.family == family)} only)", dst)
     if (fps is None) == (times is None):
         raise ValueError("give exactly one of fps and times")
     if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
