@@ -203,3 +203,15 @@ def key_times(times, K, name="times", keys_name="keys"):
         raise ValueError(f"expected {name} in strictly increasing order, got "
                          f"{name}[{j + 1}] = {float(times[j + 1])!r} after {name}[{j}] = {float(times[j])!r}")
     return times
+
+
+def choice(value, name, options):
+    """`value` if it is one of the strings `options`, else a ValueError naming `name`.
+
+    >>> from quatarray._validate import choice
+    >>> choice("slerp", "method", ("slerp", "squad"))
+    'slerp'
+    """
+    if not isinstance(value, str) or value not in options:
+        raise ValueError(f"expected {name} in {options}, got {value!r}")
+    return value

@@ -31,7 +31,7 @@ from . import _interp_spline
 from . import _kernels
 from . import _track
 from ._array import QuatArray
-from ._validate import batch_axis, finite, float_array, key_times, quat_array
+from ._validate import batch_axis, choice, finite, float_array, key_times, quat_array
 
 __all__ = [
     "lerp", "nlerp", "slerp", "unflip",
@@ -70,12 +70,6 @@ def _pairwise(names, quats, t):
     if t.ndim == 0 and all(q.shape == quats[0].shape for q in quats):
         return  # nothing to broadcast (the common single-pair call: keep it cheap)
     _broadcast(names + ("t",), [q.shape[:-1] for q in quats] + [t.shape])
-
-
-def _choice(value, name, options):
-    if not isinstance(value, str) or value not in options:
-        raise ValueError(f"expected {name} in {options}, got {value!r}")
-    return value
 
 
 # ---------------------------------------------------------------------------
@@ -482,8 +476,8 @@ class Track:
         self._setup(times, keys, method, extrapolate, "times", "keys", unit)
 
     def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False):
-        self._method = _choice(method, "method", METHODS)
-        extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
+        self._method = choice(method, "method", METHODS)
+        extrapolate = choice(extrapolate, "extrapolate", EXTRAPOLATE)
         keys, _ = _prepared_keys(keys, None, keys_name, unit=unit)
         times = _check_times(times, keys.shape[0], times_name, keys_name).copy()
         times.flags.writeable = False
@@ -619,7 +613,7 @@ class Track:
         array([[0. , 0.5, 0. ],
                [0. , 0.5, 0. ]])
         """
-        frame = _choice(frame, "frame", FRAMES)
+        frame = choice(frame, "frame", FRAMES)
         tshape, flat, outside = self._timeline.queries(t, "t")
         if self._method == "spline":
             # the spline's rate (scipy's order=1) is in the body frame

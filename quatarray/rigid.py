@@ -11,7 +11,7 @@ import numpy as np
 
 from . import _dualquat
 from . import _track
-from ._validate import finite, float_array
+from ._validate import choice, finite, float_array
 
 __all__ = ["sclerp", "dual_quaternion_blend", "normalize_dual_quaternion", "RigidTrack"]
 
@@ -176,14 +176,14 @@ class RigidTrack:
 
     def __init__(self, times, transforms, *, extrapolate="raise"):
         from ._rigid_transform import RigidTransform
-        from .interpolate import EXTRAPOLATE, _choice, _prepared_keys
+        from .interpolate import EXTRAPOLATE, _prepared_keys
 
         if not isinstance(transforms, RigidTransform):
             raise TypeError(f"expected transforms to be a RigidTransform, got {type(transforms).__name__}")
         if transforms.single or len(transforms) < 2:
             got = "a single transform" if transforms.single else f"shape {transforms.shape}"
             raise ValueError(f"expected transforms of shape (K, ...) with K >= 2, got {got}")
-        extrapolate = _choice(extrapolate, "extrapolate", EXTRAPOLATE)
+        extrapolate = choice(extrapolate, "extrapolate", EXTRAPOLATE)
         # the rotation keys as Track prepares its keys (scaled, unflipped, then normalised)
         q, times = _prepared_keys(transforms.rotation.as_quat(scalar_first=True), times, "transforms")
         times = times.copy()

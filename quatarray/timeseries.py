@@ -22,7 +22,7 @@ from . import _reduce
 from . import _timeseries
 from ._array import QuatArray
 from ._rotation import Rotation
-from ._validate import batch_axis, finite, float_array, key_times
+from ._validate import batch_axis, choice, finite, float_array, key_times
 from .interpolate import METHODS as TRACK_METHODS
 from .interpolate import Track
 
@@ -30,12 +30,6 @@ __all__ = ["ReducedKeys", "reduce_keys", "integrate_angular_velocity", "angular_
            "swing_twist", "geodesic_mean", "smooth", "fill_gaps"]
 
 FRAMES = ("world", "body")
-
-
-def _choice(value, name, options):
-    if not isinstance(value, str) or value not in options:
-        raise ValueError(f"expected {name} in {options}, got {value!r}")
-    return value
 
 
 def _series(keys, name, min_len=2):
@@ -144,7 +138,7 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
     >>> len(tracks), len(tracks[0]) < 201 // 5, float(err) <= 0.1
     (1, True, True)
     """
-    method = _choice(method, "method", _reduce.METHODS)
+    method = choice(method, "method", _reduce.METHODS)
     tol = _positive(tolerance, "tolerance")
     raw = _raw_series(keys, "keys")
     times = key_times(times, raw.shape[0], "times", "keys")
@@ -229,8 +223,8 @@ def integrate_angular_velocity(times, omega, *, initial=None, frame="world", met
     >>> np.round(r[-1].as_rotvec(), 12) + 0.0
     array([0.        , 0.        , 1.57079633])
     """
-    frame = _choice(frame, "frame", FRAMES)
-    method = _choice(method, "method", ("magnus", "constant"))
+    frame = choice(frame, "frame", FRAMES)
+    method = choice(method, "method", ("magnus", "constant"))
     w = float_array(omega, "omega")
     times = key_times(times, w.shape[0] if w.ndim else 0, "times", "omega")
     if len(times) < 2:
@@ -307,7 +301,7 @@ def angular_velocity(times, rotations, *, frame="world", acceleration=False, poi
            [0., 0., 1.],
            [0., 0., 2.]])
     """
-    frame = _choice(frame, "frame", FRAMES)
+    frame = choice(frame, "frame", FRAMES)
     if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 2:
         raise ValueError(f"expected points to be an int >= 2, got {points!r}")
     Q = _orientations(rotations)
@@ -540,7 +534,7 @@ def smooth(times, rotations, window, *, order=2):
     window = _positive(window, "window")
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 0:
         raise ValueError(f"expected order to be an int >= 0, got {order!r}")
-    T, batch = Q.shape[0], Q.shape[1:-1]
+    T = Q.shape[0]
     dt = float(np.median(np.diff(times)))
     points = max(int(order) + 2, 2 * int(round(window / (2 * dt))) + 1)
     q = _timeseries.smooth(times, Q.reshape(T, -1, 4).astype(np.float64), points, int(order))
@@ -584,7 +578,7 @@ def fill_gaps(times, keys, max_gap, *, method="slerp"):
                [0.        , 0.        , 0.        , 1.        ],
                [       nan,        nan,        nan,        nan]])
     """
-    method = _choice(method, "method", TRACK_METHODS)
+    method = choice(method, "method", TRACK_METHODS)
     q = float_array(keys, "keys")
     if q.ndim < 2 or q.shape[-1] != 4:
         raise ValueError(f"expected keys of shape (T, ..., 4), got {q.shape}")
@@ -592,7 +586,7 @@ def fill_gaps(times, keys, max_gap, *, method="slerp"):
     max_gap = _positive(max_gap, "max_gap")
     if np.isinf(q).any():
         raise ValueError("expected finite values or nan in keys, got inf")
-    T, batch = q.shape[0], q.shape[1:-1]
+    T = q.shape[0]
     flat = q.reshape(T, -1, 4)
     out = flat.copy()
     missing = np.isnan(flat).any(axis=-1)                      # (T, B)
