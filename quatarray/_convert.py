@@ -33,7 +33,6 @@ import numpy as np
 from . import _blocks, _kernels, _ops, _scale, _trig
 from ._kernels import ANGLE_FLOOR, arctan2
 from ._kernels import cos_sin as _cos_sin
-from ._kernels import half_angle as _half_angle
 from ._validate import finite, float_array, quat_array
 
 __all__ = [

@@ -15,7 +15,8 @@ import warnings
 import numpy as np
 
 from . import _blocks, _ops, _scale, _trig
-from ._convert import _blockwise, _half_angle, from_rotvec
+from ._convert import _blockwise, from_rotvec
+from ._kernels import half_angle as _half_angle
 from ._kernels import arctan2, multiply, multiply_rows
 from ._validate import finite, float_array, quat_array
 

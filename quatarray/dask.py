@@ -45,7 +45,6 @@ Requires the ``dask`` extra (``pip install 'quatarray[dask]'``).
 """
 
 from functools import partial
-from math import prod
 
 import numpy as np
 
