@@ -39,7 +39,7 @@ from math import prod
 import numpy as np
 
 __all__ = [
-    "BLOCK", "PARALLEL_MIN", "SCRATCH_LIMIT", "get_num_threads", "set_num_threads", "num_threads",
+    "BLOCK", "PARALLEL_MIN", "SMALL_ROWS", "SCRATCH_LIMIT", "get_num_threads", "set_num_threads", "num_threads",
     "block_size", "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise",
 ]
 
@@ -65,12 +65,23 @@ def block_size(*dtypes):
     >>> block_size(np.float64), block_size(np.float32), block_size(np.float32, np.float64)
     (32768, 65536, 32768)
     """
-    size = max((np.dtype(d).itemsize for d in dtypes if np.dtype(d).kind in "fc"), default=8)
-    return BLOCK * 8 // min(size, 8)
+    factor = _FACTOR.get(dtypes)
+    if factor is None:   # first call with these dtypes (a few a process)
+        size = max((np.dtype(d).itemsize for d in dtypes if np.dtype(d).kind in "fc"), default=8)
+        factor = _FACTOR[dtypes] = 8 // min(size, 8)
+    return BLOCK * factor
+
+
+_FACTOR = {}   # dtypes -> elements per block over BLOCK; a small batch pays a dict lookup
 
 
 #: Below this many elements a call runs on the calling thread only.
 PARALLEL_MIN = 4 * BLOCK
+
+#: Requests for scratch rows of at most this many bytes get fresh arrays: small
+#: allocations come from the heap without page faults, and cost a fifth of carving
+#: a view from the kept buffer (what a small batch pays per row set).
+SMALL_ROWS = 32 * 1024
 
 #: Bytes of scratch a thread keeps between calls: 24 rows of a float64 block
 #: (6 MiB; two threads keep 12 MiB, 0.4 of a 10⁶-quaternion float64 output).
@@ -238,6 +249,8 @@ def part(a, idx, batch_ndim, core=1):
 
 def soa(a):
     """Components-first view ``(k, ...)`` of an ``(..., k)`` array (no copy)."""
+    if a.ndim == 2:   # the common (N, k): `.T` costs a fifth of a general transpose
+        return a.T
     n = a.ndim - 1
     return a.transpose((n,) + tuple(range(n)))
 
@@ -262,10 +275,13 @@ class Scratch:
         self.top = 0
 
     def rows(self, n, shape, dtype):
-        shape = (n,) + tuple(shape)
+        shape = (n, *shape)
         dtype = np.dtype(dtype)
+        nbytes = prod(shape) * dtype.itemsize
+        if nbytes <= SMALL_ROWS:   # fresh small memory costs no page faults, and less than a view
+            return np.empty(shape, dtype)
         start = -(-self.top // 64) * 64   # 64-byte aligned rows
-        end = start + prod(shape) * dtype.itemsize
+        end = start + nbytes
         if end > SCRATCH_LIMIT:
             return np.empty(shape, dtype)
         if self.buf is None or end > self.buf.size:
@@ -452,9 +468,10 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
             iv = []
             for a in ins:   # contiguous components-first copies, broadcast to the batch
                 buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
-                np.copyto(buf, soa(a.reshape((1,) * (nb + 1 - a.ndim) + a.shape)), casting="unsafe")
+                buf[...] = soa(a if a.ndim == nb + 1 else a.reshape((1,) * (nb + 1 - a.ndim) + a.shape))
                 iv.append(buf)
-            iv += [np.asarray(v).reshape((1,) * (nb - np.ndim(v)) + np.shape(v)) for v in views]
+            if views:
+                iv += [np.asarray(v).reshape((1,) * (nb - np.ndim(v)) + np.shape(v)) for v in views]
             r = kernel(*iv, *[soa(o) for o in outs], **params)
         finally:
             work.top = top

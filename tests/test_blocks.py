@@ -208,13 +208,17 @@ def test_floating_point_state_reaches_the_workers(rng, parallel_always):
 
 def test_scratch_rows_do_not_overlap_and_frames_give_back():
     work = _blocks.Scratch()
-    a = work.rows(2, (5,), np.float64)
+    n = _blocks.SMALL_ROWS   # rows past the small-request size come from the kept buffer
+    a = work.rows(2, (n,), np.float64)
     with work.frame():
-        b = work.rows(3, (7,), np.float32)
+        b = work.rows(3, (n + 7,), np.float32)
         top = work.top
-    c = work.rows(3, (7,), np.float32)
+    c = work.rows(3, (n + 7,), np.float32)
     assert not np.may_share_memory(a, b) and not np.may_share_memory(a, c)
     assert np.may_share_memory(b, c) and work.top == top   # given back, taken again
+    small = work.rows(3, (7,), np.float32)   # a fresh array, the kept buffer untouched
+    assert small.shape == (3, 7) and small.dtype == np.float32 and work.top == top
+    assert not np.may_share_memory(small, work.buf)
     big = work.rows(1, (_blocks.SCRATCH_LIMIT,), np.uint8)  # beyond the bound: not kept
     assert work.nbytes <= _blocks.SCRATCH_LIMIT and not np.may_share_memory(big, work.buf)
 
