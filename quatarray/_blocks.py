@@ -420,7 +420,7 @@ def run(fn, items, size):
     return results
 
 
-def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
+def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=False, **params):
     """Run ``kernel(*ins_block, *views_block, *outs_block, **params)`` over the blocks of a batch.
 
     Parameters
@@ -444,6 +444,10 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
         parameters) broadcasting against `batch`: the kernel gets each
         block's part as a view (not copied, dtype kept) that broadcasts
         against ``s``.
+    read_only : bool, default False
+        The kernel never writes into its inputs: a batch that fits one block
+        gets components-first views of inputs of its shape and dtype (no
+        copies; the same ufunc calls on strided rows give the same bits).
 
     Returns
     -------
@@ -467,6 +471,9 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), **params):
         try:
             iv = []
             for a in ins:   # contiguous components-first copies, broadcast to the batch
+                if read_only and a.shape[:-1] == batch and (dtype is None or a.dtype == dtype):
+                    iv.append(soa(a))
+                    continue
                 buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
                 buf[...] = soa(a if a.ndim == nb + 1 else a.reshape((1,) * (nb + 1 - a.ndim) + a.shape))
                 iv.append(buf)

@@ -660,12 +660,30 @@ def _k_as_mrp(q, o):
         np.multiply(z, k, out=o[2])
 
 
-def as_mrp(q):
+def _mrp_denominator(w, op, s, d):
+    """``|q| + |w|`` for a unit q, signed as w (w = -0 counts as positive, as in scipy), in
+    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it."""
+    s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign
+    d = op.abs(s, d)
+    d = op.add(d, 1.0, d)
+    return op.copysign(d, s, d)
+
+
+def _k_as_mrp_unit(q, o):
+    s, d = np.empty((2,) + q.shape[1:], q.dtype)
+    np.divide(q[1:], _mrp_denominator(q[0], _ops.ARRAYS, s, d), out=o)
+
+
+def as_mrp(q, unit=False):
     """Modified Rodrigues parameters ``v / (|q| + |w|)`` (norm ≤ 1, angle ≤ π).
 
     Parameters
     ----------
     q : ndarray, shape (..., 4)
+    unit : bool, default False
+        The caller knows every q is a finite unit quaternion (`Rotation`'s
+        storage): |q| is taken as 1, as scipy does (``v / (1 + |w|)``),
+        saving the squared norms and their range check.
 
     Returns
     -------
@@ -680,8 +698,16 @@ def as_mrp(q):
     array([0., 0., 1.])
     """
     q = quat_array(q, "quat")
+    if unit:
+        one = _ops.floats64(q)
+        if one is not None:   # one float64 rotation: the same formula on its floats
+            d = _mrp_denominator(one[0], _ops.FLOATS, None, None)
+            return np.array([one[1] / d, one[2] / d, one[3] / d]).reshape(q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
+    if unit:   # finite unit input: nothing to warn about, nothing written into q
+        _blocks.blockwise(_k_as_mrp_unit, [q.reshape(-1, 4)], [out.reshape(-1, 3)], read_only=True)
+    else:
+        _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
 
 

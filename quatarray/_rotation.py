@@ -296,7 +296,7 @@ class Rotation:
         >>> np.round(Rotation.from_rotvec([0, 0, np.pi / 2]).as_mrp(), 12)
         array([0.        , 0.        , 0.41421356])
         """
-        return _convert.as_mrp(self._q)
+        return _convert.as_mrp(self._q, unit=self._unit)
 
     # --- Euler and Davenport angles -----------------------------------------------------
     @classmethod
