@@ -39,7 +39,7 @@ from math import prod
 import numpy as np
 
 __all__ = [
-    "BLOCK", "PARALLEL_MIN", "SMALL_ROWS", "SCRATCH_LIMIT", "get_num_threads", "set_num_threads", "num_threads",
+    "BLOCK", "PARALLEL_MIN", "VIEWS_MAX", "SMALL_ROWS", "SCRATCH_LIMIT", "get_num_threads", "set_num_threads", "num_threads",
     "block_size", "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise",
 ]
 
@@ -77,6 +77,11 @@ _FACTOR = {}   # dtypes -> elements per block over BLOCK; a small batch pays a d
 
 #: Below this many elements a call runs on the calling thread only.
 PARALLEL_MIN = 4 * BLOCK
+
+#: Largest batch whose kernels read strided views of the inputs rather than copies
+#: (`blockwise`'s ``read_only``): below it the copy's call costs more than strided
+#: loops lose; above it (10³, AVX-512) strided reads cost more than the copy.
+VIEWS_MAX = 512
 
 #: Requests for scratch rows of at most this many bytes get fresh arrays: small
 #: allocations come from the heap without page faults, and cost a fifth of carving
@@ -445,9 +450,10 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         block's part as a view (not copied, dtype kept) that broadcasts
         against ``s``.
     read_only : bool, default False
-        The kernel never writes into its inputs: a batch that fits one block
-        gets components-first views of inputs of its shape and dtype (no
-        copies; the same ufunc calls on strided rows give the same bits).
+        The kernel never writes into its inputs: a batch of at most
+        `VIEWS_MAX` elements gets components-first views of inputs of its
+        shape and dtype (no copies; the same ufunc calls on strided rows give
+        the same bits).
 
     Returns
     -------
@@ -468,10 +474,12 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
     if prod(batch) <= size:   # one block: the same kernel call, without splitting or the pool
         work = scratch()
         top = work.top
+        small = prod(batch) <= VIEWS_MAX
         try:
             iv = []
             for a in ins:   # contiguous components-first copies, broadcast to the batch
-                if read_only and a.shape[:-1] == batch and (dtype is None or a.dtype == dtype):
+                if (read_only and small and a.shape[:-1] == batch
+                        and (dtype is None or a.dtype == dtype)):
                     iv.append(soa(a))
                     continue
                 buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
