@@ -281,16 +281,27 @@ def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
     w, qi, qj, qk = comps[0], comps[i + 1], comps[j + 1], comps[k + 1]
     if sign < 0:
         qk = qk * -1
-    a, b, c, d = _abcd(w, qi, qj, qk, symmetric, _ops.FLOATS, _ops.NONE)
+    abcd = _abcd(w, qi, qj, qk, symmetric, _ops.FLOATS, _ops.NONE)
+    return _angles_floats(abcd, extrinsic, symmetric, sign, np.pi / 2)
+
+
+def _angles_floats(abcd, extrinsic, symmetric, sign, lamb):
+    """`_angles` on the Python floats a, b, c, d of one float64 rotation (the same formula),
+    or None where that kernel would rescale or find gimbal lock (its own path, with the
+    warning)."""
+    a, b, c, d = abcd
     r = _scale.squares([c, d], _ops.FLOATS, None, None)
     u = _scale.squares([a, b], _ops.FLOATS, None, None)
-    if not _scale.LOW[q.dtype] <= r + u <= _scale.HIGH[q.dtype]:
+    if not _scale.LOW[_F64] <= r + u <= _scale.HIGH[_F64]:
         return None
     first, third = (0, 2) if extrinsic else (2, 0)
     mid, angles = _outer_angles(a, b, c, d, r, u, first, third, _ops.FLOATS, _ops.NONE)
     if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
         return None
-    return _euler_rows(mid, angles, first, third, symmetric, sign, np.pi / 2, _ops.FLOATS, _ops.NONE)
+    return _euler_rows(mid, angles, first, third, symmetric, sign, lamb, _ops.FLOATS, _ops.NONE)
+
+
+_F64 = np.dtype(np.float64)
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -446,6 +457,24 @@ def from_davenport(axes, order, angles, degrees=False):
     return out
 
 
+def _davenport_floats(q, lmat, extrinsic, lamb, flip):
+    """`_k_davenport_angles` on the floats of one float64 quaternion, or None (as
+    `_angles_floats`)."""
+    comps = _ops.floats64(q)
+    if comps is None:
+        return None
+    abcd = []
+    for coef in lmat:   # the kernel's order: q0 c0 + q1 c1 + q2 c2 + q3 c3, left to right
+        row = comps[0] * coef[0]
+        for k in (1, 2, 3):
+            row = row + comps[k] * coef[k]
+        abcd.append(row)
+    o = _angles_floats(abcd, extrinsic, False, 1, lamb)
+    if o is not None and flip:
+        o[1] = -o[1]
+    return o
+
+
 def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
     with _blocks.scratch().frame() as work:
         abcd = work.rows(4, q.shape[1:], q.dtype)
@@ -496,10 +525,14 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     q = quat_array(q, "quat")
     key = float_array(axes, "axes").astype(np.float64, copy=False)
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
-    out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)],
-                        lmat=lmat, extrinsic=extrinsic, lamb=lamb, flip=flip)
-    _warn_gimbal(gimbal, suppress_warnings)
+    one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
+    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+        out = np.array(one).reshape(q.shape[:-1] + (3,))
+    else:
+        out = np.empty(q.shape[:-1] + (3,), q.dtype)
+        gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)],
+                            lmat=lmat, extrinsic=extrinsic, lamb=lamb, flip=flip)
+        _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 
 
