@@ -711,15 +711,26 @@ def as_mrp(q, unit=False):
     return out
 
 
+def _mrp_quat(n, w):
+    """(w, f) of the unit quaternion ``((1 - n), 2 p) / (1 + n)`` = (w, f p) of the MRP p with
+    n = |p|², written with operators so that it runs on a block's rows and on the floats of one
+    MRP alike; `w` is where the arrays' w goes (an output row) or None for floats."""
+    d = 1.0 / (1.0 + n)
+    if w is None:
+        w = (1.0 - n) * d
+    else:
+        np.multiply(1.0 - n, d, out=w)
+    d *= 2.0
+    return w, d
+
+
 def _k_from_mrp(p, q):
     x, y, z = p
     with np.errstate(over="ignore"):   # |p|² that overflows: the block is redone below
         n = x * x + y * y + z * z
     if n.size and not n.max() <= _scale.HIGH[n.dtype]:
         return _k_from_huge_mrp(p, q)
-    d = 1.0 / (1.0 + n)
-    np.multiply(1.0 - n, d, out=q[0])
-    d *= 2.0
+    _, d = _mrp_quat(n, q[0])
     np.multiply(x, d, out=q[1])
     np.multiply(y, d, out=q[2])
     np.multiply(z, d, out=q[3])
@@ -763,6 +774,13 @@ def from_mrp(mrp):
     array([0., 0., 0., 1.])
     """
     p = finite(_vec3(mrp, "mrp"), "mrp")
+    one = _ops.floats64(p, 3)
+    if one is not None:
+        x, y, z = one
+        n = x * x + y * y + z * z   # the kernel's |p|², in its order
+        if n <= _scale.HIGH[p.dtype]:   # one float64 MRP: the kernel's formula on its floats
+            w, d = _mrp_quat(n, None)
+            return np.array([w, x * d, y * d, z * d]).reshape(p.shape[:-1] + (4,))
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
     return out
