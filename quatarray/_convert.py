@@ -239,31 +239,37 @@ def as_matrix(q, unit=False):
     return out
 
 
+def _shepperd_k(mat, op, k):
+    """tr and the upper triangle of Shepperd's symmetric 4x4 matrix K of a rotation matrix
+    `mat` (nine entries, row-major), in `op`'s arithmetic (`_ops`): K's diagonal is
+    1 ± m00 ± m11 ± m22 and every column is proportional to the quaternion.  The entries
+    (k00, k01, k02, k03, k11, k12, k13, k22, k23, k33) go into the ten rows `k` (or
+    `_ops.NONE`) and are returned with tr."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
+    tr = op.add(op.add(m00, m11, None), m22, None)
+    e = [op.add(1.0, tr, k[0]), op.sub(m21, m12, k[1]), op.sub(m02, m20, k[2]), op.sub(m10, m01, k[3])]
+    for mii, row, rest in ((m00, 4, ((m10, m01, 5), (m20, m02, 6))), (m11, 7, ((m21, m12, 8),)), (m22, 9, ())):
+        d = op.sub(1.0, tr, k[row])
+        e.append(op.add(d, op.mul(2, mii, None), d))
+        e += [op.add(a, b, k[r]) for a, b, r in rest]
+    return tr, e
+
+
+#: Where K[i][j] (i, j = column, component) sits in `_shepperd_k`'s upper triangle.
+_K_INDEX = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]]
+
+
 def _shepperd(mat, q):
     """Quaternions (4, m) of orthogonal matrices (9, m) by Shepperd's method.
 
-    The 4x4 symmetric matrix K with diagonal 1 ± m00 ± m11 ± m22 has every
-    column proportional to the quaternion; the column with the largest
-    diagonal entry is the best conditioned.  Ties pick x, then y, z, w, as
-    scipy does (argmax over m00, m11, m22, trace).
+    The column of K (`_shepperd_k`) with the largest diagonal entry is the best
+    conditioned.  Ties pick x, then y, z, w, as scipy does (argmax over m00, m11,
+    m22, trace).
     """
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
     m = m00.shape[0]
     k = np.empty((4, 4, m), mat.dtype)  # k[column, component]
-    tr = m00 + m11 + m22
-    np.add(1.0, tr, out=k[0, 0])
-    np.subtract(m21, m12, out=k[0, 1])
-    np.subtract(m02, m20, out=k[0, 2])
-    np.subtract(m10, m01, out=k[0, 3])
-    np.subtract(1.0, tr, out=k[1, 1])
-    k[1, 1] += 2 * m00
-    np.add(m10, m01, out=k[1, 2])
-    np.add(m20, m02, out=k[1, 3])
-    np.subtract(1.0, tr, out=k[2, 2])
-    k[2, 2] += 2 * m11
-    np.add(m21, m12, out=k[2, 3])
-    np.subtract(1.0, tr, out=k[3, 3])
-    k[3, 3] += 2 * m22
+    tr, _ = _shepperd_k(mat, _ops.ARRAYS, [k[i, j] for i in range(4) for j in range(i, 4)])
     for i in range(4):  # symmetric: fill the lower triangle
         for j in range(i):
             k[i, j] = k[j, i]
@@ -276,25 +282,47 @@ def _shepperd(mat, q):
         np.copyto(choice, col, where=bigger)
     index = choice * (4 * m) + (np.arange(4)[:, None] * m + np.arange(m))
     np.take(k.reshape(-1), index, out=q)
-    q /= np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    q /= np.sqrt(_scale.squares(q, _ops.ARRAYS, None, None))
+
+
+def _orthogonality(mat, op):
+    """(det, worst |row·row - 1|, worst |row·row'|) of rotation matrices `mat` (nine entries,
+    row-major), written with operators and `op`'s abs and max (`_ops`): scipy's test
+    ``isclose(M Mᵀ, I)`` entry by entry, on a block's rows or one matrix's floats."""
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
+    det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+           + m02 * (m10 * m21 - m11 * m20))
+    r0, r1, r2 = (m00, m01, m02), (m10, m11, m12), (m20, m21, m22)
+    diag = [op.abs(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0, None) for a in (r0, r1, r2)]
+    off = [op.abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2], None) for a, b in ((r0, r1), (r0, r2), (r1, r2))]
+    return (det, op.max(op.max(diag[0], diag[1], None), diag[2], None),
+            op.max(op.max(off[0], off[1], None), off[2], None))
 
 
 def _k_from_matrix(mat, q, status, tol_diag, tol_off):
     _shepperd(mat, q)
-    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
-    det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
-           + m02 * (m10 * m21 - m11 * m20))
-    # M Mᵀ close to I, entry by entry, as scipy's isclose(gram, eye, atol=1e-12)
-    worst_diag = np.abs(m00 * m00 + m01 * m01 + m02 * m02 - 1.0)
-    np.maximum(worst_diag, np.abs(m10 * m10 + m11 * m11 + m12 * m12 - 1.0), out=worst_diag)
-    np.maximum(worst_diag, np.abs(m20 * m20 + m21 * m21 + m22 * m22 - 1.0), out=worst_diag)
-    worst_off = np.abs(m00 * m10 + m01 * m11 + m02 * m12)
-    np.maximum(worst_off, np.abs(m00 * m20 + m01 * m21 + m02 * m22), out=worst_off)
-    np.maximum(worst_off, np.abs(m10 * m20 + m11 * m21 + m12 * m22), out=worst_off)
+    det, worst_diag, worst_off = _orthogonality(mat, _ops.ARRAYS)
     orthogonal = (worst_diag <= tol_diag) & (worst_off <= tol_off)
     np.copyto(status[0], 1)
     np.copyto(status[0], 0, where=orthogonal)
     np.copyto(status[0], 2, where=~((det > 0) & (det < np.inf)))
+
+
+def _from_matrix_floats(m, tol_diag, tol_off):
+    """`_k_from_matrix` on the nine floats of one float64 rotation matrix, where it finds it
+    orthogonal within the tolerances with det > 0 (status 0); else None (the block path:
+    projection, rescaling, errors)."""
+    det, worst_diag, worst_off = _orthogonality(m, _ops.FLOATS)
+    if not (worst_diag <= tol_diag and worst_off <= tol_off and 0 < det < math.inf):
+        return None
+    tr, e = _shepperd_k(m, _ops.FLOATS, _ops.NONE)
+    best, choice = m[0], 1
+    for col, value in ((2, m[4]), (3, m[8]), (0, tr)):   # the kernel's choice, ties included
+        if value > best:
+            best, choice = value, col
+    q = [e[i] for i in _K_INDEX[choice]]
+    n = math.sqrt(_scale.squares(q, _ops.FLOATS, None, None))
+    return [c / n for c in q]
 
 
 def _k_shepperd(mat, q):
@@ -398,6 +426,11 @@ def from_matrix(matrix, assume_valid=False):
     batch = m.shape[:-2]
     flat = m.reshape(-1, 9)
     n = flat.shape[0]
+    one = None if assume_valid else _ops.floats64(flat, 9)
+    if one is not None and all(map(math.isfinite, one)):   # one float64 matrix: the same formulas on its floats
+        q = _from_matrix_floats(one, 1e-5 + tol_off, tol_off)
+        if q is not None:
+            return np.array(q).reshape(batch + (4,))
     out = np.empty(batch + (4,), m.dtype)
     qflat = out.reshape(-1, 4)
     if assume_valid:
