@@ -338,20 +338,28 @@ def _k_polar(mat, out, bad, tol, maxiter):
     """
     x = mat.copy()
     new = np.empty_like(x)
+    # each matrix stops at its own convergence, and every sum runs in one fixed order (no
+    # einsum, whose order may follow the strides): a matrix's bits never depend on its block
+    active = np.ones(x.shape[1:], bool)
+    last = np.full(x.shape[1:], np.inf, x.dtype)
     for _ in range(maxiter):
         r0, r1, r2 = x[0:3], x[3:6], x[6:9]
         cof = np.concatenate([np.cross(r1, r2, axis=0), np.cross(r2, r0, axis=0),
                               np.cross(r0, r1, axis=0)])
-        det = np.einsum("ij,ij->j", r0, cof[0:3])
-        gamma = np.sqrt(np.sqrt(np.einsum("ij,ij->j", cof, cof) / np.einsum("ij,ij->j", x, x)) / np.abs(det))
+        det = r0[0] * cof[0] + r0[1] * cof[1] + r0[2] * cof[2]
+        cof2 = _scale.squares(cof, _ops.ARRAYS, None, None)
+        x2 = _scale.squares(x, _ops.ARRAYS, None, None)
+        gamma = np.sqrt(np.sqrt(cof2 / x2) / np.abs(det))
         np.multiply(x, 0.5 * gamma, out=new)
         new += cof * (0.5 / (gamma * det))
         delta = np.abs(new - x).max(axis=0)
-        x, new = new, x
-        if not (delta > tol).any():
+        np.copyto(x, new, where=active)
+        np.copyto(last, delta, where=active)
+        active &= delta > tol
+        if not active.any():
             break
     np.copyto(out, x)
-    np.copyto(bad[0], ~(delta <= np.sqrt(tol)))
+    np.copyto(bad[0], ~(last <= np.sqrt(tol)))
 
 
 def _svd_polar(mat):

@@ -151,6 +151,20 @@ def test_from_matrix_projects_arbitrary_positive_det_matrices_like_scipy(rng):
     assert_same_rotation(got, want, 1e-12)
 
 
+def test_from_matrix_projection_gives_each_matrix_the_same_bits_alone_and_in_a_batch(rng):
+    """The polar projection iterates until a matrix converges, each matrix by itself: a
+    matrix that converges early is not iterated further because another in its block is
+    slow (which changed its last bits with the batch around it)."""
+    m = R.random(60, rng=rng).as_matrix()
+    m[::3] += 1e-6 * rng.standard_normal((20, 3, 3))   # a few Newton steps
+    m[1::3] = rng.standard_normal((20, 3, 3))           # many
+    m[1::3] *= np.sign(np.linalg.det(m[1::3]))[:, None, None]
+    whole = C.from_matrix(m)
+    for i in range(len(m)):
+        np.testing.assert_array_equal(C.from_matrix(m[i]), whole[i], strict=True)
+        np.testing.assert_array_equal(C.from_matrix(m[i:i + 1])[0], whole[i], strict=True)
+
+
 def test_from_matrix_svd_fallback_gives_the_same_rotation(rng, monkeypatch):
     m = rng.standard_normal((50, 3, 3))
     m[np.linalg.det(m) < 0] *= -1
