@@ -43,6 +43,9 @@ def floats64(q, k=4):
     >>> floats64(np.array([1.0, 0, 0, 0])), floats64(np.ones((2, 4)))
     ([1.0, 0.0, 0.0, 0.0], None)
     """
-    if q.dtype == np.float64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:
-        return q.reshape(k).tolist()
+    if q.dtype is _FLOAT64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:   # `is`: a fifth of ==
+        return q.tolist() if q.ndim == 1 else q.reshape(k).tolist()
     return None
+
+
+_FLOAT64 = np.dtype(np.float64)   # NumPy's one native float64 dtype (another one: the block path)
