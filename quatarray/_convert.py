@@ -163,33 +163,28 @@ def _index(flat_index, batch):
 # --- matrices -----------------------------------------------------------------------
 
 def _matrix(w, x, y, z, s, op, o, t):
-    """The nine entries of the rotation matrix of q, row-major, over components in `op`'s
-    arithmetic (`_ops`: a block's rows, or the floats of one rotation), written into
-    ``o`` (nine rows, or `_ops.NONE`) with `t` (nine work rows) and returned as a list.
-    ``s = 2 / |q|²``, or None for a unit q: then scipy's diagonal (w² ∓ z²) ± (x² ∓ y²),
+    """The nine entries of the rotation matrix of q, row-major, into ``o`` (nine rows, or
+    `_ops.NONE`) and returned as a list: each entry is one `op` call (`_ops`: a block's
+    rows, or the floats of one rotation) on intermediates written with operators (arrays:
+    temporaries; floats: no function calls), with `t` (three work rows) for the general
+    case.  ``s = 2 / |q|²``, or None for a unit q: then scipy's diagonal (w² ∓ z²) ± (x² ∓ y²),
     with exact zeros where |w| = |z| etc."""
     o = list(o[:9])
-    xs, ys, zs, xx, yy, zz, a, b, ww = t[:9]
     if s is None:
-        xs, ys, zs = [op.add(c, c, r) for c, r in ((x, xs), (y, ys), (z, zs))]
-        ww, xx, yy, zz = [op.mul(c, c, r) for c, r in ((w, ww), (x, xx), (y, yy), (z, zz))]
-        a = op.sub(ww, zz, a)
-        b = op.sub(xx, yy, b)
+        xs, ys, zs = x + x, y + y, z + z
+        ww, xx, yy, zz = w * w, x * x, y * y, z * z
+        a, b = ww - zz, xx - yy
         o[0] = op.add(a, b, o[0])
         o[4] = op.sub(a, b, o[4])
-        a = op.add(ww, zz, a)
-        b = op.add(xx, yy, b)
-        o[8] = op.sub(a, b, o[8])
+        o[8] = op.sub(ww + zz, xx + yy, o[8])
     else:
-        xs, ys, zs = [op.mul(c, s, r) for c, r in ((x, xs), (y, ys), (z, zs))]
-        xx, yy, zz = [op.mul(c, cs, r) for c, cs, r in ((x, xs, xx), (y, ys, yy), (z, zs, zz))]
+        xs, ys, zs = [op.mul(c, s, r) for c, r in zip((x, y, z), t[:3])]
+        xx, yy, zz = x * xs, y * ys, z * zs
         for k, p, r in ((0, yy, zz), (4, xx, zz), (8, xx, yy)):
-            a = op.add(p, r, a)
-            o[k] = op.sub(1.0, a, o[k])
+            o[k] = op.sub(1.0, p + r, o[k])
     # off-diagonal pairs (i, j) = p -/+ r, each output row written once
     for i, j, p1, p2, r1, r2 in ((1, 3, x, ys, w, zs), (6, 2, x, zs, w, ys), (5, 7, y, zs, w, xs)):
-        a = op.mul(p1, p2, a)
-        b = op.mul(r1, r2, b)
+        a, b = p1 * p2, r1 * r2
         o[i] = op.sub(a, b, o[i])
         o[j] = op.add(a, b, o[j])
     return o
@@ -198,7 +193,7 @@ def _matrix(w, x, y, z, s, op, o, t):
 def _k_as_matrix(q, o, unit=False):
     with _blocks.scratch().frame() as work:
         s = None if unit else np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
-        _matrix(*q, s, _ops.ARRAYS, o, work.rows(9, q.shape[1:], o.dtype))
+        _matrix(*q, s, _ops.ARRAYS, o, work.rows(3, q.shape[1:], o.dtype))
 
 
 def as_matrix(q, unit=False):
