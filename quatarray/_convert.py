@@ -482,12 +482,16 @@ def _flip_mask(w, x, y, z):
     return flip
 
 
-def _vector_norm(q):
+def _vector_norm(q, unit=False):
     """|v| of a block's scratch copy `q`, rescaled in place first where |q|² would
-    over- or underflow (|v|² + w² is checked: two more ufuncs than |v| alone)."""
+    over- or underflow (|v|² + w² is checked: two more ufuncs than |v| alone).  With
+    `unit` (finite unit quaternions, `Rotation`'s storage: |q|² always fits) the check
+    is skipped and `q` is never written."""
     work = _blocks.scratch()
     v2, n2 = work.rows(2, q.shape[1:], q.dtype)
     _scale.sum_squares(q, v2, 1)
+    if unit:
+        return _scale.small_norms(q[1:], v2)
     np.multiply(q[0], q[0], out=n2)
     n2 += v2
     if not _scale.fits(n2):
@@ -523,12 +527,22 @@ def _rotvec(w, x, y, z, nv, flip, factor, op, o):
     return [op.mul(c, scale, r) for c, r in zip((x, y, z), o[:3])]
 
 
-def _k_as_rotvec(q, o, factor):
-    nv = _vector_norm(q)
+def _k_as_rotvec(q, o, factor, unit=False):
+    nv = _vector_norm(q, unit)
     _rotvec(*q, nv, _flip_mask(*q), factor, _ops.ARRAYS, o)
 
 
-def as_rotvec(q, degrees=False):
+def _blockwise_unit(kernel, q, out, unit, **params):
+    """Run a conversion kernel on quaternions `q` (N, 4) into `out` (N, k).  `unit`: they are
+    finite unit quaternions (`Rotation`'s storage), which the kernel then only reads and
+    which cannot overflow, divide by zero or give NaN: no errstate, and views for small
+    batches (`_blocks.blockwise`'s ``read_only``)."""
+    if unit:
+        return _blocks.blockwise(kernel, [q], [out], read_only=True, unit=True, **params)
+    return _blockwise(kernel, [q], [out], **params)
+
+
+def as_rotvec(q, degrees=False, unit=False):
     """Rotation vectors (axis × angle, angle in [0, π]) of quaternions.
 
     Accurate for every angle: the angle is ``2 atan2(|v|, |w|)`` and the
@@ -540,6 +554,9 @@ def as_rotvec(q, degrees=False):
     q : ndarray, shape (..., 4)
         Scalar-first quaternions, not necessarily unit.
     degrees : bool, default False
+    unit : bool, default False
+        The caller knows every q is a finite unit quaternion (`Rotation`'s
+        storage): the range check of |q|² is skipped (the same bits).
 
     Returns
     -------
@@ -558,7 +575,7 @@ def as_rotvec(q, degrees=False):
     if one is not None:   # one float64 rotation: the same formula on its floats
         return np.array(_rotvec(*one, one[0] < 0, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE)).reshape(q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    _blockwise(_k_as_rotvec, [q.reshape(-1, 4)], [out.reshape(-1, 3)], factor=_ROTVEC_FACTOR[degrees])
+    _blockwise_unit(_k_as_rotvec, q.reshape(-1, 4), out.reshape(-1, 3), unit, factor=_ROTVEC_FACTOR[degrees])
     return out
 
 
@@ -648,17 +665,20 @@ def from_rotvec(rotvec, degrees=False):
     return out
 
 
-def _k_magnitude(q, o):
-    arctan2(_vector_norm(q), np.abs(q[0]), out=o[0], x_nonneg=True)
+def _k_magnitude(q, o, unit=False):
+    arctan2(_vector_norm(q, unit), np.abs(q[0]), out=o[0], x_nonneg=True)
     o[0] *= 2.0
 
 
-def magnitude(q):
+def magnitude(q, unit=False):
     """Rotation angles in [0, π] of quaternions, ``2 atan2(|v|, |w|)``.
 
     Parameters
     ----------
     q : ndarray, shape (..., 4)
+    unit : bool, default False
+        The caller knows every q is a finite unit quaternion (`Rotation`'s
+        storage): the range check of |q|² is skipped (the same bits).
 
     Returns
     -------
@@ -676,7 +696,7 @@ def magnitude(q):
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
         return np.full(q.shape[:-1], arctan2(one[4], abs(one[0]), x_nonneg=True) * 2.0)
     out = np.empty(q.shape[:-1], q.dtype)
-    _blockwise(_k_magnitude, [q.reshape(-1, 4)], [out.reshape(-1, 1)])
+    _blockwise_unit(_k_magnitude, q.reshape(-1, 4), out.reshape(-1, 1), unit)
     return out
 
 

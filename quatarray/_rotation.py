@@ -272,7 +272,7 @@ class Rotation:
         >>> Rotation.from_euler("x", 1e-9).as_rotvec()
         array([1.e-09, 0.e+00, 0.e+00])
         """
-        return _convert.as_rotvec(self._q, degrees=degrees)
+        return _convert.as_rotvec(self._q, degrees=degrees, unit=self._unit)
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -506,7 +506,7 @@ class Rotation:
         >>> Rotation.from_rotvec([[0, 0, 1], [0, 4, 0]]).magnitude()
         array([1.        , 2.28318531])
         """
-        m = _convert.magnitude(self._q)
+        m = _convert.magnitude(self._q, unit=self._unit)
         return m[()] if m.ndim == 0 else m
 
     def approx_equal(self, other, atol=None, degrees=False):
