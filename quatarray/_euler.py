@@ -174,7 +174,7 @@ def from_euler(seq, angles, degrees=False):
     return out
 
 
-def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
+def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
     """Bernardes & Viollet's step 2-3 on rows a, b, c, d (`abcd`, (4, m), scratch that may
     be rescaled in place): writes o (3, m).
 
@@ -184,7 +184,8 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
     applies to the sum: two arctangents for the outer angles, as before, but
     no wrap and no strided passes over `o` but the last.  Returns True if
     any element is in gimbal lock (middle angle within 1e-7 of 0 or π); its
-    third angle is then set to 0, as in scipy.
+    third angle is then set to 0, as in scipy.  `unit`: a, b, c, d come from finite unit
+    quaternions (`Rotation`'s storage), whose squared norms always fit: no range check.
     """
     first, third = (0, 2) if extrinsic else (2, 0)
     a, b, c, d = abcd
@@ -195,7 +196,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb):
             u = _scale.squares([a, b], _ops.ARRAYS, u, v)   # |(a, b)|²
             # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²), which the
             # two sums give for one more pass: blocks of extreme magnitude are rescaled
-            if attempt or _scale.fits(np.add(r, u, out=mid)):
+            if unit or attempt or _scale.fits(np.add(r, u, out=mid)):
                 if attempt and not np.add(r, u, out=mid).all():
                     raise ValueError(_scale.ZERO)
                 break
@@ -262,14 +263,14 @@ def _abcd(w, qi, qj, qk, symmetric, op, rows):
     return [op.sub(w, qj, rows[0]), op.add(qi, qk, rows[1]), op.add(qj, w, rows[2]), op.sub(qk, qi, rows[3])]
 
 
-def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic):
+def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
     w, qi, qj, qk = q[0], q[i + 1], q[j + 1], q[k + 1]
     if sign < 0:
         _negate(qk)                          # q is the block's scratch copy
     with _blocks.scratch().frame() as work:
         abcd = work.rows(4, q.shape[1:], q.dtype)
         _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
-        return _angles(abcd, o, extrinsic, symmetric, sign, np.pi / 2)
+        return _angles(abcd, o, extrinsic, symmetric, sign, np.pi / 2, unit)
 
 
 def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
@@ -320,7 +321,7 @@ def _euler_plan(seq):
     return i, j, k, symmetric, (i - j) * (j - k) * (k - i) // 2, not intrinsic
 
 
-def as_euler(q, seq, degrees=False, suppress_warnings=False):
+def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     """Euler angles of quaternions, as scipy's ``Rotation.as_euler``.
 
     Uses the quaternion method of Bernardes & Viollet (2022) as scipy does,
@@ -335,6 +336,10 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
     degrees : bool, default False
     suppress_warnings : bool, default False
         Do not warn about gimbal lock.
+    unit : bool, default False
+        The caller knows every q is a finite unit quaternion (`Rotation`'s
+        storage): the range check of the squared norms is skipped (the same
+        bits), and so is the errstate (such input cannot overflow).
 
     Returns
     -------
@@ -360,8 +365,9 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False):
         out = np.array(one).reshape(q.shape[:-1] + (3,))
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
-        gimbal = _blockwise(_k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
-                            symmetric=symmetric, sign=sign, extrinsic=extrinsic)
+        gimbal = (_blocks.blockwise if unit else _blockwise)(
+            _k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
+            symmetric=symmetric, sign=sign, extrinsic=extrinsic, unit=unit)
         _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 

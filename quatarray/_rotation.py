@@ -337,7 +337,8 @@ class Rotation:
         array([30., 20., 10.])
         """
         _euler.check_seq(seq, 3)
-        return _euler.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        return _euler.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings,
+                               unit=self._unit)
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
