@@ -587,6 +587,8 @@ def _k_from_rotvec(r, q, factor):
     with _blocks.scratch().frame() as work:
         rows = work.rows(6, r.shape[1:], q.dtype)
         e = _scale.true_norm(r, rows[0])     # |r|; r scaled by 2**-e where |r|² overflows
+        if e is not None and not np.isfinite(r).all():   # |r|² in range: finite; else look
+            raise ValueError(_scale.NONFINITE)             # (from_rotvec finds the element)
         _rotvec_quat(*r, rows[0], factor, e, _ops.ARRAYS, q, rows)
         if e is not None and not np.isfinite(rows[0]).all():
             _huge_rotvecs(r, q, e, ~np.isfinite(rows[0]), factor)
@@ -653,7 +655,7 @@ def from_rotvec(rotvec, degrees=False):
     >>> np.round(from_rotvec([0, 0, 90], degrees=True), 6)
     array([0.707107, 0.      , 0.      , 0.707107])
     """
-    v = finite(_vec3(rotvec, "rotvec"), "rotvec")
+    v = _vec3(rotvec, "rotvec")   # finiteness: found by the norms' range check (the kernel's, or n2 here)
     factor = np.pi / 180.0 if degrees else 1.0
     one = _ops.floats64(v, 3) if _trig.SIMD_TAN else None   # else the tangent is `_trig`'s rational
     n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
@@ -661,7 +663,11 @@ def from_rotvec(rotvec, degrees=False):
         q = _rotvec_quat(*one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.NONE, _ops.NONE)
         return np.array(q).reshape(v.shape[:-1] + (4,))
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
-    _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
+    try:
+        _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
+    except ValueError:
+        finite(v, "rotvec")   # the message with the first non-finite element's index
+        raise
     return out
 
 
