@@ -3,6 +3,7 @@ Rotation: every representation both ways, all Euler sequences, edge cases
 (identity, π, gimbal lock, tiny angles, non-orthogonal matrices), layouts,
 chunking, dtypes and bad input."""
 
+import re
 import warnings
 
 import numpy as np
@@ -487,3 +488,21 @@ def test_huge_rotation_vectors_and_mrps_give_unit_quaternions(rng, dtype):
         n = sum(c * c for c in p)
         ref.append([float((1 - n) / (1 + n))] + [float(2 * c / (1 + n)) for c in p])
     assert np.abs(C.from_mrp(v) - np.array(ref)).max() <= 4 * eps
+
+
+@pytest.mark.parametrize("n", [None, 1, 7, 5000])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_from_rotvec_refuses_non_finite_vectors_naming_the_first(rng, n, bad):
+    """The kernel's norm range check finds them (no separate pass): the message still names
+    the first bad element, whatever the batch, including next to huge finite vectors."""
+    v = rng.standard_normal((3,) if n is None else (n, 3))
+    if n is None:
+        v[1], where = bad, "(1,)"
+    else:
+        v[0] = 1e200   # a huge finite vector in the same block takes the rescaling branch
+        v[n - 1, 2] = bad
+        where = f"({n - 1}, 2)"
+    with pytest.raises(ValueError, match=re.escape(f"expected finite values in rotvec, got nan or inf at index {where}")):
+        C.from_rotvec(v)
+    with pytest.raises(ValueError, match="expected finite values in rotvec"):
+        Rotation.from_rotvec(v)
