@@ -17,7 +17,7 @@ import numpy as np
 from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise, from_rotvec
 from ._kernels import half_angle as _half_angle
-from ._kernels import arctan2, multiply, multiply_rows
+from ._kernels import arctan2, multiply
 from ._validate import finite, float_array, quat_array
 
 __all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport",
@@ -413,14 +413,16 @@ def _unit_axes(axes, n=None):
 
 
 def _k_from_davenport(angles, q, axes, extrinsic, scale):
-    c, s = _half_angle(angles[0], scale)
-    p = [c] + [s * n for n in axes[0]]
-    for n in range(1, len(axes)):
-        c, s = _half_angle(angles[n], scale)
-        e = [c] + [s * a for a in axes[n]]
-        p = multiply_rows(e, p) if extrinsic else multiply_rows(p, e)
-    for row, value in zip(q, p):
-        np.copyto(row, value)
+    """One elementary quaternion (cos, sin · axis) per axis, all half angles in one call,
+    composed in order with `_kernels.multiply` on (m, 4) rows."""
+    c, s = _half_angle(angles, scale)                 # (k, m) each
+    turns = np.empty(angles.shape + (4,), q.dtype)    # (k, m, 4): one elementary turn per axis
+    turns[..., 0] = c
+    np.multiply(s[..., None], np.asarray(axes, q.dtype)[:, None, :], out=turns[..., 1:])
+    p = turns[0]
+    for e in turns[1:]:
+        p = multiply(e, p) if extrinsic else multiply(p, e)
+    np.copyto(q, p.T)
 
 
 def from_davenport(axes, order, angles, degrees=False):
