@@ -464,6 +464,17 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
     if batch is None:
         batch = outs[0].shape[:-1]
     batch = tuple(batch)
+    if (read_only and not views and len(batch) == 1 and 0 < batch[0] <= VIEWS_MAX
+            and all(a.shape[:-1] == batch and (dtype is None or a.dtype == dtype) for a in ins)):
+        # a small flat batch read in place: the kernel on the components-first views, at
+        # once (the general path below would come to the same call through more checks)
+        work = scratch()
+        top = work.top
+        try:
+            r = kernel(*[a.T for a in ins], *[o.T for o in outs], **params)
+        finally:
+            work.top = top
+        return r is True or r is np.True_
     if not batch:   # kernels index rows of blocks: give them one batch axis
         return blockwise(kernel, [a[None] for a in ins], [o[None] for o in outs], (1,), dtype,
                          [np.asarray(v)[None] for v in views], **params)
