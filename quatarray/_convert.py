@@ -700,7 +700,8 @@ def magnitude(q, unit=False):
     q = quat_array(q, "quat")
     one = _norm_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
-        return np.full(q.shape[:-1], arctan2(one[4], abs(one[0]), x_nonneg=True) * 2.0)
+        angle = np.array(arctan2(one[4], abs(one[0]), x_nonneg=True) * 2.0)   # not np.full: 5x its cost
+        return angle if q.ndim == 1 else angle.reshape(q.shape[:-1])
     out = np.empty(q.shape[:-1], q.dtype)
     _blockwise_unit(_k_magnitude, q.reshape(-1, 4), out.reshape(-1, 1), unit)
     return out
