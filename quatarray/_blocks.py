@@ -39,7 +39,8 @@ from math import prod
 import numpy as np
 
 __all__ = [
-    "BLOCK", "PARALLEL_MIN", "VIEWS_MAX", "SMALL_ROWS", "SCRATCH_LIMIT", "get_num_threads", "set_num_threads", "num_threads",
+    "BLOCK", "PARALLEL_MIN", "VIEWS_MAX", "SMALL_ROWS", "SCRATCH_LIMIT",
+    "get_num_threads", "set_num_threads", "num_threads",
     "block_size", "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise",
 ]
 

@@ -502,7 +502,8 @@ def test_from_rotvec_refuses_non_finite_vectors_naming_the_first(rng, n, bad):
         v[0] = 1e200   # a huge finite vector in the same block takes the rescaling branch
         v[n - 1, 2] = bad
         where = f"({n - 1}, 2)"
-    with pytest.raises(ValueError, match=re.escape(f"expected finite values in rotvec, got nan or inf at index {where}")):
+    message = f"expected finite values in rotvec, got nan or inf at index {where}"
+    with pytest.raises(ValueError, match=re.escape(message)):
         C.from_rotvec(v)
     with pytest.raises(ValueError, match="expected finite values in rotvec"):
         Rotation.from_rotvec(v)
