@@ -52,15 +52,37 @@ def _raw_series(keys, name, min_len=2):
     return keys
 
 
-def _track_major(raw, name):
-    """`unit_keys` of raw (T, B, 4), returned track-major (B, T, 4), a few tracks at a time:
-    the same values as the whole at once (each track is unflipped and normalised on its
-    own), without temporaries of the whole input."""
+def _unit_series(raw, name, track_major, rows=None):
+    """`unit_keys` of raw (T, B, 4): the same values as the whole at once, computed over
+    blocks of `rows` times (about `_blocks.BLOCK` samples: every pass stays in cache, no
+    temporaries of the whole input), returned (T, B, 4) or track-major (B, T, 4).
+
+    A block starts with the previous block's last raw sample, its sign set as the
+    previous block left it: `unit_keys` keeps the first key's sign and unflips the
+    others from exact dot products of the keys as given, so the signs continue
+    across blocks exactly as in one call.
+    """
     T, B = raw.shape[:2]
-    out = np.empty((B, T, 4), raw.dtype)
-    step = max(1, _blocks.BLOCK * 8 // T)
-    for j in range(0, B, step):
-        out[j:j + step] = _interp_kernels.unit_keys(raw[:, j:j + step], name).transpose(1, 0, 2)
+    out = np.empty((B, T, 4) if track_major else (T, B, 4), raw.dtype)
+    rows = rows or max(2, _blocks.BLOCK // max(B, 1))
+    sign = None
+    for t0 in range(0, T, rows):
+        t1 = min(t0 + rows, T)
+        if sign is None:
+            unit = _interp_kernels.unit_keys(raw[t0:t1], name)
+        else:
+            block = raw[t0 - 1:t1].copy()
+            block[0] *= sign
+            unit = _interp_kernels.unit_keys(block, name)[1:]
+        if track_major:
+            out[:, t0:t1] = unit.transpose(1, 0, 2)
+        else:
+            out[t0:t1] = unit
+        # the sign this block gave its last sample: compare the largest raw component
+        last = raw[t1 - 1]
+        k = np.argmax(np.abs(last), axis=-1)[:, None]
+        sign = np.where((np.take_along_axis(unit[-1], k, -1) < 0) == (np.take_along_axis(last, k, -1) < 0),
+                        1, -1).astype(raw.dtype)
     return out
 
 
@@ -145,10 +167,7 @@ def reduce_keys(times, keys, tolerance, *, method="slerp", shared=False, degrees
     batch = raw.shape[1:-1]
     T, B = raw.shape[0], prod(batch)
     tol_rad = np.radians(tol) if degrees else tol
-    if shared or B == 0:
-        Q = _interp_kernels.unit_keys(raw, "keys").reshape(T, B, 4)
-    else:
-        Q = _track_major(raw.reshape(T, B, 4), "keys")
+    Q = _unit_series(raw.reshape(T, B, 4), "keys", not (shared or B == 0))
 
     def make_track(idx, b):
         k = Q[idx] if b is None else Q[b, idx]

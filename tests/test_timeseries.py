@@ -103,6 +103,25 @@ def test_bound_real(method, shared):
     assert kept < 481 // 3
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("rows", [2, 3, 50, 1000])
+def test_unit_series_blocked_over_time(dtype, rows, rng):
+    """reduce_keys normalises and unflips its samples over blocks of times: the same bits
+    as `unit_keys` of the whole series, in either layout, with sign flips at the block
+    edges, exactly orthogonal neighbours (a zero dot product restarts the signs) and
+    huge magnitudes."""
+    from quatarray import _interp_kernels, timeseries
+    T, B = 301, 5
+    q = rng.normal(size=(T, B, 4)).astype(dtype)
+    q[rng.random((T, B)) < 0.3] *= -1
+    q[49:53, 0] = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]]
+    q[99:101, 1] = [[1, 0, 0, 0], [0, 2, 0, 0]]
+    q[10:20, 2] *= 1e30 if dtype == np.float64 else 1e15
+    whole = _interp_kernels.unit_keys(q)
+    np.testing.assert_array_equal(timeseries._unit_series(q, "keys", False, rows), whole)
+    np.testing.assert_array_equal(timeseries._unit_series(q, "keys", True, rows), whole.transpose(1, 0, 2))
+
+
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_constant_and_steps(method, dtype):
