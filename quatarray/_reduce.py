@@ -45,7 +45,7 @@ from . import _interp_kernels
 from . import _kernels
 from . import _track
 
-__all__ = ["METHODS", "CHUNK", "angle_between", "greedy", "reduce"]
+__all__ = ["METHODS", "CHUNK", "angle_between", "greedy", "refine", "reduce"]
 
 METHODS = ("linear", "slerp", "squad")
 #: Samples per lane of the lock-step greedy search.
@@ -55,6 +55,8 @@ BATCH = 1 << 14
 #: Segments handled per call of `segment_errors` (bounds the per-segment tables and
 #: control points when the check revisits every segment of every track at once).
 SEGMENTS = 1 << 15
+#: Samples per block of the final check (the returned tracks evaluated at the original times).
+CHECK = 1 << 16
 
 
 def angle_between(p, q):
@@ -358,23 +360,74 @@ def _repair(method, times, Q, kept, tol, shared):
     return [G[(G >= j * T) & (G < (j + 1) * T)] - j * T for j in range(len(kept))]
 
 
-def refine(check, times, kept, tol):
-    """Add keys until ``check(kept)`` (the errors at every sample, (T, X)) are within `tol`.
+def _chord_to_angle(c2):
+    """The angle 4 arcsin(|p - q| / 2) of a squared chord `_chord2` (float64)."""
+    return 4 * np.arcsin(np.sqrt(c2) / 2)
 
-    Per segment over tolerance its worst sample becomes a key.  Returns the
-    final kept indices and errors (T, X)."""
+
+def _track_chords(track, times, ref, at=None):
+    """Blocks (m, X) of squared chords (`_chord2`, float64) between `track` at the times
+    `times[at]` (default: all) and the samples `ref` (T, X, 4) there: the track's own
+    call, in blocks of `CHECK` samples (no output of the whole length)."""
+    rows = max(1, CHECK // ref.shape[1])
+    for lo in range(0, len(times) if at is None else len(at), rows):
+        k = slice(lo, lo + rows) if at is None else at[lo:lo + rows]
+        tk = times[k]
+        q = np.asarray(track(tk)).reshape(len(tk), -1, 4).astype(np.float64, copy=False)
+        r = (ref[k] if at is None else np.take(ref, k, axis=0)).astype(np.float64, copy=False)
+        c2 = _interp_kernels.vdot(q - r, q - r)
+        yield np.minimum(c2, _interp_kernels.vdot(q + r, q + r), out=c2)
+
+
+def check_errors(track, times, ref, at=None):
+    """Per time (max over tracks), the squared chords of `_track_chords`."""
+    blocks = [c2.max(axis=1) if c2.shape[1] > 1 else c2[:, 0] for c2 in _track_chords(track, times, ref, at)]
+    return np.concatenate(blocks) if blocks else np.zeros(0)
+
+
+def track_errors(track, times, ref):
+    """Largest angle per track (X,) between `track` at `times` and the samples `ref` (T, X, 4)."""
+    worst = np.zeros(ref.shape[1])
+    for c2 in _track_chords(track, times, ref):
+        np.maximum(worst, c2.max(axis=0), out=worst)
+    return _chord_to_angle(worst)
+
+
+def refine(method, times, kept, tol, make_track, ref):
+    """Add keys until the track of `kept` is within `tol` of `ref` (T, X, 4) at every time.
+
+    Per segment over tolerance its worst sample becomes a key; then only the
+    times whose segment may have changed are evaluated again (squad: two
+    segments on either side of a new key, whose control points moved).
+    Returns the kept indices, their track and its largest error (angle).
+    """
     T = len(times)
+    track = make_track(kept)
+    c2 = check_errors(track, times, ref)
+    reach = 2 if method == "squad" else 1
     while True:
-        errors = check(kept)
-        err = errors.max(axis=1)
-        seg = np.searchsorted(kept, np.arange(T), side="right") - 1
-        bad = err > tol
-        if not bad.any() or len(kept) == T:
-            return kept, errors
-        worst = np.maximum.reduceat(err, kept[:-1])   # per segment (the last key joins the last one)
-        hit = np.flatnonzero(bad & (err == worst[np.minimum(seg, len(worst) - 1)]))
-        add = hit[np.concatenate([[True], seg[hit][1:] != seg[hit][:-1]])]
+        worst = np.maximum.reduceat(c2, kept[:-1])   # per segment (the last key joins the last one)
+        err = _chord_to_angle(worst)
+        bad = np.flatnonzero(err > tol)
+        if bad.size == 0 or len(kept) == T:
+            return kept, track, float(err.max())
+        # the first worst sample of each bad segment (the samples of bad segments only)
+        start, n = kept[bad], np.append(kept[1:-1], T)[bad] - kept[bad]
+        first = np.cumsum(n) - n
+        k = np.arange(n.sum()) - np.repeat(first - start, n)
+        hit = np.flatnonzero(c2[k] == np.repeat(worst[bad], n))
+        seg = np.searchsorted(first, hit, side="right")
+        add = k[hit[np.concatenate([[True], seg[1:] != seg[:-1]])]]
         kept = _unique(np.concatenate([kept, add]))
+        track = make_track(kept)
+        pos = np.searchsorted(kept, add)
+        lo = kept[np.maximum(pos - reach, 0)]
+        hi = kept[np.minimum(pos + reach, len(kept) - 1)]
+        dirty = np.zeros(T + 1, np.int64)
+        np.add.at(dirty, lo, 1)
+        np.add.at(dirty, hi + 1, -1)
+        at = np.flatnonzero(np.cumsum(dirty[:-1]) > 0)
+        c2[at] = check_errors(track, times, ref, at)
 
 
 def reduce(method, times, Q, tol, shared, make_track):
@@ -384,25 +437,20 @@ def reduce(method, times, Q, tol, shared, make_track):
     all); `Q` holds the reference samples, (T, B, 4) with `shared`, else
     track-major (B, T, 4) (C-contiguous: a track's samples lie together).
     Returns a list per track (one entry with `shared`) and the errors per
-    track (B,).
+    track (B,): the errors of the returned Tracks at every original time.
     """
     kept = greedy(method, times, Q, tol, shared)
     tracks, errors, out = [], np.zeros(Q.shape[1] if shared else Q.shape[0]), []
     for j, k in enumerate(kept):
         b = None if shared else j
         ref = Q if shared else Q[j][:, None]
-
-        def check(idx):
-            track = make_track(idx, b)
-            return angle_between(np.asarray(track(times)).reshape(ref.shape), ref)
-
-        k, err = refine(check, times, k, tol)
-        track = make_track(k, b)
-        err = err.max(axis=0)
+        k, track, err = refine(method, times, k, tol, lambda idx: make_track(idx, b), ref)
         if shared:
-            errors[:] = err
+            # the largest error of each track: one more pass (the check above keeps the max over tracks)
+            errors[:] = track_errors(track, times, ref)
         else:
-            errors[j] = err[0]
+            errors[j] = err
         out.append(k)
         tracks.append(track)
     return out, tracks, errors
+
