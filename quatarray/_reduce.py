@@ -282,15 +282,14 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb)
         else:
             # squad: the candidate also sets the previous segment's end control point, so
-            # that segment is tested again with it (and its own previous key)
-            back = prev[test] >= 0
-            m = test.size
-            err, _ = segment_errors(
-                method, times, Q, np.r_[s[test], prev[test][back]], np.r_[c, s[test][back]],
-                np.r_[prev[test], pprev[test][back]], np.r_[np.full(m, -1), c[back]],
-                None if shared else np.r_[tb, tb[back]])
-            err[:m][back] = np.maximum(err[:m][back], err[m:])
-            err = err[:m]
+            # that segment is tested again with it (and its own previous key) where the
+            # candidate's own segment passes (where it fails, the candidate does anyway)
+            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb)
+            back = np.flatnonzero((prev[test] >= 0) & (err <= tol))
+            if back.size:
+                e_back, _ = segment_errors(method, times, Q, prev[test][back], s[test][back], pprev[test][back], c[back],
+                                      None if shared else tb[back])
+                err[back] = np.maximum(err[back], e_back)
         ok = err <= tol
         lo[test[ok]] = c[ok]
         hi[test[~ok]] = c[~ok]
