@@ -4,8 +4,9 @@ asv classes time them at sizes asv can repeat; run as a script for the issue's s
 
     python -m benchmarks.timeseries [T] [tracks]     # default 10^6 samples x 50 tracks
 
-which prints, per method, the seconds `quatarray.reduce_keys` takes (wall and CPU), the keys kept and the
-largest error reached (the tolerance is 0.1 degrees).
+which prints, per method, the seconds `quatarray.reduce_keys` takes (wall and CPU), the keys kept, the
+largest error reached (the tolerance is 0.1 degrees) and, on Linux, the peak resident memory during the
+call (the input included).
 """
 
 import sys
@@ -72,6 +73,24 @@ class AngularVelocity:
         angular_velocity(self.t, self.q)
 
 
+def _reset_peak():
+    """Reset the process's peak resident memory (Linux); False where that is not possible."""
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def _peak_gb():
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM"):
+                return int(line.split()[1]) / 1e6
+    return float("nan")
+
+
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     T = int(float(argv[0])) if argv else 1_000_000
@@ -80,6 +99,8 @@ def main(argv=None):
     t, q = capture(T, tracks)
     print(f"reduce_keys, {T:,} samples x {tracks} tracks, tolerance 0.1 deg")
     for method in ("linear", "slerp", "squad"):
+        # peak resident memory during the call (the input counts: it is resident throughout)
+        peak = _reset_peak()
         start, cpu = time.perf_counter(), time.process_time()
         tracks_out, err = reduce_keys(t, q, 0.1, method=method, degrees=True)
         elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
@@ -87,7 +108,9 @@ def main(argv=None):
         # CPU seconds (all threads) beside wall seconds: on a shared machine the wall time
         # also counts the other sessions' load
         print(f"  {method:<7} {elapsed:7.1f} s (CPU {cpu:.1f} s)   keys kept {kept:,} of {T * tracks:,} "
-              f"({kept / (T * tracks):.1%})   max error {float(err.max()):.4f} deg")
+              f"({kept / (T * tracks):.1%})   max error {float(err.max()):.4f} deg"
+              + (f"   peak RSS {_peak_gb():.2f} GB (input {q.nbytes / 1e9:.2f} GB)" if peak else ""), flush=True)
+        del tracks_out
 
 
 if __name__ == "__main__":
