@@ -30,10 +30,11 @@ iteration tests one candidate segment per lane, all evaluated in one batch.
 Chunk boundaries are forced keys at first; rounds of merges then drop those
 the neighbouring segments do not need.
 
-The check.  The kept keys are made into `Track`s, evaluated at every
-original time, and compared with the samples; where a segment exceeds the
-tolerance its worst sample becomes a key, until none does (keeping every
-sample reproduces every sample, so this ends).
+The check.  The kept keys are made into `Track`s, evaluated through their own
+call at every original time (in blocks of `CHECK` times), and compared with
+the samples; where a segment exceeds the tolerance its worst sample becomes a
+key and the times whose segments changed are evaluated again, until none
+exceeds it (keeping every sample reproduces every sample, so this ends).
 """
 
 import numpy as np
@@ -287,8 +288,8 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb)
             back = np.flatnonzero((prev[test] >= 0) & (err <= tol))
             if back.size:
-                e_back, _ = segment_errors(method, times, Q, prev[test][back], s[test][back], pprev[test][back], c[back],
-                                      None if shared else tb[back])
+                e_back, _ = segment_errors(method, times, Q, prev[test][back], s[test][back], pprev[test][back],
+                                           c[back], None if shared else tb[back])
                 err[back] = np.maximum(err[back], e_back)
         ok = err <= tol
         lo[test[ok]] = c[ok]
