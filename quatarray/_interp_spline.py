@@ -41,6 +41,27 @@ def _skew(v):
     return s
 
 
+def _cross(a, b, out=None):
+    """``np.cross`` of (..., 3) vectors of one shape, with its operations in its order (the same
+    bits) but without its axis handling and input copies, which cost more than the arithmetic
+    on the short arrays of the spline's solve."""
+    if out is None:
+        out = np.empty(np.broadcast_shapes(a.shape, b.shape), np.result_type(a, b))
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    tmp = np.empty(out.shape[:-1], out.dtype)
+    np.multiply(a2, b1, out=tmp)
+    np.multiply(a1, b2, out=out[..., 0])
+    out[..., 0] -= tmp
+    np.multiply(a2, b0, out=out[..., 1])
+    np.multiply(a0, b2, out=tmp)
+    out[..., 1] -= tmp
+    np.multiply(a0, b1, out=out[..., 2])
+    np.multiply(a1, b0, out=tmp)
+    out[..., 2] -= tmp
+    return out
+
+
 def _safe(n):
     return np.where(n > _SMALL, n, 1.0)
 
@@ -76,9 +97,9 @@ def acceleration_term(rotvecs, rotvecs_dot):
     k2 = np.where(big, (-2 * s + 3 * sn - s * cs) / s ** 5, -1 / 60 + n ** 2 / 12604)
     k3 = np.where(big, (s - sn) / s ** 3, 1 / 6 - n ** 2 / 120)
     dp = np.sum(rotvecs * rotvecs_dot, axis=-1)
-    cp = np.cross(rotvecs, rotvecs_dot)
-    ccp = np.cross(rotvecs, cp)
-    dccp = np.cross(rotvecs_dot, cp)
+    cp = _cross(rotvecs, rotvecs_dot)
+    ccp = _cross(rotvecs, cp)
+    dccp = _cross(rotvecs_dot, cp)
     dt = rotvecs.dtype
     return ((dp * k1)[..., None].astype(dt) * cp + (dp * k2)[..., None].astype(dt) * ccp
             + k3[..., None].astype(dt) * dccp)
@@ -95,8 +116,8 @@ def acceleration_jacobian(rotvecs, rotvecs_dot):
     k2 = np.where(big, (-2 * s + 3 * sn - s * cs) / s ** 5, -1 / 60 + n ** 2 / 12604).astype(dt)[..., None, None]
     k3 = np.where(big, (s - sn) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None, None]
     dp = np.sum(rotvecs * rotvecs_dot, axis=-1)[..., None, None]
-    cp = np.cross(rotvecs, rotvecs_dot)
-    ccp = np.cross(rotvecs, cp)
+    cp = _cross(rotvecs, rotvecs_dot)
+    ccp = _cross(rotvecs, cp)
     sk = _skew(rotvecs)
     outer = (lambda a: a[..., :, None] * rotvecs[..., None, :])
     return (k1 * (outer(cp) + dp * sk) + k2 * (outer(ccp) + dp * (sk @ sk))
@@ -119,8 +140,8 @@ def angular_rate(rotvecs, rotvecs_dot):
     dt = rotvecs.dtype
     k1 = np.where(big, (1 - np.cos(s)) / s ** 2, 0.5 - n ** 2 / 24).astype(dt)[..., None]
     k2 = np.where(big, (s - np.sin(s)) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None]
-    cp = np.cross(rotvecs, rotvecs_dot)
-    return rotvecs_dot - k1 * cp + k2 * np.cross(rotvecs, cp)
+    cp = _cross(rotvecs, rotvecs_dot)
+    return rotvecs_dot - k1 * cp + k2 * _cross(rotvecs, cp)
 
 
 def angular_acceleration(rotvecs, rotvecs_dot, rotvecs_ddot):
@@ -136,7 +157,10 @@ def inv3(m):
     matrices spends its time in per-matrix overhead).
     """
     r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
-    adj = np.stack([np.cross(r1, r2), np.cross(r2, r0), np.cross(r0, r1)], axis=-1)
+    adj = np.empty(m.shape, m.dtype)
+    _cross(r1, r2, adj[..., 0])
+    _cross(r2, r0, adj[..., 1])
+    _cross(r0, r1, adj[..., 2])
     det = np.sum(r0 * adj[..., :, 0], axis=-1)
     return adj / det[..., None, None]
 
@@ -216,7 +240,7 @@ def relative_rotvecs(keys):
     rel = np.empty(p.shape, keys.dtype)
     rel[..., 0] = p[..., 0] * q[..., 0] + np.sum(p[..., 1:] * q[..., 1:], axis=-1)
     rel[..., 1:] = p[..., :1] * q[..., 1:] - q[..., :1] * p[..., 1:]
-    rel[..., 1:] -= np.cross(p[..., 1:], q[..., 1:])
+    rel[..., 1:] -= _cross(p[..., 1:], q[..., 1:])
     return _convert.as_rotvec(rel)
 
 
