@@ -73,6 +73,12 @@ def vdot(p, q, axis=-1):
         out = p[0] * q[0]
         for k in range(1, n):
             out += p[k] * q[k]
+    elif p.size <= _blocks.BLOCK and p.shape == q.shape:
+        # few vectors: all products in one call, then summed in the same order (the same bits)
+        pq = p * q
+        out = pq[..., 0] + pq[..., 1]
+        for k in range(2, n):
+            out += pq[..., k]
     else:
         out = p[..., 0] * q[..., 0]
         for k in range(1, n):
@@ -306,56 +312,69 @@ def frames(k0, k1, F=None, phi=None):
     fresh temporaries of the full size would cost more in page faults than
     the arithmetic.
     """
-    s = np.broadcast_shapes(k0.shape, k1.shape)[1:]
+    shape = k0.shape if k0.shape == k1.shape else np.broadcast_shapes(k0.shape, k1.shape)
+    s = shape[1:]
     if F is None:
         F = np.empty((8,) + s, np.result_type(k0, k1))
         phi = np.empty(s, F.dtype)
-    k0 = np.broadcast_to(k0, (4,) + s)
-    k1 = np.broadcast_to(k1, (4,) + s)
-    if 0 in s:
+    if k0.shape != shape:
+        k0 = np.broadcast_to(k0, shape)
+    if k1.shape != shape:
+        k1 = np.broadcast_to(k1, shape)
+    n = prod(s)
+    if n == 0:
+        return F, phi
+    if n <= _blocks.BLOCK:   # one block: the same kernel call, without splitting
+        with _blocks.scratch().frame():
+            _frames_block(k0, k1, F, phi)
         return F, phi
 
     def block(idx):
         full = (slice(None),) + idx
         _frames_block(k0[full], k1[full], F[full], phi[idx])
 
-    _blocks.run(block, _blocks.split(s), prod(s))
+    _blocks.run(block, _blocks.split(s), n)
     return F, phi
 
 
 def _frames_block(k0, k1, F, phi):
     s = phi.shape
     D = F[4:]
-    np.subtract(k1, k0, out=D)
-    T = _rows(4, s, F.dtype)
-    R = _rows(4, s, F.dtype)
+    W = _rows(12, s, F.dtype)
+    DS = W[:8].reshape((2, 4) + s)            # D = k1 - k0 and S = k1 + k0, stacked: the
+    np.subtract(k1, k0, out=DS[0])           # squares and sums below take both in one call
+    np.add(k1, k0, out=DS[1])
+    np.multiply(DS, DS, out=DS)
+    R = W[8:]
     a2, b2, n2, sc = R
-    np.multiply(D, D, out=T)
-    np.add(T[0], T[1], out=a2)
-    a2 += T[2]
-    a2 += T[3]
-    np.add(k1, k0, out=T)
-    sqsum(T, b2)
+    np.add(DS[:, 0], DS[:, 1], out=R[:2])    # a² = |D|², b² = |S|², each summed in component order
+    R[:2] += DS[:, 2]
+    R[:2] += DS[:, 3]
     np.add(a2, b2, out=n2)
     n2 *= 0.5                                # 2 for unit quaternions
-    a, b = T[0], T[1]
-    np.sqrt(a2, out=a)
-    np.sqrt(b2, out=b)
+    AB = DS[0, :2]
+    np.sqrt(R[:2], out=AB)
+    a, b = AB
     np.arctan2(a, b, out=phi)
+    np.subtract(k1, k0, out=D)
     np.multiply(a, b, out=sc)
-    zero = sc == 0                           # coincident (a = 0) or antipodal (b = 0)
+    flags = _rows(2, s, bool)                # one test for the two rare cases
+    zero, wide = flags
+    np.equal(sc, 0, out=zero)                # coincident (a = 0) or antipodal (b = 0)
+    np.greater(a2, b2, out=wide)             # k0·k1 < 0: the tangent from S = k0 + k1
+    rare = flags.any()
     np.maximum(sc, _TINY[np.dtype(F.dtype)][1], out=sc)
     np.divide(1, sc, out=sc)
-    if zero.any():
+    if rare and zero.any():
         sc[zero] = 0
         phi[b == 0] = 0                      # antipodal: no unique arc; stay at k0
-    wide = a2 > b2                           # k0·k1 < 0: the tangent from S = k0 + k1
     D *= n2
+    T = DS[1]
     np.multiply(k0, a2, out=T)
     D += T
     D *= sc
     F[:4] = k0
-    if wide.any():
+    if rare and wide.any():
         _wide_tangents(k0, k1, F[4:], phi, wide)
 
 
@@ -520,9 +539,12 @@ def unit_keys(keys, name="keys", unit=False):
     return unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
 
 
-def unflip(q, axis):
+def unflip(q, axis, d=None):
     """Signs flipped so that consecutive quaternions along batch `axis` have
     a non-negative dot product (the first one keeps its sign).
+
+    `d`: the dot products ``q[1:]·q[:-1]`` along `axis` (moved first) if the
+    caller has them already, as this function computes them.
 
     Same result as the loop ``if q[i]·q[i-1] < 0: q[i] = -q[i]`` (with the
     already unflipped q[i-1]): the sign of q[i] is the product of the signs
@@ -537,7 +559,9 @@ def unflip(q, axis):
         return q.astype(dtype, copy=True)
     # float32: summed in float64 (exact products), so that rotations close to π
     # apart get the sign of their exact dot product, as `hemisphere` gives slerp
-    if dtype != np.float32:
+    if d is not None:
+        pass
+    elif dtype != np.float32:
         d = vdot(qa[1:], qa[:-1])
     else:   # `vdot`'s order, each product cast to float64 as NumPy computes it (no float64 copy of q)
         d = np.multiply(qa[1:, ..., 0], qa[:-1, ..., 0], dtype=np.float64)
@@ -545,11 +569,13 @@ def unflip(q, axis):
             d += np.multiply(qa[1:, ..., k], qa[:-1, ..., k], dtype=np.float64)
     step = np.ones(qa.shape[:-1], np.int8)
     np.copyto(step[1:], -1, where=d < 0)
-    zero = np.zeros(qa.shape[:-1], bool)
-    np.equal(d, 0, out=zero[1:])
+    zero = None
+    if (d == 0).any():
+        zero = np.zeros(qa.shape[:-1], bool)
+        np.equal(d, 0, out=zero[1:])
     del d                                                 # (memory: the dot products are done)
     c = np.cumprod(step, axis=0, dtype=np.int8, out=step)  # sign with no restarts, in place
-    if zero.any():
+    if zero is not None:
         idx = np.arange(n).reshape((n,) + (1,) * (qa.ndim - 2))
         last = np.maximum.accumulate(np.where(zero, idx, 0), axis=0)
         c = c * np.take_along_axis(c, last, axis=0)         # restart at the last zero

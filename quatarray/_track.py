@@ -46,7 +46,9 @@ class Timeline:
         self.times = times
         self.extrapolate = extrapolate
         self.index = SegmentIndex(times)
-        self.dt = np.append(np.diff(times), np.inf)   # phantom segment after the last key: u = 0
+        self.dt = np.empty(len(times))
+        np.subtract(times[1:], times[:-1], out=self.dt[:-1])
+        self.dt[-1] = np.inf                           # phantom segment after the last key: u = 0
 
     def __getstate__(self):
         # pickles (e.g. shipped to Dask workers) carry the times; the lookup is rebuilt from them

@@ -475,11 +475,15 @@ class Track:
             keys = keys.as_quatarray()
         self._setup(times, keys, method, extrapolate, "times", "keys", unit)
 
-    def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False):
+    def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False, prepared=False):
+        """`prepared`: the caller has checked `times` (float64 (K,), finite, strictly
+        increasing) and made `keys` unit and unflipped (as `_prepared_keys` would)."""
         self._method = choice(method, "method", METHODS)
         extrapolate = choice(extrapolate, "extrapolate", EXTRAPOLATE)
-        keys, _ = _prepared_keys(keys, None, keys_name, unit=unit)
-        times = _check_times(times, keys.shape[0], times_name, keys_name).copy()
+        if not prepared:
+            keys, _ = _prepared_keys(keys, None, keys_name, unit=unit)
+            times = _check_times(times, keys.shape[0], times_name, keys_name)
+        times = times.copy()
         times.flags.writeable = False
         keys.flags.writeable = False
         self._timeline = _track.Timeline(times, extrapolate)
@@ -631,17 +635,19 @@ def _scipy_ties(keys):
     """Keys (K, ..., 4) signed so that a pair exactly 90° apart in S³ (a half turn between
     keys, dot product 0) turns the way scipy's Slerp does: the relative rotation
     ``conj(q[k]) q[k+1]`` canonical (first non-zero of its vector part positive).
-    Other pairs are left to `unflip` (the same choice as scipy's)."""
+    Other pairs are left to `unflip` (the same choice as scipy's).  Returns the keys
+    and, when they are returned unchanged, their dot products as `unflip` computes
+    them (else None)."""
     keys = np.asarray(keys)   # raw array (the kernels' arguments)
-    d = _interp_kernels.vdot(keys[1:].astype(np.float64), keys[:-1])
+    d = _interp_kernels.vdot(keys[1:].astype(np.float64, copy=False), keys[:-1])
     if not (d == 0).any():
-        return keys
+        return keys, d
     from ._convert import _flip_mask
     rel = _kernels.multiply(_kernels.conjugate(keys[:-1]), keys[1:])
     x, y, z = rel[..., 1], rel[..., 2], rel[..., 3]
     step = np.where((d < 0) | ((d == 0) & _flip_mask(np.zeros_like(x), x, y, z)), -1, 1)
     sign = np.concatenate([np.ones_like(step[:1]), np.cumprod(step, axis=0)])
-    return keys * sign[..., None].astype(keys.dtype)
+    return keys * sign[..., None].astype(keys.dtype), None
 
 
 class Slerp(Track):
@@ -700,10 +706,13 @@ class Slerp(Track):
         if t.shape[0] != len(rotations):
             raise ValueError(f"Expected number of rotations to be equal to number of timestamps "
                              f"given, got {len(rotations)} rotations and {t.shape[0]} timestamps.")
-        if np.any(np.diff(t) <= 0):
+        finite(t, "times")
+        if (t[1:] <= t[:-1]).any():
             raise ValueError("Times must be in strictly increasing order.")
-        self._setup(t, _scipy_ties(rotations.as_quatarray()), "slerp", "raise", "times", "rotations",
-                    unit=True)
+        # a Rotation's quaternions are unit already: only unflipped (see `unit_keys`)
+        keys, dots = _scipy_ties(rotations.as_quatarray())
+        self._setup(t, _interp_kernels.unflip(keys, 0, dots), "slerp", "raise", "times", "rotations",
+                    prepared=True)
         self._range = (float(t[0]), float(t[-1]))
 
     @property
