@@ -62,7 +62,7 @@ class SegmentIndex:
 
     def find(self, t, out=None):
         if self.grid is None or t.size <= 64:
-            return np.subtract(np.searchsorted(self.times, t, side="right"), 1, out=out)
+            return np.subtract(self.times.searchsorted(t, side="right"), 1, out=out)
         t0, scale, cmax, lo, steps, pad = self.grid
         c = np.subtract(t, t0)
         with np.errstate(over="ignore", invalid="ignore"):

@@ -435,11 +435,10 @@ def _rotation_rows(G, s, O, check=True):
     r *= s
     r += G[22:25]
     r *= s
-    np.multiply(r[0], r[0], out=theta)
-    np.multiply(r[1], r[1], out=tmp)
-    theta += tmp
-    np.multiply(r[2], r[2], out=tmp)
-    theta += tmp
+    sq = work.rows(3, shape, O.dtype)
+    np.multiply(r, r, out=sq)                 # the squares in one call, summed in component order
+    np.add(sq[0], sq[1], out=theta)
+    theta += sq[2]
     np.sqrt(theta, out=theta)
     np.maximum(theta, _TINY[O.dtype], out=theta)
     tau, d, cos_half = r                      # r is no longer needed
@@ -471,10 +470,11 @@ def _rotation_rows(G, s, O, check=True):
     # unit to rounding, except where the cubic's large terms (fast turns between keys, or
     # far extrapolation) cancel in r(s) differently from its products q (0, c_k): only
     # elements off by over 16 eps are divided by their norm (the others keep their bits)
-    np.multiply(Q[0], Q[0], out=theta)
-    for k in (1, 2, 3):
-        np.multiply(Q[k], Q[k], out=tmp)
-        theta += tmp
+    sq = work.rows(4, shape, O.dtype)
+    np.multiply(Q, Q, out=sq)
+    np.add(sq[0], sq[1], out=theta)
+    theta += sq[2]
+    theta += sq[3]
     theta -= 1
     off = _UNIT_TOL[O.dtype]
     if theta.size and not (theta.max() <= off and theta.min() >= -off):
@@ -496,12 +496,19 @@ def _rate_rows(G, s, order, O):
     O[...] = np.moveaxis(res, -1, 0)
 
 
-def evaluate(index, times, tab, t, order, batch):
+def coefficient_size(tab):
+    """The size of a `table`'s cubic coefficients, for `_rotation_rows`' check (|r| in a
+    block is at most this times max(1, |u|)³, u the segment's own time)."""
+    return float(np.abs(tab[16:25]).max(initial=0.0))
+
+
+def evaluate(index, times, tab, t, order, batch, cmax=None):
     """The spline at query times ``t`` (M,): quaternions (order 0), rates (1) or accelerations (2).
 
-    `index` is the `SegmentIndex` of `times` and `tab` the `table`.  Returns
-    shape (M, *batch, 4) for ``order=0`` and (M, *batch, 3) otherwise.  The
-    end segments extend beyond the key times, as scipy's ``PPoly``.
+    `index` is the `SegmentIndex` of `times` and `tab` the `table`; `cmax` its
+    `coefficient_size` if the caller keeps it.  Returns shape (M, *batch, 4)
+    for ``order=0`` and (M, *batch, 3) otherwise.  The end segments extend
+    beyond the key times, as scipy's ``PPoly``.
     """
     M, K1, B = t.size, tab.shape[1], tab.shape[2]
     dtype = tab.dtype
@@ -509,17 +516,17 @@ def evaluate(index, times, tab, t, order, batch):
     out = np.empty((M, B, width), dtype)
 
     found = index.find_sorted(t) if M > _blocks.BLOCK else None
-    # the size of the cubics' coefficients, for `_rotation_rows`' check (|r| in a block is at
-    # most this times max(1, |u|)³, u the segment's own time)
-    cmax = float(np.abs(tab[16:25]).max(initial=0.0)) if order == 0 else 0.0
+    if order == 0 and cmax is None:
+        cmax = coefficient_size(tab)
 
     def block(qt):
         sm, sb = qt
         tb = t[sm]
         i = index.find(tb) if found is None else found[sm].copy()
-        np.clip(i, 0, K1 - 1, out=i)
-        t0 = np.take(times, i)
-        span = np.take(times, i + 1) - t0
+        np.maximum(i, 0, out=i)
+        np.minimum(i, K1 - 1, out=i)
+        t0 = times.take(i)
+        span = times.take(i + 1) - t0
         # the segment's own time (in float64, then the table's dtype): see `coefficients`
         s = (np.subtract(tb, t0) / span).astype(dtype, copy=False)[:, None]
         G = _track.gather(tab, i, sb)
@@ -534,5 +541,9 @@ def evaluate(index, times, tab, t, order, batch):
             if order == 2:                         # not by dt², which may leave the range)
                 O /= span
 
-    _blocks.run(block, _track.qt_blocks(M, B), M * B)
+    if M * B <= _blocks.BLOCK:   # one block: no split, no pool
+        with _blocks.scratch().frame():
+            block((slice(None), slice(None)))
+    else:
+        _blocks.run(block, _track.qt_blocks(M, B), M * B)
     return out.reshape(t.shape + tuple(batch) + (width,))

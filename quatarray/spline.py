@@ -202,6 +202,7 @@ class RotationSpline:
                           else Rotation.from_quat(keys, scalar_first=True))
         self._keys = keys
         self._table = _interp_spline.table(keys, _interp_spline.coefficients(times, keys))
+        self._cmax = _interp_spline.coefficient_size(self._table)
         self._index = SegmentIndex(times)
 
     def __call__(self, times, order=0):
@@ -224,9 +225,10 @@ class RotationSpline:
             raise ValueError("`times` must be at most 1-dimensional.")
         finite(t, "times")   # scipy: "Found zero norm quaternions"
         single = t.ndim == 0
-        res = _interp_spline.evaluate(self._index, self.times, self._table, np.atleast_1d(t), order, self._keys.shape[1:-1])
+        res = _interp_spline.evaluate(self._index, self.times, self._table, t.reshape(-1) if single else t,
+                                      order, self._keys.shape[1:-1], self._cmax)
         if single:
             res = res[0]
         if order:
             return res
-        return Rotation(res, normalize=False, copy=False, scalar_first=True)   # already unit
+        return Rotation._wrap(res)   # unit to rounding (not from a normalising path: unit=False)
