@@ -17,6 +17,8 @@ All functions take the key axis first and any batch after it; the last axis
 holds components.  float32 stays float32.
 """
 
+from math import prod
+
 import numpy as np
 
 from . import _blocks
@@ -361,7 +363,7 @@ def coefficients(times, keys):
     # (uneven spacings) stalls at rounding noise above its tolerance and refused about 2% of
     # random 4-key tracks that float64 solves; the coefficients come back in the keys' dtype
     rotvecs = relative_rotvecs(keys.astype(np.float64, copy=False))
-    dt = np.diff(times)
+    dt = times[1:] - times[:-1]
     # spacings in a unit of time near their geometric middle (a power of two: exact), so that
     # float32 keys take float64 times of any spacing; the coefficients do not depend on the unit
     _, e = np.frexp(np.sqrt(dt.min()) * np.sqrt(dt.max()))
@@ -408,15 +410,15 @@ def table(keys, coeff):
     tangent and no quaternion product.
     """
     K1 = coeff.shape[1]
-    B = int(np.prod(keys.shape[1:-1], dtype=np.int64))
+    B = prod(keys.shape[1:-1])
     out = np.empty((ROWS, K1, B), keys.dtype)
     q = keys[:-1]
     out[0:4] = soa(q.reshape(K1, B, 4))
-    for k in range(3):
-        c = coeff[k]
-        pure = np.concatenate([np.zeros(c.shape[:-1] + (1,), c.dtype), c], axis=-1)
-        out[4 + 4 * k:8 + 4 * k] = soa(_kernels.multiply(q, pure).reshape(K1, B, 4))
-        out[16 + 3 * k:19 + 3 * k] = soa(c.reshape(K1, B, 3))
+    pure = np.zeros((3,) + coeff.shape[1:-1] + (4,), coeff.dtype)   # (0, c_k) for k = 0, 1, 2
+    pure[..., 1:] = coeff[:3]
+    prods = _kernels.multiply(q, pure).reshape(3, K1, B, 4)          # one call for the three
+    out[4:16] = prods.transpose(0, 3, 1, 2).reshape(12, K1, B)
+    out[16:25] = coeff[:3].reshape(3, K1, B, 3).transpose(0, 3, 1, 2).reshape(9, K1, B)
     return out
 
 
