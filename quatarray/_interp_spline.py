@@ -280,6 +280,7 @@ def _solve_rates(dt, rates, rotvecs):
     tol = TOL[np.dtype(dtype)]
     levels = block_tridiagonal_factor(lower, diag, upper)
     steps = []
+    settled = False
     with np.errstate(over="ignore", invalid="ignore"):   # a diverging iteration: Newton's below
         for _ in range(MAX_ITER):
             # the quadratic term of the rate after each segment, over its spacing: h Q(ṙ) = Q(h ṙ) / h
@@ -289,14 +290,20 @@ def _solve_rates(dt, rates, rotvecs):
             delta = np.abs(new - rates[:-1])
             rates[:-1] = new
             if np.all(delta < tol * (1 + np.abs(new))):
+                settled = True
                 break
-            steps.append(delta.max())
-        else:
-            # scipy's fixed point has not settled in MAX_ITER steps (large rotations between
+            steps.append(float(delta.max()))
+            if len(steps) >= 2:
+                # the steps shrink by about this ratio each time: where the steps left to scipy's
+                # MAX_ITER cannot bring them below the tolerance, or they grow, stop here
+                ratio = steps[-1] / steps[-2]
+                if not (ratio < 1 and steps[-1] * ratio ** (MAX_ITER - len(steps)) <= tol):
+                    break
+        if not settled:
+            # scipy's fixed point does not settle in MAX_ITER steps (large rotations between
             # keys; at uneven spacings it diverges): Newton's method on the same equations, to
             # the spline scipy's iteration would converge to; from where the iteration got if it
-            # was closing in (its steps shrinking: Newton then needs a few steps fewer), else
-            # from the linear solution
+            # was closing in (Newton then needs a step or two fewer), else from the linear solution
             closing = steps[-1] < steps[0] and np.isfinite(rates).all()
             start = rates[:-1] if closing else block_tridiagonal_apply(levels, b0)
             rates[:-1] = _newton(lower, upper, b0, a, wh, dtb, rotvecs, start, tol)
@@ -313,24 +320,39 @@ def _newton(lower, upper, b0, a, wh, dtb, rotvecs, x, tol):
     equations of `_solve_rates`) by Newton's method from `x`: the quadratic term's
     derivative is block diagonal, so each step is one block-tridiagonal solve.
 
+    The Jacobian is factorised again only when the last step did not shrink to at most
+    `REFRESH` of the one before (near the solution the previous factorisation keeps the
+    convergence fast, and the factorisation is most of a step's cost); the iteration stops
+    on the same test, at the same solution to the tolerance.
+
     Raises ValueError if it does not converge (no spline through such keys at such times)."""
     eye4 = 4 * np.eye(3, dtype=x.dtype)
     h, r, av = dtb[:-1], rotvecs[:-1], a[:-1]
+    levels, last = None, np.inf
     for _ in range(NEWTON_ITER):
         d = _mv(av, x) * h
         f = 4 * x + wh * (acceleration_term(r, d) / h) - b0
         f[1:] += _mv(lower[1:], x[:-1])
         f[:-1] += _mv(upper[:-1], x[1:])
-        jac = eye4 + wh[..., None] * (acceleration_jacobian(r, d) @ av)
-        step = block_tridiagonal_solve(lower, jac, upper, f)
+        if levels is None:
+            jac = eye4 + wh[..., None] * (acceleration_jacobian(r, d) @ av)
+            levels = block_tridiagonal_factor(lower, jac, upper)
+        step = block_tridiagonal_apply(levels, f)
         x = x - step
         if not np.isfinite(x).all():
             break
         if np.all(np.abs(step) < tol * (1 + np.abs(x))):
             return x
+        size = float(np.abs(step).max())
+        if not size <= REFRESH * last:
+            levels = None
+        last = size
     raise ValueError("expected keys and times that a C² rotation spline can join: its rate equations "
                      "have no solution that Newton's method finds (large rotations between keys at very "
                      "uneven time spacings; scipy's iteration diverges there too)")
+
+
+REFRESH = 0.1
 
 
 def coefficients(times, keys):
