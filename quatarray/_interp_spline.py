@@ -183,7 +183,7 @@ def block_tridiagonal_factor(lower, diag, upper):
     fixed-point iteration changes only the right-hand side).
     """
     levels = []
-    while len(diag) > 1:
+    while len(diag) > DENSE:
         n = len(diag)
         lower = lower.copy()
         upper = upper.copy()
@@ -201,14 +201,40 @@ def block_tridiagonal_factor(lower, diag, upper):
         levels.append((lower[1::2], upper[1::2], odd_inv, alpha, beta))
         diag, lower, upper = (diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt],
                               -(alpha @ low_p[prev]), -(beta @ up_p[nxt]))
-    levels.append(inv3(diag[0]))
+    levels.append(_dense_inverse(lower, diag, upper))
     return levels
+
+
+#: Block rows at which the cyclic reduction stops: the rest (at most this many rows) is
+#: solved by the inverse of its dense matrix, one LAPACK call, instead of log2(DENSE) more
+#: levels of small NumPy calls.
+DENSE = 16
+
+
+def _dense_inverse(lower, diag, upper):
+    """Inverses (*batch, 3n, 3n) of the dense block-tridiagonal matrices (NaN if singular)."""
+    n = len(diag)
+    batch = diag.shape[1:-2]
+    dense = np.zeros(batch + (n, 3, n, 3), diag.dtype)
+    i = np.arange(n)
+    # the advanced indices, apart, select (n, *batch, 3, 3): the blocks' own layout
+    dense[..., i, :, i, :] = diag
+    dense[..., i[1:], :, i[:-1], :] = lower[1:]
+    dense[..., i[:-1], :, i[1:], :] = upper[:-1]
+    dense = dense.reshape(batch + (3 * n, 3 * n))
+    try:
+        return np.linalg.inv(dense)
+    except np.linalg.LinAlgError:   # as inv3's division by a zero determinant: not finite
+        return np.full_like(dense, np.nan)
 
 
 def block_tridiagonal_apply(levels, rhs, level=0):
     """Solution (n, *batch, 3) for ``rhs`` (n, *batch, 3) of a `block_tridiagonal_factor`."""
     if level == len(levels) - 1:
-        return _mv(levels[level], rhs[0])[None]
+        inv = levels[level]
+        n = len(rhs)
+        x = inv @ np.moveaxis(rhs, 0, -2).reshape(inv.shape[:-1] + (1,))
+        return np.moveaxis(x.reshape(inv.shape[:-2] + (n, 3)), -2, 0)
     low_odd, up_odd, odd_inv, alpha, beta = levels[level]
     n = len(rhs)
     m = (n + 1) // 2
