@@ -237,17 +237,20 @@ def block_tridiagonal_apply(levels, rhs, level=0):
         return np.moveaxis(x.reshape(inv.shape[:-2] + (n, 3)), -2, 0)
     low_odd, up_odd, odd_inv, alpha, beta = levels[level]
     n = len(rhs)
-    m = (n + 1) // 2
-    rhs_p = _pad(rhs)
-    prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
-    new_rhs = rhs[0::2] - _mv(alpha, rhs_p[prev]) - _mv(beta, rhs_p[nxt])
+    m, k = (n + 1) // 2, n // 2        # even and odd rows
+    odd = rhs[1::2]
+    # even row j couples to odd rows j - 1 (none for j = 0: alpha[0] = 0) and j (none past
+    # the last: beta[k:] = 0); the missing neighbours are left out rather than padded with 0
+    new_rhs = rhs[0::2].copy()
+    new_rhs[1:] -= _mv(alpha[1:], odd[:m - 1])
+    new_rhs[:k] -= _mv(beta[:k], odd)
     even = block_tridiagonal_apply(levels, new_rhs, level + 1)
     x = np.empty_like(rhs)
     x[0::2] = even
-    ev_p = np.concatenate([even, np.zeros((1,) + even.shape[1:], even.dtype)])
-    left = even[: n // 2]
-    right = ev_p[1 : n // 2 + 1]
-    x[1::2] = _mv(odd_inv, rhs[1::2] - _mv(low_odd, left) - _mv(up_odd, right))
+    t = odd - _mv(low_odd, even[:k])
+    j = min(k, m - 1)                  # odd rows with an even row after them
+    t[:j] -= _mv(up_odd[:j], even[1:j + 1])
+    x[1::2] = _mv(odd_inv, t)
     return x
 
 

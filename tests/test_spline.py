@@ -107,24 +107,28 @@ def test_inputs_not_modified_and_readonly(rng):
     assert np.array_equal(keys, before)
 
 
-def test_block_tridiagonal_solve_matches_dense(rng):
-    n = 9
-    lower, upper = rng.standard_normal((2, n, 3, 3))
-    diag = rng.standard_normal((n, 3, 3)) + 8 * np.eye(3)
-    rhs = rng.standard_normal((n, 3))
-    dense = np.zeros((3 * n, 3 * n))
-    for i in range(n):
-        dense[3 * i:3 * i + 3, 3 * i:3 * i + 3] = diag[i]
-        if i:
-            dense[3 * i:3 * i + 3, 3 * i - 3:3 * i] = lower[i]
-        if i < n - 1:
-            dense[3 * i:3 * i + 3, 3 * i + 3:3 * i + 6] = upper[i]
-    x = S.block_tridiagonal_solve(lower, diag, upper, rhs)
-    assert np.allclose(x.ravel(), np.linalg.solve(dense, rhs.ravel()), atol=1e-12)
-    # one factorisation serves several right-hand sides (the fixed-point iteration's use)
+# the reduction stops at S.DENSE rows: sizes below, at and above it, odd and even, and a batch
+@pytest.mark.parametrize("n, batch", [(1, ()), (9, ()), (16, ()), (17, ()), (34, ()), (67, ()), (40, (2,))])
+def test_block_tridiagonal_solve_matches_dense(rng, n, batch):
+    lower, upper = rng.standard_normal((2, n) + batch + (3, 3))
+    diag = rng.standard_normal((n,) + batch + (3, 3)) + 8 * np.eye(3)
+    rhs = rng.standard_normal((n,) + batch + (3,))
     levels = S.block_tridiagonal_factor(lower, diag, upper)
-    for b in (rhs, rng.standard_normal((n, 3))):
-        assert np.allclose(S.block_tridiagonal_apply(levels, b).ravel(), np.linalg.solve(dense, b.ravel()), atol=1e-12)
+    for idx in np.ndindex(batch):
+        at = (slice(None),) + idx
+        dense = np.zeros((3 * n, 3 * n))
+        for i in range(n):
+            dense[3 * i:3 * i + 3, 3 * i:3 * i + 3] = diag[at][i]
+            if i:
+                dense[3 * i:3 * i + 3, 3 * i - 3:3 * i] = lower[at][i]
+            if i < n - 1:
+                dense[3 * i:3 * i + 3, 3 * i + 3:3 * i + 6] = upper[at][i]
+        x = S.block_tridiagonal_solve(lower, diag, upper, rhs)[at]
+        assert np.allclose(x.ravel(), np.linalg.solve(dense, rhs[at].ravel()), atol=1e-12)
+        # one factorisation serves several right-hand sides (the fixed-point iteration's use)
+        for b in (rhs, rng.standard_normal((n,) + batch + (3,))):
+            got = S.block_tridiagonal_apply(levels, b)[at]
+            assert np.allclose(got.ravel(), np.linalg.solve(dense, b[at].ravel()), atol=1e-12)
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
