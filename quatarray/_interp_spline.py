@@ -480,16 +480,15 @@ def _rotation_rows(G, s, O, check=True):
     the cubics may be large enough here for |q| to stray from 1 (see below).
     """
     shape = O.shape[1:]
-    work = _blocks.scratch()
-    r = work.rows(3, shape, O.dtype)
-    theta, tmp = work.rows(2, shape, O.dtype)
+    rows = _blocks.scratch().rows(9, shape, O.dtype)   # one request: r, θ, a temporary, squares
+    r, sq = rows[0:3], rows[5:9]
+    theta, tmp = rows[3], rows[4]
     np.multiply(G[16:19], s, out=r)
     r += G[19:22]
     r *= s
     r += G[22:25]
     r *= s
-    sq = work.rows(3, shape, O.dtype)
-    np.multiply(r, r, out=sq)                 # the squares in one call, summed in component order
+    np.multiply(r, r, out=sq[:3])             # the squares in one call, summed in component order
     np.add(sq[0], sq[1], out=theta)
     theta += sq[2]
     np.sqrt(theta, out=theta)
@@ -523,7 +522,6 @@ def _rotation_rows(G, s, O, check=True):
     # unit to rounding, except where the cubic's large terms (fast turns between keys, or
     # far extrapolation) cancel in r(s) differently from its products q (0, c_k): only
     # elements off by over 16 eps are divided by their norm (the others keep their bits)
-    sq = work.rows(4, shape, O.dtype)
     np.multiply(Q, Q, out=sq)
     np.add(sq[0], sq[1], out=theta)
     theta += sq[2]
@@ -585,8 +583,10 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
         G = _track.gather(tab, i, sb)
         O = soa(out[sm, sb])
         if order == 0:
-            umax = max(1.0, float(np.abs(s).max(initial=0.0)))
-            _rotation_rows(G, s, O, check=not cmax * umax ** 3 <= _CHECK_BELOW)
+            # (coefficients above the bound need the check whatever u: u is not looked at)
+            check = cmax > _CHECK_BELOW or not (
+                cmax * max(1.0, float(np.abs(s).max(initial=0.0))) ** 3 <= _CHECK_BELOW)
+            _rotation_rows(G, s, O, check=check)
         else:
             _rate_rows(G, s, order, O)
             span = span.astype(dtype, copy=False)[:, None]

@@ -176,7 +176,7 @@ def gather(table, i, sb):
     work = _blocks.scratch()
     if B == 1:   # 2-D take: one element per row and index (twice as fast)
         G = work.rows(R, (len(i),), table.dtype)
-        np.take(table[:, :, 0], i, axis=1, mode="clip", out=G)
+        table[:, :, 0].take(i, axis=1, mode="clip", out=G)
         return G[:, :, None]
     tab = table[:, :, sb]
     G = work.rows(R, (len(i), tab.shape[2]), table.dtype)
