@@ -43,6 +43,7 @@ __all__ = [
 ]
 
 
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _TINY = {np.dtype(d): (np.sqrt(np.finfo(d).tiny), 4 * np.finfo(d).tiny) for d in (np.float32, np.float64)}
 
 
@@ -553,7 +554,7 @@ def unflip(q, axis, d=None):
     Vectorised with a cumulative product; no loop over the axis.
     """
     qa = np.moveaxis(q, axis, 0) if axis else q
-    dtype = result_dtype(q)
+    dtype = q.dtype if q.dtype in _FLOATS else result_dtype(q)
     n = qa.shape[0]
     if n < 2:
         return q.astype(dtype, copy=True)
@@ -574,7 +575,7 @@ def unflip(q, axis, d=None):
         zero = np.zeros(qa.shape[:-1], bool)
         np.equal(d, 0, out=zero[1:])
     del d                                                 # (memory: the dot products are done)
-    c = np.cumprod(step, axis=0, dtype=np.int8, out=step)  # sign with no restarts, in place
+    c = np.multiply.accumulate(step, axis=0, dtype=np.int8, out=step)  # sign with no restarts, in place
     if zero is not None:
         idx = np.arange(n).reshape((n,) + (1,) * (qa.ndim - 2))
         last = np.maximum.accumulate(np.where(zero, idx, 0), axis=0)

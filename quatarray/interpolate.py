@@ -31,6 +31,7 @@ from . import _interp_spline
 from . import _kernels
 from . import _track
 from ._array import QuatArray
+from ._rotation import Rotation, _is_scipy_rotation
 from ._validate import batch_axis, choice, finite, float_array, key_times, quat_array
 
 __all__ = [
@@ -467,7 +468,6 @@ class Track:
     """
 
     def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
-        from ._rotation import Rotation, _is_scipy_rotation
         if _is_scipy_rotation(keys):   # as Slerp accepts them
             keys = Rotation.from_scipy(keys)
         unit = isinstance(keys, Rotation)
@@ -686,7 +686,6 @@ class Slerp(Track):
     """
 
     def __init__(self, times, rotations, *, batched=False):
-        from ._rotation import Rotation, _is_scipy_rotation
         if _is_scipy_rotation(rotations):
             rotations = Rotation.from_scipy(rotations)
         if not isinstance(rotations, Rotation):
@@ -723,13 +722,11 @@ class Slerp(Track):
     @property
     def rotations(self):
         """The key rotations but the last, a `Rotation` of shape (K - 1, ...) (scipy's attribute)."""
-        from ._rotation import Rotation
         return Rotation._wrap(self._keys[:-1].copy())
 
     @property
     def rotvecs(self):
         """Rotation vectors from each key to the next, shape (K - 1, ..., 3) (scipy's attribute)."""
-        from ._rotation import Rotation
         keys = Rotation._wrap(self._keys)
         return (keys[:-1].inv() * keys[1:]).as_rotvec()
 
@@ -743,7 +740,6 @@ class Slerp(Track):
         >>> s(0.25).as_rotvec()
         array([0.  , 0.  , 0.25])
         """
-        from ._rotation import Rotation
         t = float_array(times, "times")
         if t.ndim > 1:
             raise ValueError(f"`times` must be at most 1-dimensional. Got shape {t.shape}")
