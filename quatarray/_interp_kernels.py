@@ -28,10 +28,12 @@ every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
 from math import prod
+from types import SimpleNamespace
 
 import numpy as np
 
 from . import _blocks
+from . import _ops
 from ._blocks import soa
 from ._kernels import norm, result_dtype
 from ._trig import atan_unit32, tan
@@ -325,6 +327,12 @@ def frames(k0, k1, F=None, phi=None):
     n = prod(s)
     if n == 0:
         return F, phi
+    if n == 1 and F.dtype == np.float64:   # one pair: the same formula on Python floats
+        one = _frame_floats(k0.reshape(4).tolist(), k1.reshape(4).tolist())
+        if one is not None:
+            at = (slice(None),) + (0,) * len(s)
+            F[at], phi[at[1:]] = one
+            return F, phi
     if n <= _blocks.BLOCK:   # one block: the same kernel call, without splitting
         with _blocks.scratch().frame():
             _frames_block(k0, k1, F, phi)
@@ -338,45 +346,91 @@ def frames(k0, k1, F=None, phi=None):
     return F, phi
 
 
+def _frame(k0, k1, op, vec, atan2, floor, D, S, T, R):
+    """The frame formula, written once: (k0, p, phi, rare) for components-first k0, k1.
+
+    `op` is an `_ops` namespace for single rows or floats, `vec` its counterpart
+    for 4-component stacks (`_VEC_ARRAYS` / `_VEC_FLOATS`), `atan2` the arctangent
+    of the arithmetic, `floor` the dtype's `_floor`.  D (the tangent's output), S, T:
+    4-row stacks; R: 6 rows (or `_ops.NONE`).  `rare` is set where the pair is coincident, antipodal or wide (see
+    `_frames_block`); on floats the caller then takes the block kernel.
+    """
+    a2, b2, n2, sc, a, b = R[:6]
+    D = vec.sub(k1, k0, D)
+    S = vec.add(k1, k0, S)
+    T = vec.mul(D, D, T)
+    S = vec.mul(S, S, S)
+    a2 = op.add(T[0], T[1], a2)              # a² = |k1 - k0|², b² = |k1 + k0|², in component order
+    a2 = op.add(a2, T[2], a2)
+    a2 = op.add(a2, T[3], a2)
+    b2 = op.add(S[0], S[1], b2)
+    b2 = op.add(b2, S[2], b2)
+    b2 = op.add(b2, S[3], b2)
+    n2 = op.add(a2, b2, n2)
+    n2 = op.mul(n2, 0.5, n2)                 # 2 for unit quaternions
+    a = op.sqrt(a2, a)
+    b = op.sqrt(b2, b)
+    phi = atan2(a, b)
+    sc = op.mul(a, b, sc)
+    rare = vec.rare(sc, a2, b2)              # coincident or antipodal (a b = 0), or k0·k1 < 0
+    sc = op.max(sc, floor, sc)
+    sc = op.div(1.0, sc, sc)
+    D = vec.scale(D, n2, D)
+    T = vec.scale(k0, a2, T)
+    D = vec.add(D, T, D)
+    D = vec.scale(D, sc, D)
+    return D, phi, sc, rare
+
+
+def _rare_rows(sc, a2, b2):
+    flags = _rows(2, sc.shape, bool)
+    np.equal(sc, 0, out=flags[0])
+    np.greater(a2, b2, out=flags[1])
+    return flags if flags.any() else None
+
+
+_VEC_ARRAYS = SimpleNamespace(
+    sub=lambda a, b, out: np.subtract(a, b, out=out), add=lambda a, b, out: np.add(a, b, out=out),
+    mul=lambda a, b, out: np.multiply(a, b, out=out), scale=lambda a, x, out: np.multiply(a, x, out=out),
+    rare=_rare_rows)
+"""Element-wise operations on (4, *s) stacks of rows, one NumPy call each."""
+
+_VEC_FLOATS = SimpleNamespace(
+    sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
+    mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a],
+    rare=lambda sc, a2, b2: sc == 0 or a2 > b2)
+"""The same on lists of four Python floats."""
+
+
+def _frame_floats(k0, k1):
+    """`_frame` of one float64 pair (lists of 4 floats) on floats: (F as 8 floats, phi),
+    or None where the pair is rare (the block kernel handles those)."""
+    def atan2(a, b):
+        return float(np.arctan2(a, b))   # NumPy's arctangent, as the block kernel's
+    p, phi, _, rare = _frame(k0, k1, _ops.FLOATS, _VEC_FLOATS, atan2, _floor(np.float64), None, None, None,
+                             _ops.NONE)
+    if rare:
+        return None
+    return k0 + p, phi
+
+
 def _frames_block(k0, k1, F, phi):
     s = phi.shape
-    D = F[4:]
-    W = _rows(12, s, F.dtype)
-    DS = W[:8].reshape((2, 4) + s)            # D = k1 - k0 and S = k1 + k0, stacked: the
-    np.subtract(k1, k0, out=DS[0])           # squares and sums below take both in one call
-    np.add(k1, k0, out=DS[1])
-    np.multiply(DS, DS, out=DS)
-    R = W[8:]
-    a2, b2, n2, sc = R
-    np.add(DS[:, 0], DS[:, 1], out=R[:2])    # a² = |D|², b² = |S|², each summed in component order
-    R[:2] += DS[:, 2]
-    R[:2] += DS[:, 3]
-    np.add(a2, b2, out=n2)
-    n2 *= 0.5                                # 2 for unit quaternions
-    AB = DS[0, :2]
-    np.sqrt(R[:2], out=AB)
-    a, b = AB
-    np.arctan2(a, b, out=phi)
-    np.subtract(k1, k0, out=D)
-    np.multiply(a, b, out=sc)
-    flags = _rows(2, s, bool)                # one test for the two rare cases
-    zero, wide = flags
-    np.equal(sc, 0, out=zero)                # coincident (a = 0) or antipodal (b = 0)
-    np.greater(a2, b2, out=wide)             # k0·k1 < 0: the tangent from S = k0 + k1
-    rare = flags.any()
-    np.maximum(sc, _TINY[np.dtype(F.dtype)][1], out=sc)
-    np.divide(1, sc, out=sc)
-    if rare and zero.any():
-        sc[zero] = 0
-        phi[b == 0] = 0                      # antipodal: no unique arc; stay at k0
-    D *= n2
-    T = DS[1]
-    np.multiply(k0, a2, out=T)
-    D += T
-    D *= sc
+    W = _rows(14, s, F.dtype)
+    S, T = W[:4], W[4:8]
+
+    def atan2(a, b):
+        return np.arctan2(a, b, out=phi)
+
+    _, _, _, flags = _frame(k0, k1, _ops.ARRAYS, _VEC_ARRAYS, atan2, _floor(F.dtype), F[4:], S, T, W[8:14])
     F[:4] = k0
-    if rare and wide.any():
-        _wide_tangents(k0, k1, F[4:], phi, wide)
+    if flags is not None:
+        zero, wide = flags
+        if zero.any():
+            F[4:, zero] = 0                  # no tangent: the arc stays at k0 ...
+            phi[(W[13] == 0) & zero] = 0     # ... antipodal (b = 0): no unique arc
+        if wide.any():
+            _wide_tangents(k0, k1, F[4:], phi, wide)
 
 
 def _wide_tangents(k0, k1, P, phi, wide):

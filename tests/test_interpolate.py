@@ -415,6 +415,24 @@ def test_frames_of_nearly_antipodal_keys_are_unit(rng):
         assert unit_error(O.T) < 4, u
 
 
+def test_frames_of_one_pair_on_floats_give_the_block_kernels_bits(rng):
+    """One float64 pair takes the frame formula on Python floats (Slerp through two keys):
+    the same bits as the block kernel, for ordinary, close, coincident, antipodal and wide
+    pairs (the last three go to the block kernel)."""
+    n = 600
+    k0 = random_quats(rng, (n,))
+    k1 = random_quats(rng, (n,))
+    k1[:100] = k0[:100] + 1e-7 * rng.standard_normal((100, 4))
+    k1[100:110] = k0[100:110]
+    k1[110:120] = -k0[110:120]
+    k1[120:220] = -k0[120:220] + 1e-9 * rng.standard_normal((100, 4))
+    k1 /= np.linalg.norm(k1, axis=-1, keepdims=True)
+    F, phi = IK.frames(k0.T.copy(), k1.T.copy())      # the block kernel
+    for i in range(n):
+        Fi, phii = IK.frames(k0[i, :, None].copy(), k1[i, :, None].copy())
+        assert np.array_equal(Fi[:, 0], F[:, i]) and np.array_equal(phii[0], phi[i]), i
+
+
 @pytest.mark.parametrize("rtype", ["slerp", "track"])
 def test_float32_hemisphere_from_the_exact_dot(rng, path, rtype):
     """Rotations within 1e-9 rad of π apart (q0·q1 about 5e-10): float32 slerp takes the
