@@ -269,7 +269,7 @@ def relative_rotvecs(keys):
     """
     p, q = keys[:-1], keys[1:]
     rel = np.empty(p.shape, keys.dtype)
-    rel[..., 0] = p[..., 0] * q[..., 0] + np.sum(p[..., 1:] * q[..., 1:], axis=-1)
+    rel[..., 0] = p[..., 0] * q[..., 0] + np.add.reduce(p[..., 1:] * q[..., 1:], axis=-1)   # np.sum's sum
     rel[..., 1:] = p[..., :1] * q[..., 1:] - q[..., :1] * p[..., 1:]
     rel[..., 1:] -= _cross(p[..., 1:], q[..., 1:])
     return _convert.as_rotvec(rel)
@@ -420,8 +420,7 @@ def coefficients(times, keys):
     _, e = np.frexp(np.sqrt(dt.min()) * np.sqrt(dt.max()))
     with np.errstate(over="ignore", under="ignore"):   # spacings beyond the keys' range: refused below
         dt = np.ldexp(dt, -e).astype(np.float64).reshape((-1,) + (1,) * (keys.ndim - 2))
-    dtb = dt[..., None]
-    with np.errstate(over="ignore"):
+        dtb = dt[..., None]
         rates = rotvecs / dtb
     if len(keys) == 2:
         rotvecs_dot = rates
@@ -550,7 +549,7 @@ def _rate_rows(G, s, order, O):
 def coefficient_size(tab):
     """The size of a `table`'s cubic coefficients, for `_rotation_rows`' check (|r| in a
     block is at most this times max(1, |u|)³, u the segment's own time)."""
-    return float(np.abs(tab[16:25]).max(initial=0.0))
+    return float(np.maximum.reduce(np.abs(tab[16:25]), axis=None, initial=0.0))
 
 
 def evaluate(index, times, tab, t, order, batch, cmax=None):
