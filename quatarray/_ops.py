@@ -29,6 +29,17 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
                          copysign=lambda a, b, out: math.copysign(a, b), copy=lambda a, out: a)
 """The same operations on Python floats; the row argument is ignored."""
 
+STACKS = SimpleNamespace(
+    sub=lambda a, b, out: np.subtract(a, b, out=out), add=lambda a, b, out: np.add(a, b, out=out),
+    mul=lambda a, b, out: np.multiply(a, b, out=out), scale=lambda a, x, out: np.multiply(a, x, out=out))
+"""`ARRAYS`' operations on stacks of k rows (k, ...), one call for the stack: ``a - b``,
+``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`."""
+
+FLOAT_STACKS = SimpleNamespace(
+    sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
+    mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a])
+"""The same on lists of k Python floats (the stack argument is ignored)."""
+
 NONE = (None,) * 16
 """Rows for `FLOATS` (any number up to 16): the results are returned, not written."""
 
