@@ -28,7 +28,6 @@ every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
 from math import prod
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -346,14 +345,15 @@ def frames(k0, k1, F=None, phi=None):
     return F, phi
 
 
-def _frame(k0, k1, op, vec, atan2, floor, D, S, T, R):
-    """The frame formula, written once: (k0, p, phi, rare) for components-first k0, k1.
+def _frame(k0, k1, op, vec, atan2, rare, floor, D, S, T, R):
+    """The frame formula, written once: (p, phi, 1 / (a b), rare) for components-first k0, k1.
 
     `op` is an `_ops` namespace for single rows or floats, `vec` its counterpart
-    for 4-component stacks (`_VEC_ARRAYS` / `_VEC_FLOATS`), `atan2` the arctangent
-    of the arithmetic, `floor` the dtype's `_floor`.  D (the tangent's output), S, T:
-    4-row stacks; R: 6 rows (or `_ops.NONE`).  `rare` is set where the pair is coincident, antipodal or wide (see
-    `_frames_block`); on floats the caller then takes the block kernel.
+    for 4-component stacks (`_ops.STACKS` / `_ops.FLOAT_STACKS`), `atan2` the
+    arctangent of the arithmetic, `floor` the dtype's `_floor`.  D (the tangent's
+    output), S, T: 4-row stacks; R: 6 rows (or `_ops.NONE`).  ``rare(ab, a2, b2)``
+    tells where the pair is coincident, antipodal or wide (see `_frames_block`); on
+    floats the caller then takes the block kernel.
     """
     a2, b2, n2, sc, a, b = R[:6]
     D = vec.sub(k1, k0, D)
@@ -372,7 +372,7 @@ def _frame(k0, k1, op, vec, atan2, floor, D, S, T, R):
     b = op.sqrt(b2, b)
     phi = atan2(a, b)
     sc = op.mul(a, b, sc)
-    rare = vec.rare(sc, a2, b2)              # coincident or antipodal (a b = 0), or k0·k1 < 0
+    rare = rare(sc, a2, b2)                  # coincident or antipodal (a b = 0), or k0·k1 < 0
     sc = op.max(sc, floor, sc)
     sc = op.div(1.0, sc, sc)
     D = vec.scale(D, n2, D)
@@ -382,6 +382,10 @@ def _frame(k0, k1, op, vec, atan2, floor, D, S, T, R):
     return D, phi, sc, rare
 
 
+def _rare_floats(sc, a2, b2):
+    return sc == 0 or a2 > b2
+
+
 def _rare_rows(sc, a2, b2):
     flags = _rows(2, sc.shape, bool)
     np.equal(sc, 0, out=flags[0])
@@ -389,26 +393,13 @@ def _rare_rows(sc, a2, b2):
     return flags if flags.any() else None
 
 
-_VEC_ARRAYS = SimpleNamespace(
-    sub=lambda a, b, out: np.subtract(a, b, out=out), add=lambda a, b, out: np.add(a, b, out=out),
-    mul=lambda a, b, out: np.multiply(a, b, out=out), scale=lambda a, x, out: np.multiply(a, x, out=out),
-    rare=_rare_rows)
-"""Element-wise operations on (4, *s) stacks of rows, one NumPy call each."""
-
-_VEC_FLOATS = SimpleNamespace(
-    sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
-    mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a],
-    rare=lambda sc, a2, b2: sc == 0 or a2 > b2)
-"""The same on lists of four Python floats."""
-
-
 def _frame_floats(k0, k1):
     """`_frame` of one float64 pair (lists of 4 floats) on floats: (F as 8 floats, phi),
     or None where the pair is rare (the block kernel handles those)."""
     def atan2(a, b):
         return float(np.arctan2(a, b))   # NumPy's arctangent, as the block kernel's
-    p, phi, _, rare = _frame(k0, k1, _ops.FLOATS, _VEC_FLOATS, atan2, _floor(np.float64), None, None, None,
-                             _ops.NONE)
+    p, phi, _, rare = _frame(k0, k1, _ops.FLOATS, _ops.FLOAT_STACKS, atan2, _rare_floats, _floor(np.float64),
+                             None, None, None, _ops.NONE)
     if rare:
         return None
     return k0 + p, phi
@@ -422,7 +413,8 @@ def _frames_block(k0, k1, F, phi):
     def atan2(a, b):
         return np.arctan2(a, b, out=phi)
 
-    _, _, _, flags = _frame(k0, k1, _ops.ARRAYS, _VEC_ARRAYS, atan2, _floor(F.dtype), F[4:], S, T, W[8:14])
+    _, _, _, flags = _frame(k0, k1, _ops.ARRAYS, _ops.STACKS, atan2, _rare_rows, _floor(F.dtype), F[4:], S, T,
+                            W[8:14])
     F[:4] = k0
     if flags is not None:
         zero, wide = flags
