@@ -17,6 +17,7 @@ All functions take the key axis first and any batch after it; the last axis
 holds components.  float32 stays float32.
 """
 
+import math
 from math import prod
 
 import numpy as np
@@ -24,7 +25,9 @@ import numpy as np
 from . import _blocks
 from . import _convert
 from . import _kernels
+from . import _ops
 from . import _track
+from . import _trig
 from ._blocks import soa
 from ._trig import tan
 
@@ -472,64 +475,86 @@ def table(keys, coeff):
     return out
 
 
+def _rotation(G, s, op, vec, tan, tiny, check, renorm, rows):
+    """The spline's rotation q exp(r(s)/2), written once, from table rows G (25 rows or
+    floats) at the segment's own time s, in `op`'s arithmetic (`_ops` ARRAYS with STACKS,
+    or FLOATS with FLOAT_STACKS).  `rows`: nine scratch rows (or `_ops.NONE`); G is
+    overwritten.  `check`: the cubics may be large enough for |q| to stray from 1;
+    ``renorm(Q, e)`` then divides the elements whose |q|² - 1 = e is off by their norm.
+    Returns the four components Q."""
+    r, theta, tmp, sq = rows[0:3], rows[3], rows[4], rows[5:9]
+    r = vec.scale(G[16:19], s, r)
+    r = vec.add(r, G[19:22], r)
+    r = vec.scale(r, s, r)
+    r = vec.add(r, G[22:25], r)
+    r = vec.scale(r, s, r)
+    sq3 = vec.mul(r, r, sq[:3])               # the squares in one call, summed in component order
+    theta = op.add(sq3[0], sq3[1], theta)
+    theta = op.add(theta, sq3[2], theta)
+    theta = op.sqrt(theta, theta)
+    theta = op.max(theta, tiny, theta)
+    tau, d, cos_half = r[0], r[1], r[2]       # r is no longer needed
+    tau = op.mul(theta, 0.25, tau)
+    tau = tan(tau, out=tau, rows=(d, cos_half, tmp))   # τ = tan(θ/4)
+    d = op.mul(tau, tau, d)
+    d = op.add(d, 1.0, d)
+    d = op.div(1.0, d, d)                     # 1 / (1 + τ²)
+    cos_half = op.sub(1.0, tau, cos_half)
+    tmp = op.add(1.0, tau, tmp)
+    cos_half = op.mul(cos_half, tmp, cos_half)
+    cos_half = op.mul(cos_half, d, cos_half)  # cos(θ/2) = (1 - τ)(1 + τ) / (1 + τ²)
+    tmp = op.mul(tau, d, tmp)
+    tmp = op.mul(tmp, 2.0, tmp)
+    tmp = op.div(tmp, theta, tmp)             # sin(θ/2) / θ
+    V = G[4:8]                                # q (0, r(s)), in place of its first coefficient
+    V = vec.scale(V, s, V)
+    V = vec.add(V, G[8:12], V)
+    V = vec.scale(V, s, V)
+    V = vec.add(V, G[12:16], V)
+    tmp = op.mul(tmp, s, tmp)                 # the last factor s joins sin(θ/2) / θ
+    V = vec.scale(V, tmp, V)
+    Q = G[0:4]
+    Q = vec.scale(Q, cos_half, Q)
+    Q = vec.add(Q, V, Q)
+    if check:
+        # unit to rounding, except where the cubic's large terms (fast turns between keys, or
+        # far extrapolation) cancel in r(s) differently from its products q (0, c_k): only
+        # elements off by over 16 eps are divided by their norm (the others keep their bits)
+        sq = vec.mul(Q, Q, sq)
+        theta = op.add(sq[0], sq[1], theta)
+        theta = op.add(theta, sq[2], theta)
+        theta = op.add(theta, sq[3], theta)
+        theta = op.sub(theta, 1.0, theta)
+        Q = renorm(Q, theta)
+    return Q
+
+
+def _renorm_rows(Q, e):
+    off = _UNIT_TOL[e.dtype]
+    if e.size and not (e.max() <= off and e.min() >= -off):
+        bad = ~(np.abs(e) <= off)
+        Q[:, bad] /= np.sqrt(e[bad] + 1)
+    return Q
+
+
+def _renorm_floats(Q, e):
+    if not abs(e) <= _UNIT_TOL[np.dtype(np.float64)]:
+        n = math.sqrt(e + 1)
+        return [x / n for x in Q]
+    return Q
+
+
+def _tan_float(x, out=None, rows=None):
+    return float(np.tan(x))   # `tan` is NumPy's where the float path runs (SIMD_TAN)
+
+
 def _rotation_rows(G, s, O, check=True):
     """O (4, m, b) = q exp(r(s)/2) from gathered table rows G (25, m, b) and s (m, 1).
 
-    G is used as scratch (overwritten); O may be a strided view of the output.  `check`:
-    the cubics may be large enough here for |q| to stray from 1 (see below).
+    G is used as scratch (overwritten); O may be a strided view of the output.
     """
-    shape = O.shape[1:]
-    rows = _blocks.scratch().rows(9, shape, O.dtype)   # one request: r, θ, a temporary, squares
-    r, sq = rows[0:3], rows[5:9]
-    theta, tmp = rows[3], rows[4]
-    np.multiply(G[16:19], s, out=r)
-    r += G[19:22]
-    r *= s
-    r += G[22:25]
-    r *= s
-    np.multiply(r, r, out=sq[:3])             # the squares in one call, summed in component order
-    np.add(sq[0], sq[1], out=theta)
-    theta += sq[2]
-    np.sqrt(theta, out=theta)
-    np.maximum(theta, _TINY[O.dtype], out=theta)
-    tau, d, cos_half = r                      # r is no longer needed
-    np.multiply(theta, 0.25, out=tau)
-    tan(tau, out=tau, rows=(d, cos_half, tmp))   # τ = tan(θ/4)
-    np.multiply(tau, tau, out=d)
-    d += 1
-    np.divide(1, d, out=d)                    # 1 / (1 + τ²)
-    np.subtract(1, tau, out=cos_half)
-    np.add(1, tau, out=tmp)
-    cos_half *= tmp
-    cos_half *= d                             # cos(θ/2) = (1 - τ)(1 + τ) / (1 + τ²)
-    np.multiply(tau, d, out=tmp)
-    tmp *= 2
-    tmp /= theta                              # sin(θ/2) / θ
-    V = G[4:8]                                # q (0, r(s)), in place of its first coefficient
-    V *= s
-    V += G[8:12]
-    V *= s
-    V += G[12:16]
-    np.multiply(tmp, s, out=tmp)              # the last factor s joins sin(θ/2) / θ
-    V *= tmp
-    Q = G[0:4]
-    Q *= cos_half
-    Q += V
-    if not check:
-        np.copyto(O, Q)                       # the only write to the (strided) output
-        return
-    # unit to rounding, except where the cubic's large terms (fast turns between keys, or
-    # far extrapolation) cancel in r(s) differently from its products q (0, c_k): only
-    # elements off by over 16 eps are divided by their norm (the others keep their bits)
-    np.multiply(Q, Q, out=sq)
-    np.add(sq[0], sq[1], out=theta)
-    theta += sq[2]
-    theta += sq[3]
-    theta -= 1
-    off = _UNIT_TOL[O.dtype]
-    if theta.size and not (theta.max() <= off and theta.min() >= -off):
-        bad = ~(np.abs(theta) <= off)
-        Q[:, bad] /= np.sqrt(theta[bad] + 1)
+    rows = _blocks.scratch().rows(9, O.shape[1:], O.dtype)
+    Q = _rotation(G, s, _ops.ARRAYS, _ops.STACKS, tan, _TINY[O.dtype], check, _renorm_rows, rows)
     np.copyto(O, Q)                           # the only write to the (strided) output
 
 
@@ -568,6 +593,15 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
     found = index.find_sorted(t) if M > _blocks.BLOCK else None
     if order == 0 and cmax is None:
         cmax = coefficient_size(tab)
+    if order == 0 and M * B == 1 and dtype == np.float64 and _trig.SIMD_TAN:
+        # one query of one track: the same formula on Python floats (the tangent is NumPy's)
+        i = min(max(int(index.find(t)[0]), 0), K1 - 1)
+        t0 = float(times[i])
+        s = (float(t[0]) - t0) / (float(times[i + 1]) - t0)
+        check = cmax > _CHECK_BELOW or not cmax * max(1.0, abs(s)) ** 3 <= _CHECK_BELOW
+        out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _tan_float,
+                              _TINY[dtype], check, _renorm_floats, _ops.NONE)
+        return out.reshape(t.shape + tuple(batch) + (width,))
 
     def block(qt):
         sm, sb = qt

@@ -216,3 +216,31 @@ def test_sorted_and_unsorted_queries_agree(rng):
 
     for order in (0, 1, 2):
         np.testing.assert_array_equal(values(spline(t, order))[perm], values(spline(t[perm], order)))
+
+
+@pytest.mark.parametrize("k, scale", [(2, 0.01), (3, 1.0), (10, 3.0), (40, 1.0)])
+def test_one_query_gives_the_batch_bits(rng, k, scale):
+    """A single float64 query runs the rotation formula on Python floats: the bits of the
+    block kernel for the same time in a batch, inside the keys, at them and extrapolated
+    (where the norm check divides some rotations by their norm)."""
+    times = np.cumsum(rng.uniform(0.1, 2.0, k))
+    sp = RotationSpline(times, Rotation.from_rotvec(np.cumsum(rng.normal(0, scale, (k, 3)), axis=0)))
+    t = rng.uniform(times[0] - 3, times[-1] + 3, 150)
+    t[:15] = times[rng.integers(0, k, 15)]
+    batch = sp(t).as_quat()
+    for j in range(len(t)):
+        assert np.array_equal(sp(t[j]).as_quat(), batch[j]), j
+        assert np.array_equal(sp(t[j:j + 1]).as_quat()[0], batch[j]), j
+
+
+def test_norm_fix_on_floats_gives_the_rows_bits(rng):
+    """The rare division by the norm (|q|² off 1 by more than 16 eps) gives the same bits on
+    one rotation's floats as on rows (the queries above rarely reach it)."""
+    q = rng.standard_normal((4, 200))
+    q /= np.sqrt(np.sum(q * q, axis=0))
+    q *= 1 + rng.choice([0.0, 1e-16, 4e-15, 1e-12], 200)
+    e = (q[0] * q[0] + q[1] * q[1]) + q[2] * q[2] + q[3] * q[3] - 1
+    rows = S._renorm_rows(q.copy(), e.copy())
+    assert not np.array_equal(rows, q)   # some were divided
+    for j in range(q.shape[1]):
+        assert S._renorm_floats(q[:, j].tolist(), float(e[j])) == rows[:, j].tolist(), j
