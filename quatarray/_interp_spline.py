@@ -469,7 +469,8 @@ def table(keys, coeff):
     out[0:4] = soa(q.reshape(K1, B, 4))
     pure = np.zeros((3,) + coeff.shape[1:-1] + (4,), coeff.dtype)   # (0, c_k) for k = 0, 1, 2
     pure[..., 1:] = coeff[:3]
-    prods = _kernels.multiply(q, pure).reshape(3, K1, B, 4)          # one call for the three
+    # one call for the three, on operands of one shape (the product's contiguous path)
+    prods = _kernels.multiply(np.repeat(q[None], 3, axis=0), pure).reshape(3, K1, B, 4)
     out[4:16] = prods.transpose(0, 3, 1, 2).reshape(12, K1, B)
     out[16:25] = coeff[:3].reshape(3, K1, B, 3).transpose(0, 3, 1, 2).reshape(9, K1, B)
     return out
