@@ -420,7 +420,7 @@ def coefficients(times, keys):
     dt = times[1:] - times[:-1]
     # spacings in a unit of time near their geometric middle (a power of two: exact), so that
     # float32 keys take float64 times of any spacing; the coefficients do not depend on the unit
-    _, e = np.frexp(np.sqrt(dt.min()) * np.sqrt(dt.max()))
+    _, e = np.frexp(np.sqrt(np.minimum.reduce(dt)) * np.sqrt(np.maximum.reduce(dt)))
     with np.errstate(over="ignore", under="ignore"):   # spacings beyond the keys' range: refused below
         dt = np.ldexp(dt, -e).astype(np.float64).reshape((-1,) + (1,) * (keys.ndim - 2))
         dtb = dt[..., None]
