@@ -708,8 +708,10 @@ class Slerp(Track):
         finite(t, "times")
         if (t[1:] <= t[:-1]).any():
             raise ValueError("Times must be in strictly increasing order.")
-        # a Rotation's quaternions are unit already: only unflipped (see `unit_keys`)
-        keys, dots = _scipy_ties(rotations.as_quatarray())
+        # a Rotation's quaternions are unit already (only unflipped, see `unit_keys`), but one
+        # made with normalize=False may hold anything
+        keys = finite(rotations.as_quatarray().view(np.ndarray), "rotations")
+        keys, dots = _scipy_ties(keys)
         self._setup(t, _interp_kernels.unflip(keys, 0, dots), "slerp", "raise", "times", "rotations",
                     prepared=True)
         self._range = (float(t[0]), float(t[-1]))
