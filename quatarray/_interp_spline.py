@@ -271,13 +271,38 @@ def relative_rotvecs(keys):
     equal keys must give the key itself at every time).
     """
     p, q = keys[:-1], keys[1:]
+    if p.dtype == np.float64 and p.size == 4:   # two keys of one track: the formula on floats
+        rel = _relative(p.reshape(4).tolist(), q.reshape(4).tolist(), _ops.FLOATS, _ops.FLOAT_STACKS, _ops.NONE)
+        return _convert.as_rotvec(np.array(rel).reshape(p.shape))
     rel = np.empty(p.shape, keys.dtype)
-    rel[..., 0] = p[..., 0] * q[..., 0] + np.add.reduce(p[..., 1:] * q[..., 1:], axis=-1)   # np.sum's sum
-    rel[..., 1:] = p[..., :1] * q[..., 1:] - q[..., :1] * p[..., 1:]
-    rel[..., 1:] -= _cross(p[..., 1:], q[..., 1:])
+    R = soa(rel)
+    _relative(soa(p), soa(q), _ops.ARRAYS, _ops.STACKS, (R[0], R[1:], np.empty_like(R[1:])))
     return _convert.as_rotvec(rel)
 
 
+def _relative(P, Q, op, vec, rows):
+    """The components of ``P* Q`` (P, Q: four components, rows or floats), written once;
+    rows: the outputs w (one row) and v (three), and three scratch rows (or `_ops.NONE`)."""
+    w, v, c = rows[0], rows[1], rows[2]
+    t = vec.mul(P[1:], Q[1:], c)                  # summed in component order, as np.sum
+    d = op.add(t[0], t[1], None if c is None else c[0])
+    d = op.add(d, t[2], d)
+    w = op.mul(P[0], Q[0], w)
+    w = op.add(w, d, w)
+    v = vec.scale(Q[1:], P[0], v)                 # w_i v_j - w_j v_i
+    a = vec.scale(P[1:], Q[0], c)
+    v = vec.sub(v, a, v)
+    # - v_i × v_j, each component as np.cross computes it (a1 b2 - a2 b1, ...)
+    x, y, z = P[1], P[2], P[3]
+    u0, u1, u2 = Q[1], Q[2], Q[3]
+    cr = [(y, u2, z, u1), (z, u0, x, u2), (x, u1, y, u0)]
+    out = [None, None, None]
+    for k, (a1, b2, a2, b1) in enumerate(cr):
+        m = op.mul(a2, b1, None if c is None else c[0])
+        ck = op.mul(a1, b2, None if c is None else c[1])
+        ck = op.sub(ck, m, ck)
+        out[k] = op.sub(v[k], ck, v[k])
+    return [w] + out
 def _solve_rates(dt, rates, rotvecs):
     """Interior rates (scipy's system) by fixed-point iteration on the quadratic term.
 

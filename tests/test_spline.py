@@ -244,3 +244,14 @@ def test_norm_fix_on_floats_gives_the_rows_bits(rng):
     assert not np.array_equal(rows, q)   # some were divided
     for j in range(q.shape[1]):
         assert S._renorm_floats(q[:, j].tolist(), float(e[j])) == rows[:, j].tolist(), j
+
+
+def test_relative_rotvecs_of_two_keys_on_floats_give_the_rows_bits(rng):
+    """Two float64 keys of one track take the relative rotation's formula on floats: the
+    bits of the same pair inside a longer track (equal keys give exactly 0)."""
+    keys = random_quats(rng, (40,))
+    keys[5] = keys[4]
+    rows = S.relative_rotvecs(keys)
+    assert np.array_equal(rows[4], np.zeros(3))
+    for i in range(len(keys) - 1):
+        assert np.array_equal(S.relative_rotvecs(keys[i:i + 2])[0], rows[i]), i
