@@ -735,11 +735,11 @@ def _k_as_mrp(q, o):
 
 def _mrp_denominator(w, op, s, d):
     """``|q| + |w|`` for a unit q, signed as w (w = -0 counts as positive, as in scipy), in
-    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it."""
+    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it.
+    ``w ± 1`` is exactly ``±(1 + |w|)`` (rounding is symmetric), one call fewer."""
     s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign
-    d = op.abs(s, d)
-    d = op.add(d, 1.0, d)
-    return op.copysign(d, s, d)
+    s = op.copysign(1.0, s, s)
+    return op.add(w, s, d)
 
 
 def _k_as_mrp_unit(q, o):
