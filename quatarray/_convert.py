@@ -92,7 +92,7 @@ def from_quat(quat, scalar_first=False, name="quat"):
     if one is not None:   # one float64 quaternion: `_kernels.normalize`'s formula on its floats
         one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3])
         if one is not None:
-            return np.array(one).reshape(q.shape)
+            return _ops.to_array(one, q.shape)
     if scalar_first:
         src = q if q.flags.c_contiguous else np.ascontiguousarray(q)
     else:
@@ -112,8 +112,13 @@ def from_quat(quat, scalar_first=False, name="quat"):
                      f"got a zero quaternion at index {_index(first, q.shape[:-1])}")
 
 
-#: Below this many components two strided copies cost less than the shifted copy's reshapes.
-_SHIFT_MIN = 256
+#: Up to this many components one `take` of the reordered components (a new C-contiguous
+#: array, one call) costs least: a third of the copies' cost at 100 quaternions, the same
+#: at 1000, twice at 3000 (AVX-512); above it the shifted contiguous copy (C-contiguous
+#: input) or two strided copies.
+_TAKE_MAX = 2048
+_FIRST = np.array([3, 0, 1, 2])   # (x, y, z, w) -> (w, x, y, z)
+_LAST = np.array([1, 2, 3, 0])    # (w, x, y, z) -> (x, y, z, w)
 
 
 def to_scalar_first(q):
@@ -124,8 +129,10 @@ def to_scalar_first(q):
     >>> to_scalar_first(np.array([1.0, 2, 3, 4]))
     array([4., 1., 2., 3.])
     """
+    if q.size <= _TAKE_MAX:
+        return q.take(_FIRST, axis=-1)
     out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size >= _SHIFT_MIN:
+    if q.flags.c_contiguous:
         out.reshape(-1)[1:] = q.reshape(-1)[:-1]
     else:
         out[..., 1:] = q[..., :3]
@@ -139,15 +146,18 @@ def to_scalar_last(q):
     For C-contiguous input, one contiguous copy shifted by one element (x, y, z land in
     place, each w slot gets the next quaternion's w) and one strided copy of the w's:
     a memcpy and N elements, where two strided copies (or fancy indexing, whose result
-    is not even C-contiguous) cost several times as much.
+    is not even C-contiguous) cost several times as much.  Up to `_TAKE_MAX` components,
+    where the calls are the cost, one ``take`` along the last axis.
 
     >>> import numpy as np
     >>> from quatarray._convert import to_scalar_last
     >>> to_scalar_last(np.array([[4.0, 1, 2, 3]]))
     array([[1., 2., 3., 4.]])
     """
+    if q.size <= _TAKE_MAX:
+        return q.take(_LAST, axis=-1)
     out = np.empty(q.shape, q.dtype)
-    if q.flags.c_contiguous and q.size >= _SHIFT_MIN:
+    if q.flags.c_contiguous:
         out.reshape(-1)[:-1] = q.reshape(-1)[1:]
     else:
         out[..., :3] = q[..., 1:]
@@ -228,7 +238,7 @@ def as_matrix(q, unit=False):
     q = quat_array(q, "quat")
     one = _ops.floats64(q) if unit else None
     if one is not None:   # one float64 rotation: the same formula on its floats
-        return np.array(_matrix(*one, None, _ops.FLOATS, _ops.NONE, _ops.NONE)).reshape(q.shape[:-1] + (3, 3))
+        return _ops.to_array(_matrix(*one, None, _ops.FLOATS, _ops.NONE, _ops.NONE), q.shape[:-1] + (3, 3))
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
     return out
@@ -433,7 +443,7 @@ def from_matrix(matrix, assume_valid=False):
     if one is not None and all(map(math.isfinite, one)):   # one float64 matrix: the same formulas on its floats
         q = _from_matrix_floats(one, 1e-5 + tol_off, tol_off)
         if q is not None:
-            return np.array(q).reshape(batch + (4,))
+            return _ops.to_array(q, batch + (4,))
     out = np.empty(batch + (4,), m.dtype)
     qflat = out.reshape(-1, 4)
     if assume_valid:
@@ -573,7 +583,8 @@ def as_rotvec(q, degrees=False, unit=False):
     q = quat_array(q, "quat")
     one = _norm_floats(q)
     if one is not None:   # one float64 rotation: the same formula on its floats
-        return np.array(_rotvec(*one, one[0] < 0, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE)).reshape(q.shape[:-1] + (3,))
+        rotvec = _rotvec(*one, one[0] < 0, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE)
+        return _ops.to_array(rotvec, q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise_unit(_k_as_rotvec, q.reshape(-1, 4), out.reshape(-1, 3), unit, factor=_ROTVEC_FACTOR[degrees])
     return out
@@ -661,7 +672,7 @@ def from_rotvec(rotvec, degrees=False):
     n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
     if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one float64 vector that `true_norm` keeps
         q = _rotvec_quat(*one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.NONE, _ops.NONE)
-        return np.array(q).reshape(v.shape[:-1] + (4,))
+        return _ops.to_array(q, v.shape[:-1] + (4,))
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     try:
         _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
@@ -725,11 +736,11 @@ def _k_as_mrp(q, o):
 
 def _mrp_denominator(w, op, s, d):
     """``|q| + |w|`` for a unit q, signed as w (w = -0 counts as positive, as in scipy), in
-    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it."""
+    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it.
+    ``w ± 1`` is exactly ``±(1 + |w|)`` (rounding is symmetric), one call fewer."""
     s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign
-    d = op.abs(s, d)
-    d = op.add(d, 1.0, d)
-    return op.copysign(d, s, d)
+    s = op.copysign(1.0, s, s)
+    return op.add(w, s, d)
 
 
 def _k_as_mrp_unit(q, o):
@@ -765,7 +776,7 @@ def as_mrp(q, unit=False):
         one = _ops.floats64(q)
         if one is not None:   # one float64 rotation: the same formula on its floats
             d = _mrp_denominator(one[0], _ops.FLOATS, None, None)
-            return np.array([one[1] / d, one[2] / d, one[3] / d]).reshape(q.shape[:-1] + (3,))
+            return _ops.to_array([one[1] / d, one[2] / d, one[3] / d], q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     if unit:   # finite unit input: nothing to warn about, nothing written into q
         _blocks.blockwise(_k_as_mrp_unit, [q.reshape(-1, 4)], [out.reshape(-1, 3)], read_only=True)
@@ -843,7 +854,7 @@ def from_mrp(mrp):
         n = x * x + y * y + z * z   # the kernel's |p|², in its order
         if n <= _scale.HIGH[p.dtype]:   # one float64 MRP: the kernel's formula on its floats
             w, d = _mrp_quat(n, None)
-            return np.array([w, x * d, y * d, z * d]).reshape(p.shape[:-1] + (4,))
+            return _ops.to_array([w, x * d, y * d, z * d], p.shape[:-1] + (4,))
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
     return out

@@ -167,7 +167,7 @@ def from_euler(seq, angles, degrees=False):
     one = _ops.floats64(a, len(axes)) if _trig.SIMD_TAN else None   # else `_trig`'s rational tangent
     if one is not None:   # one float64 rotation: the same formula on its floats
         p = _euler_quat(one, axes, intrinsic, scale, _ops.FLOATS, _ops.NONE)
-        return np.array([0.0 if v is None else v for v in p]).reshape(a.shape[:-1] + (4,))
+        return _ops.to_array([0.0 if v is None else v for v in p], a.shape[:-1] + (4,))
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
@@ -362,7 +362,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
     one = _euler_floats(q, i, j, k, symmetric, sign, extrinsic)
     if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
-        out = np.array(one).reshape(q.shape[:-1] + (3,))
+        out = _ops.to_array(one, q.shape[:-1] + (3,))
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
         gimbal = (_blocks.blockwise if unit else _blockwise)(
@@ -535,7 +535,7 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
     one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
     if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
-        out = np.array(one).reshape(q.shape[:-1] + (3,))
+        out = _ops.to_array(one, q.shape[:-1] + (3,))
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
         gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)],

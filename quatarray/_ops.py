@@ -60,3 +60,16 @@ def floats64(q, k=4):
 
 
 _FLOAT64 = np.dtype(np.float64)   # NumPy's one native float64 dtype (another one: the block path)
+
+
+def to_array(values, shape):
+    """A float path's result, `values` (Python floats), as a float64 array of `shape`
+    (reshaped only when `np.array` did not already give that shape: a reshape costs a
+    tenth of a single rotation's call).
+
+    >>> from quatarray._ops import to_array
+    >>> to_array([1.0, 2.0, 3.0], (1, 3))
+    array([[1., 2., 3.]])
+    """
+    a = np.array(values)
+    return a if a.shape == shape else a.reshape(shape)

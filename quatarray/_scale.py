@@ -67,8 +67,24 @@ def sum_squares(q, out, start=0):
 
     Squares may overflow (that is what `guard` looks for): callers run under
     ``np.errstate(over="ignore")``, once per call rather than once per block."""
+    comps = q[start:]
+    if len(comps) == 1:
+        return np.multiply(comps[0], comps[0], out=out)
     with _blocks.scratch().frame() as work:   # no temporary allocated per component
-        return squares(list(q[start:]), _ops.ARRAYS, out, work.rows(1, out.shape, out.dtype)[0])
+        if out.size > _STACK_MAX:   # one work row, reused while it is in cache
+            return squares(list(comps), _ops.ARRAYS, out, work.rows(1, out.shape, out.dtype)[0])
+        # small blocks: all squares in one call (calls cost more than passes), summed in
+        # `squares`' order, so the bits are the same
+        sq = np.multiply(comps, comps, out=work.rows(len(comps), out.shape, out.dtype))
+        np.add(sq[0], sq[1], out=out)
+        for c in sq[2:]:
+            out += c
+        return out
+
+
+_STACK_MAX = 4096
+"""Elements per component up to which `sum_squares` squares all components in one call
+(10 elements: 15 % faster; a 32768-element block: 6 % slower, the squares leaving cache)."""
 
 
 def squares(comps, op, out, t):
