@@ -48,6 +48,11 @@ BIG_VECTOR = {d: float(np.ldexp(np.finfo(d).max, -4)) for d in _RANGE}
 sums of up to five terms of the vector's size (`shrink_vectors`)."""
 
 
+#: Up to this many squared norms, `fits` compares Python floats (a NumPy reduction
+#: costs about 1.5 µs a call, the comparisons about 0.05 µs an element).
+_FEW = 32
+
+
 def fits(n2):
     """True when every squared norm of a block is in [LOW, HIGH] (False for NaN or inf).
 
@@ -56,9 +61,9 @@ def fits(n2):
     >>> [bool(fits(np.array(n2))) for n2 in ([1.0, 4.0], [1.0, 1e-320], [np.nan], [np.inf])]
     [True, False, False, False]
     """
-    if not n2.size:
-        return True
     lo, hi = _RANGE[n2.dtype]
+    if n2.size <= _FEW:   # a few: Python's comparisons cost less than two reductions
+        return all(lo <= x <= hi for x in n2.ravel().tolist())
     return n2.min() >= lo and n2.max() <= hi
 
 
