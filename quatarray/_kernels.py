@@ -185,6 +185,27 @@ def hamilton(a, b, c, d, o0, o1, t, u):
     return o0, o1
 
 
+#: Up to this many quaternions, a product runs `_hamilton_stacked` (fewer calls, longer
+#: copies); beyond, `hamilton`'s eight passes over the operands in place.
+_STACK_MAX = 1024
+
+
+def _hamilton_stacked(P, Q, O):
+    """`hamilton` on complex views (n, 2) of a few quaternions, its operands stacked:
+    ``[a, a, b, b] · [c, d, conj d, conj c]`` in one multiply, then the same difference
+    and sum.  Element by element these are `hamilton`'s operations (the same bits), in
+    six ufunc calls instead of eight and no scratch; on long blocks the stacked copies
+    cost more than the calls they save."""
+    n = len(O)
+    L, R = np.empty((2, 4, n), O.dtype)
+    L.reshape(2, 2, n)[...] = P.T[:, None, :]   # a, a, b, b
+    R[:2] = Q.T                                 # c, d
+    np.conjugate(Q.T[::-1], R[2:])              # conj d, conj c
+    np.multiply(L, R, L)   # at least 4 elements: never the length-1 in-place multiply
+    np.subtract(L[0], L[2], O[:, 0])
+    np.add(L[1], L[3], O[:, 1])
+
+
 def _mul_views(P, Q, O):
     """O = P Q on complex views (..., 2) of one block."""
     t, u = _blocks.scratch().rows(2, O.shape[:-1], O.dtype)
@@ -227,7 +248,10 @@ def multiply(p, q, out=None, check=False):
             and p.flags.c_contiguous and q.flags.c_contiguous):
         # fast path for the common case: same shape, same float dtype, C order
         res = np.empty(p.shape, p.dtype)
-        ok = _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4))
+        if p.ndim == 2:
+            ok = _mul_flat(p, q, res, check)
+        else:
+            ok = _mul_flat(p.reshape(-1, 4), q.reshape(-1, 4), res.reshape(-1, 4), check)
         return (res, ok) if check else res
     dtype = result_dtype(p, q)
     batch = np.broadcast_shapes(p.shape[:-1], q.shape[:-1])
@@ -260,15 +284,18 @@ def _checked(res, check):
     return (res, all_finite(res)) if check else res
 
 
-def _mul_flat(p, q, o):
+def _mul_flat(p, q, o, check=True):
     """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once).
-    Returns whether every element of the product is finite."""
+    Returns whether every element of the product is finite (with `check`; else True)."""
     ct = _COMPLEX[o.dtype]
     P, Q, O = p.view(ct), q.view(ct), o.view(ct)
+    if len(o) <= _STACK_MAX:   # a few: no splitting, no pool, no scratch
+        _hamilton_stacked(P, Q, O)
+        return not check or all_finite(o)
 
     def block(idx):
         _mul_views(P[idx], Q[idx], O[idx])
-        return all_finite(o[idx])   # the block is still in cache
+        return not check or all_finite(o[idx])   # the block is still in cache
 
     return all(_blocks.run(block, _blocks.split((len(o),), _blocks.block_size(o.dtype)), len(o)))
 
@@ -395,11 +422,15 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
-    one = _ops.floats64(q) if out is None else None
+    one = _ops.floats64(q)
     if one is not None:   # one float64 quaternion: the same formula on its floats
         one = normalize_floats(one)
         if one is not None:
-            return np.array(one).reshape(q.shape)
+            if out is None:
+                return np.array(one).reshape(q.shape)
+            res = _out(out, q.shape, np.dtype(np.float64))
+            res[...] = one
+            return res
     res = _out(out, q.shape, result_dtype(q))
     if (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == res.dtype
             and (res is q or not np.may_share_memory(q, res))):   # in place is safe: row by row
@@ -418,23 +449,30 @@ def _divided(comps, n, op, outs):
     return [op.div(c, n, o) for c, o in zip(comps, outs)]
 
 
+_LOW64, _HIGH64 = _scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)]
+
+
 def normalize_floats(comps):
     """`_normalize_flat`'s q / |q| on the four floats of one float64 quaternion, or None
     where its squared norm does not `_scale.fits` (the block kernel's case)."""
     n2 = _scale.squares(comps, _ops.FLOATS, None, None)
-    if not _scale.LOW[np.dtype(np.float64)] <= n2 <= _scale.HIGH[np.dtype(np.float64)]:
+    if not _LOW64 <= n2 <= _HIGH64:
         return None
     return _divided(comps, math.sqrt(n2), _ops.FLOATS, _ops.NONE)
 
 
 def _normalize_flat(q, out):
-    """Blocked q / |q| on (N, 4) C-contiguous arrays: one einsum for the squared
-    norms, then one division per component column (long inner loops)."""
+    """Blocked q / |q| on (N, 4) C-contiguous arrays: the squared norms from one flat
+    pass of squares and three strided adds, then one division of the block by its
+    norms (broadcast along the rows: long inner loops, one call)."""
     def block(idx):
         blk, o = q[idx], out[idx]
-        work = _blocks.scratch()
-        t = work.rows(1, (len(o),), q.dtype)[0]
-        sq = work.rows(len(o), (4,), q.dtype)
+        if small:   # one small block: fresh rows cost less than the scratch's bookkeeping
+            t, sq = np.empty(len(o), q.dtype), np.empty((len(o), 4), q.dtype)
+        else:
+            work = _blocks.scratch()
+            t = work.rows(1, (len(o),), q.dtype)[0]
+            sq = work.rows(len(o), (4,), q.dtype)
         np.multiply(blk, blk, out=sq)        # one flat pass, then three strided adds:
         np.add(sq[:, 0], sq[:, 1], out=t)    # half the cost of einsum's length-4 reductions
         t += sq[:, 2]
@@ -443,9 +481,14 @@ def _normalize_flat(q, out):
             _k_normalize(soa(blk).copy(), soa(o))
             return
         np.sqrt(t, t)
-        _divided([blk[:, c] for c in range(4)], t, _ops.ARRAYS, [o[:, c] for c in range(4)])
+        _divided([blk], t[:, None], _ops.ARRAYS, [o])   # every component in one call
 
-    _blocks.run(block, _blocks.split((len(q),), _blocks.block_size(q.dtype)), len(q))
+    size = _blocks.block_size(q.dtype)
+    small = len(q) <= size
+    if small:
+        block(())
+    else:
+        _blocks.run(block, _blocks.split((len(q),), size), len(q))
 
 
 def _k_inverse(q, o):

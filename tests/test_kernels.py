@@ -101,6 +101,28 @@ def test_product_out_aliasing_input(rng):
     np.testing.assert_allclose(p, want, atol=1e-13)
 
 
+@pytest.mark.parametrize("n", [1, 2, 7, K._STACK_MAX])
+def test_product_stacked_and_in_place_passes_agree(dtype, n):
+    """A few quaternions run the product with stacked operands, long blocks with eight
+    passes in place: the same operations per element, so the same bits (also for
+    inf, nan, signed zeros and subnormals), and a row's bits do not depend on its batch."""
+    rng = np.random.default_rng(n)
+    fi = np.finfo(dtype)
+    special = np.array([np.inf, -np.inf, np.nan, 0.0, -0.0, fi.smallest_subnormal, fi.max, -fi.tiny], dtype)
+    p, q = (rng.standard_normal((n, 4)).astype(dtype) for _ in range(2))
+    for a in (p, q):   # a fifth of the components special
+        mask = rng.random(a.shape) < 0.2
+        a[mask] = rng.choice(special, mask.sum())
+    ct = np.complex64 if dtype == np.float32 else np.complex128
+    stacked, passes = np.empty((2, n, 4), dtype)
+    with np.errstate(all="ignore"):
+        K._hamilton_stacked(p.view(ct), q.view(ct), stacked.view(ct))
+        K._mul_views(p.view(ct), q.view(ct), passes.view(ct))
+        long = K.multiply(np.concatenate([p] * (K._STACK_MAX // n + 1)), np.concatenate([q] * (K._STACK_MAX // n + 1)))
+    np.testing.assert_array_equal(stacked, passes, strict=True)
+    np.testing.assert_array_equal(long[:n], stacked, strict=True)
+
+
 def test_product_out_errors():
     p = np.zeros((3, 4))
     with pytest.raises(ValueError, match=r"expected out of shape \(3, 4\), got \(2, 4\)"):
