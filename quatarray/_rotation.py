@@ -442,8 +442,9 @@ class Rotation:
         else:
             return NotImplemented
         p = self._q
-        _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
-                         f"{q.shape[:-1]} rotations in second object.")
+        if p.shape != q.shape:
+            _broadcast(p, q, f"Cannot broadcast {p.shape[:-1]} rotations in first to "
+                             f"{q.shape[:-1]} rotations in second object.")
         pq = _kernels.multiply(p, q)
         return type(self)._wrap(_kernels.normalize(pq, out=pq), unit=True)
 
