@@ -39,7 +39,7 @@ from math import prod
 import numpy as np
 
 __all__ = [
-    "BLOCK", "PARALLEL_MIN", "VIEWS_MAX", "SMALL_ROWS", "SCRATCH_LIMIT",
+    "BLOCK", "FEW", "PARALLEL_MIN", "VIEWS_MAX", "SMALL_ROWS", "SCRATCH_LIMIT",
     "get_num_threads", "set_num_threads", "num_threads",
     "block_size", "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise",
 ]
@@ -75,6 +75,10 @@ def block_size(*dtypes):
 
 _FACTOR = {}   # dtypes -> elements per block over BLOCK; a small batch pays a dict lookup
 
+
+#: A few elements: up to this many, kernels may run their formula straight on fresh
+#: component rows (stacked where that saves calls), without the block engine.
+FEW = 1024
 
 #: Below this many elements a call runs on the calling thread only.
 PARALLEL_MIN = 4 * BLOCK
