@@ -19,6 +19,8 @@ engine's scratch copies, which kernels may overwrite).  Only the rows
 that need it are rescaled, so a row's bits never depend on its block.
 """
 
+import math
+
 import numpy as np
 
 from . import _blocks, _ops
@@ -181,9 +183,21 @@ def guarded_sqnorm(q, zero=False):
     """Squared norms of a block's scratch copy `q` (in a row of the thread's
     scratch), rescaling `q` in place where they would over- or underflow
     (`guard`: with `zero`, a zero quaternion raises `ZERO`)."""
-    n2 = sum_squares(q, _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
+    n2 = sum_squares(q, np.empty(q.shape[1:], q.dtype) if q[0].size <= _blocks.FEW
+                     else _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0])
     guard(q, n2, zero=zero)
     return n2
+
+
+def _bounds(a):
+    """(min, max) of `a` as Python floats (NaN for both where `a` holds a NaN; Python's
+    comparisons for a few elements, cheaper than two reductions)."""
+    if a.size <= 3 * _FEW:
+        x = a.ravel().tolist()
+        if any(c != c for c in x):
+            return math.nan, math.nan
+        return min(x), max(x)
+    return float(a.min()), float(a.max())
 
 
 def shrink_vectors(v, n2=None):
@@ -213,9 +227,10 @@ def shrink_vectors(v, n2=None):
     big = BIG_VECTOR[v.dtype]
     grow = 1.0
     if n2 is not None:
-        lo, hi = float(n2.min()), float(n2.max())
-        grow = float(np.sqrt(max(hi, 1.0 / lo if lo > 0 else np.inf, 1.0)))
-    if grow <= 2.0 and v.max() * grow <= big and v.min() * grow >= -big:
+        lo, hi = _bounds(n2)
+        grow = math.sqrt(max(hi, 1.0 / lo if lo > 0 else math.inf, 1.0)) if hi == hi else math.nan
+    vlo, vhi = _bounds(v)
+    if grow <= 2.0 and vhi * grow <= big and vlo * grow >= -big:
         return None
     size = np.max(np.abs(v), axis=0)
     scale = size > big
