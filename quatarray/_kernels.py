@@ -700,7 +700,7 @@ def rotate(q, v, inverse=False):
     >>> np.allclose(rotate(q, np.array([[1., 0, 0]]), inverse=True), [[0, -1, 0]])
     True
     """
-    batch = np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    batch = q.shape[:-1] if q.shape[:-1] == v.shape[:-1] else np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
     one = _rotate_floats(q, v, inverse) if len(batch) <= 1 and v.size == 3 else None
     if one is not None:
         return np.array(one).reshape(batch + (3,))
@@ -719,29 +719,29 @@ def _rotate_floats(q, v, inverse):
         return None
     u = v.reshape(3).tolist()
     n2 = _scale.squares(c, _ops.FLOATS, None, None)
-    big = 0.5 * _scale.BIG_VECTOR[v.dtype]
-    if not (0.25 <= n2 <= 4.0 and all(-big <= a <= big for a in u)):
+    if not (0.25 <= n2 <= 4.0 and all(-_HALF_BIG64 <= a <= _HALF_BIG64 for a in u)):
         return None
-    if inverse:
-        c[0] = c[0] * -1.0
-    return _rotated(*c, *u, 2.0 / n2, _ops.FLOATS, _ops.NONE, _ops.NONE)
+    w = c[0] * -1.0 if inverse else c[0]
+    x, y, z = c[1:]
+    ux, uy, uz = u
+    return _rotated(w, [y, z, x], [z, x, y], u, [uy, uz, ux], [uz, ux, uy], 2.0 / n2, _ops.FLOAT_ROWS,
+                    _ops.NONE, _ops.NONE)
 
 
-def _rotated(w, x, y, z, ux, uy, uz, s, op, o, t):
-    """u' = u + w t + vec × t with t = s vec × u, over components in `op`'s arithmetic
-    (`_ops`), into ``o`` (three rows) with six work rows `t`; returned as a list."""
-    o = list(o[:3])
-    tx, ty, tz, m, r, v = t[:6]
-    # t = s vec × u
-    tx, ty, tz = [op.mul(op.sub(op.mul(a, b, tk), op.mul(c, d, m), tk), s, tk)
-                  for tk, a, b, c, d in ((tx, y, uz, z, uy), (ty, z, ux, x, uz), (tz, x, uy, y, ux))]
-    # u' = u + w t + vec × t, each row written once into the (strided) output
-    for k, (uk, tk, a, b, c, d) in enumerate(((ux, tx, y, tz, z, ty), (uy, ty, z, tx, x, tz),
-                                              (uz, tz, x, ty, y, tx))):
-        r = op.add(op.mul(w, tk, r), uk, r)
-        v = op.sub(op.mul(a, b, v), op.mul(c, d, m), v)
-        o[k] = op.add(r, v, o[k])
-    return o
+_HALF_BIG64 = 0.5 * _scale.BIG_VECTOR[np.dtype(np.float64)]
+
+
+def _rotated(w, v1, v2, u, u1, u2, s, op, o, t):
+    """u' = u + w t + vec × t with t = s vec × u, in `op`'s arithmetic (`_ops`) on rows of
+    three: `u` and its cyclic shifts ``u1 = (uy, uz, ux)``, ``u2 = (uz, ux, uy)``, and
+    likewise ``v1``, ``v2`` of the vector part (so that a cross product is two products
+    and a difference of rows); into `o` (three rows) with the work rows `t` (5 + 3 + 3:
+    t and its two shifts, then two temporaries); returned."""
+    tt, m, r = t[0:5], t[5:8], t[8:11]
+    t0 = op.mul(op.sub(op.mul(v1, u2, tt[:3]), op.mul(v2, u1, m), tt[:3]), s, tt[:3])   # s vec × u
+    t1, t2 = op.shifts(t0, tt)
+    r = op.add(op.mul(w, t0, r), u, r)                                                 # u + w t
+    return op.add(r, op.sub(op.mul(v1, t2, m), op.mul(v2, t1, tt[:3]), m), o)          # + vec × t
 
 
 def rotate_block(q, u, o, wsign):
@@ -754,5 +754,10 @@ def rotate_block(q, u, o, wsign):
     e = _scale.shrink_vectors(u, n2)   # u is the block's scratch copy; vectors near the float maximum
     s = np.divide(2.0, n2, out=n2)     # are scaled down by a power of two, and the result back up
     with _blocks.scratch().frame() as work:
-        _rotated(*q, *u, s, _ops.ARRAYS, o, work.rows(6, n2.shape, o.dtype))
+        rows = (np.empty((21,) + n2.shape, o.dtype) if n2.size <= _blocks.FEW
+                else work.rows(21, n2.shape, o.dtype))
+        vec, uu, t = rows[:5], rows[5:10], rows[10:]
+        vec[:3], vec[3:] = q[1:], q[1:3]     # x y z x y: the vector part and its shifts as views
+        uu[:3], uu[3:] = u, u[:2]
+        _rotated(w, vec[1:4], vec[2:5], uu[:3], uu[1:4], uu[2:5], s, _ops.ARRAYS, o, t)
     _scale.unscale(o, e)

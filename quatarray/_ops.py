@@ -40,6 +40,45 @@ FLOAT_STACKS = SimpleNamespace(
     mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a])
 """The same on lists of k Python floats (the stack argument is ignored)."""
 
+
+def _rows_add(a, b, out=None):
+    """``a + b`` element by element on lists of floats (a float operand applies to every element)."""
+    if type(a) is not list:
+        return [a + y for y in b]
+    if type(b) is not list:
+        return [x + b for x in a]
+    return [x + y for x, y in zip(a, b)]
+
+
+def _rows_sub(a, b, out=None):
+    """``a - b``, as `_rows_add`."""
+    if type(a) is not list:
+        return [a - y for y in b]
+    if type(b) is not list:
+        return [x - b for x in a]
+    return [x - y for x, y in zip(a, b)]
+
+
+def _rows_mul(a, b, out=None):
+    """``a * b``, as `_rows_add`."""
+    if type(a) is not list:
+        return [a * y for y in b]
+    if type(b) is not list:
+        return [x * b for x in a]
+    return [x * y for x, y in zip(a, b)]
+
+
+ARRAYS.shifts = lambda row, rows: (np.copyto(rows[3:], rows[:2]), rows[1:4], rows[2:5])[1:]
+"""``ARRAYS.shifts(t, rows)``: the cyclic shifts ``(t1, t2, t0)`` and ``(t2, t0, t1)`` of
+the three rows ``t = rows[:3]``, as views of `rows` (five rows) after copying ``t0, t1``
+into its last two."""
+
+FLOAT_ROWS = SimpleNamespace(add=_rows_add, sub=_rows_sub, mul=_rows_mul,
+                             shifts=lambda row, rows: (row[1:] + row[:1], row[2:] + row[:2]))
+"""`FLOATS` on rows of one rotation's components, lists of Python floats (formulas
+written on rows of three, e.g. a cross product as two products of shifted rows): the
+same operations element by element; the row arguments are ignored."""
+
 NONE = (None,) * 16
 """Rows for `FLOATS` (any number up to 16): the results are returned, not written."""
 

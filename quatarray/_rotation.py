@@ -427,7 +427,7 @@ class Rotation:
         if v.ndim == 0 or v.shape[-1] != 3:
             raise ValueError(f"Expected input of shape (..., 3), got {v.shape}.")
         q = self._q
-        if q.ndim > 1 or v.ndim > 1:
+        if (q.ndim > 1 or v.ndim > 1) and q.shape[:-1] != v.shape[:-1]:
             _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[0]} rotations to {v.shape[0]} vectors."
                        if q.ndim <= 2 and v.ndim <= 2 else  # scipy's two wordings
                        f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape} vectors.")
