@@ -704,10 +704,17 @@ def rotate(q, v, inverse=False):
     one = _rotate_floats(q, v, inverse) if len(batch) <= 1 and v.size == 3 else None
     if one is not None:
         return np.array(one).reshape(batch + (3,))
-    dtype = result_dtype(q, v)
+    dtype = q.dtype if q.dtype == v.dtype and q.dtype in _COMPLEX else result_dtype(q, v)
     res = np.empty(batch + (3,), dtype)
+    wsign = -1.0 if inverse else 1.0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=-1.0 if inverse else 1.0)
+        if 0 < res.size <= 3 * _blocks.FEW:   # a few: straight into the rows the formula reads
+            rows = np.empty((22,) + (batch or (1,)), dtype)   # rows, not scalars, for one rotation
+            for a, dst in ((soa(q), rows[:4]), (soa(v), rows[4:7])):   # batches right-aligned
+                dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
+            _rotate_rows(rows[:4], rows[4:7], rows[7:], soa(res.reshape(rows.shape[1:] + (3,))), wsign)
+        else:
+            _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=wsign)
     return res
 
 
@@ -718,46 +725,61 @@ def _rotate_floats(q, v, inverse):
     if c is None or v.dtype != np.float64:
         return None
     u = v.reshape(3).tolist()
+    ux, uy, uz = u
     n2 = _scale.squares(c, _ops.FLOATS, None, None)
-    if not (0.25 <= n2 <= 4.0 and all(-_HALF_BIG64 <= a <= _HALF_BIG64 for a in u)):
+    big = _HALF_BIG64
+    if not (0.25 <= n2 <= 4.0 and -big <= ux <= big and -big <= uy <= big and -big <= uz <= big):
         return None
     w = c[0] * -1.0 if inverse else c[0]
     x, y, z = c[1:]
-    ux, uy, uz = u
     return _rotated(w, [y, z, x], [z, x, y], u, [uy, uz, ux], [uz, ux, uy], 2.0 / n2, _ops.FLOAT_ROWS,
-                    _ops.NONE, _ops.NONE)
+                    None, _ops.NONE, None, None)
 
 
 _HALF_BIG64 = 0.5 * _scale.BIG_VECTOR[np.dtype(np.float64)]
 
 
-def _rotated(w, v1, v2, u, u1, u2, s, op, o, t):
+def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
     """u' = u + w t + vec × t with t = s vec × u, in `op`'s arithmetic (`_ops`) on rows of
     three: `u` and its cyclic shifts ``u1 = (uy, uz, ux)``, ``u2 = (uz, ux, uy)``, and
     likewise ``v1``, ``v2`` of the vector part (so that a cross product is two products
-    and a difference of rows); into `o` (three rows) with the work rows `t` (5 + 3 + 3:
-    t and its two shifts, then two temporaries); returned."""
-    tt, m, r = t[0:5], t[5:8], t[8:11]
-    t0 = op.mul(op.sub(op.mul(v1, u2, tt[:3]), op.mul(v2, u1, m), tt[:3]), s, tt[:3])   # s vec × u
-    t1, t2 = op.shifts(t0, tt)
-    r = op.add(op.mul(w, t0, r), u, r)                                                 # u + w t
-    return op.add(r, op.sub(op.mul(v1, t2, m), op.mul(v2, t1, tt[:3]), m), o)          # + vec × t
+    and a difference of rows); into `o` (three rows) with the work rows `t` (five: t and
+    its two shifts), `m` and `m2` (three each); returned."""
+    t0 = op.mul(op.sub(op.mul(v1, u2, t[:3]), op.mul(v2, u1, m), t[:3]), s, t[:3])   # s vec × u
+    t1, t2 = op.shifts(t0, t)
+    r = op.add(op.mul(w, t0, o), u, o)                                            # u + w t
+    return op.add(r, op.sub(op.mul(v1, t2, m), op.mul(v2, t1, m2), m), o)         # + vec × t
 
 
 def rotate_block(q, u, o, wsign):
     """`rotate`'s block kernel: components-first scratch copies q (4, *s) and u (3, *s), which
     it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q)."""
+    with _blocks.scratch().frame() as work:
+        _rotate_rows(q, u, work.rows(9, q.shape[1:], o.dtype), o, wsign)
+
+
+def _rotate_rows(q, u, work, o, wsign):
+    """`rotate`'s formula on components-first q (4, *s) and u (3, *s), which it overwrites,
+    into o (3, *s) with `work` rows: 9 for a long block, evaluated one component row at a
+    time (`_ops.ARRAY_ROWS`: the rows and their cyclic shifts are views, nothing is copied);
+    15 for a few elements (up to `_blocks.FEW`), evaluated on stacked rows of three
+    (`_ops.ARRAYS`: a third of the ufunc calls, after copying the rows into shifted
+    layouts).  The same operations per element either way: the same bits."""
     n2 = _scale.guarded_sqnorm(q)
-    w = q[0]                  # q is the block's scratch copy: w may be negated in place
+    w = q[0]
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
-    e = _scale.shrink_vectors(u, n2)   # u is the block's scratch copy; vectors near the float maximum
-    s = np.divide(2.0, n2, out=n2)     # are scaled down by a power of two, and the result back up
-    with _blocks.scratch().frame() as work:
-        rows = (np.empty((21,) + n2.shape, o.dtype) if n2.size <= _blocks.FEW
-                else work.rows(21, n2.shape, o.dtype))
-        vec, uu, t = rows[:5], rows[5:10], rows[10:]
+    e = _scale.shrink_vectors(u, n2)   # vectors near the float maximum are scaled down by a
+    s = np.divide(2.0, n2, out=n2)     # power of two, and the result back up
+    if len(work) == 9:
+        x, y, z = q[1:]
+        ux, uy, uz = u
+        _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux], [uz, ux, uy], s, _ops.ARRAY_ROWS,
+                 list(o), list(work[:3]), list(work[3:6]), list(work[6:9]))
+    else:
+        vec, uu, t = work[:5], work[5:10], work[10:15]
         vec[:3], vec[3:] = q[1:], q[1:3]     # x y z x y: the vector part and its shifts as views
         uu[:3], uu[3:] = u, u[:2]
-        _rotated(w, vec[1:4], vec[2:5], uu[:3], uu[1:4], uu[2:5], s, _ops.ARRAYS, o, t)
+        # q's x, y, z and u's rows serve as temporaries from here
+        _rotated(w, vec[1:4], vec[2:5], uu[:3], uu[1:4], uu[2:5], s, _ops.ARRAYS, o, t, q[1:], u)
     _scale.unscale(o, e)

@@ -42,30 +42,31 @@ FLOAT_STACKS = SimpleNamespace(
 
 
 def _rows_add(a, b, out=None):
-    """``a + b`` element by element on lists of floats (a float operand applies to every element)."""
-    if type(a) is not list:
-        return [a + y for y in b]
-    if type(b) is not list:
-        return [x + b for x in a]
-    return [x + y for x, y in zip(a, b)]
+    """``a + b`` element by element on rows of three floats (lists; a float operand applies
+    to every element)."""
+    if type(a) is list:
+        if type(b) is list:
+            return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+        return [a[0] + b, a[1] + b, a[2] + b]
+    return [a + b[0], a + b[1], a + b[2]]
 
 
 def _rows_sub(a, b, out=None):
     """``a - b``, as `_rows_add`."""
-    if type(a) is not list:
-        return [a - y for y in b]
-    if type(b) is not list:
-        return [x - b for x in a]
-    return [x - y for x, y in zip(a, b)]
+    if type(a) is list:
+        if type(b) is list:
+            return [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+        return [a[0] - b, a[1] - b, a[2] - b]
+    return [a - b[0], a - b[1], a - b[2]]
 
 
 def _rows_mul(a, b, out=None):
     """``a * b``, as `_rows_add`."""
-    if type(a) is not list:
-        return [a * y for y in b]
-    if type(b) is not list:
-        return [x * b for x in a]
-    return [x * y for x, y in zip(a, b)]
+    if type(a) is list:
+        if type(b) is list:
+            return [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
+        return [a[0] * b, a[1] * b, a[2] * b]
+    return [a * b[0], a * b[1], a * b[2]]
 
 
 ARRAYS.shifts = lambda row, rows: (np.copyto(rows[3:], rows[:2]), rows[1:4], rows[2:5])[1:]
@@ -73,11 +74,30 @@ ARRAYS.shifts = lambda row, rows: (np.copyto(rows[3:], rows[:2]), rows[1:4], row
 the three rows ``t = rows[:3]``, as views of `rows` (five rows) after copying ``t0, t1``
 into its last two."""
 
+def _component_rows(f):
+    """The ufunc `f` on rows of three given as lists of three arrays, one call per component
+    (a single array operand applies to every component), into the list `out`."""
+    def op(a, b, out):
+        if type(a) is list:
+            if type(b) is list:
+                return [f(a[0], b[0], out[0]), f(a[1], b[1], out[1]), f(a[2], b[2], out[2])]
+            return [f(a[0], b, out[0]), f(a[1], b, out[1]), f(a[2], b, out[2])]
+        return [f(a, b[0], out[0]), f(a, b[1], out[1]), f(a, b[2], out[2])]
+    return op
+
+
+ARRAY_ROWS = SimpleNamespace(add=_component_rows(np.add), sub=_component_rows(np.subtract),
+                             mul=_component_rows(np.multiply),
+                             shifts=lambda row, rows: (row[1:] + row[:1], row[2:] + row[:2]))
+"""`ARRAYS` on rows of three given as lists of three component rows: one call per component
+(on long blocks, where stacking would first copy the rows into shifted layouts); the
+shifts of a row are the same arrays in another order."""
+
 FLOAT_ROWS = SimpleNamespace(add=_rows_add, sub=_rows_sub, mul=_rows_mul,
                              shifts=lambda row, rows: (row[1:] + row[:1], row[2:] + row[:2]))
-"""`FLOATS` on rows of one rotation's components, lists of Python floats (formulas
-written on rows of three, e.g. a cross product as two products of shifted rows): the
-same operations element by element; the row arguments are ignored."""
+"""`FLOATS` on rows of three of one rotation's components, lists of three Python floats
+(formulas written on rows of three, e.g. a cross product as two products of shifted
+rows): the same operations element by element; the row arguments are ignored."""
 
 NONE = (None,) * 16
 """Rows for `FLOATS` (any number up to 16): the results are returned, not written."""

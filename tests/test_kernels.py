@@ -9,6 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
+from quatarray import _blocks
 from quatarray import _kernels as K
 
 from .conftest import hamilton_reference, random_quats, tol
@@ -362,6 +363,27 @@ def test_rotate_one_rotation_to_many_vectors_and_zero_quaternion(rng):
         warnings.simplefilter("error")
         assert np.isnan(K.rotate(np.zeros(4), np.ones(3))).all()
         assert np.isnan(K.rotate(np.zeros((2, 4)), np.ones(3))).all()
+
+
+@pytest.mark.parametrize("inverse", [False, True])
+def test_rotate_stacked_and_component_rows_agree(dtype, inverse):
+    """A few pairs run the rotation formula on stacked rows, long blocks one component row
+    at a time: the same operations per element, so the same bits, also for quaternions and
+    vectors of extreme magnitude (rescaled), zero quaternions (nan) and infinite vectors."""
+    rng = np.random.default_rng(5)
+    n = 3 * _blocks.FEW   # more than a few: the long path
+    q = rng.standard_normal((n, 4)).astype(dtype)
+    v = rng.standard_normal((n, 3)).astype(dtype)
+    fi = np.finfo(dtype)
+    q[::7] *= dtype(2.0) ** rng.integers(-60, 60, (len(q[::7]), 1))
+    v[::5] *= fi.max / 4
+    q[3] = 0.0
+    v[6, 2] = np.inf
+    with np.errstate(all="ignore"):
+        long = K.rotate(q, v, inverse=inverse)
+        for start in range(0, n, 500):   # a few at a time: the stacked path
+            few = K.rotate(q[start:start + 500], v[start:start + 500], inverse=inverse)
+            np.testing.assert_array_equal(few, long[start:start + 500], strict=True)
 
 
 def test_rotate_mixed_dtypes_promote(rng):
