@@ -64,8 +64,10 @@ def fits(n2):
     [True, False, False, False]
     """
     lo, hi = _RANGE[n2.dtype]
-    if n2.size <= _FEW:   # a few: Python's comparisons cost less than two reductions
-        return all(lo <= x <= hi for x in n2.ravel().tolist())
+    if n2.size <= _FEW:   # a few: Python's min, max and sum (NaN) cost less than two reductions
+        x = n2.ravel().tolist()
+        total = sum(x)
+        return not x or total == total and min(x) >= lo and max(x) <= hi
     return n2.min() >= lo and n2.max() <= hi
 
 
@@ -192,9 +194,10 @@ def guarded_sqnorm(q, zero=False):
 def _bounds(a):
     """(min, max) of `a` as Python floats (NaN for both where `a` holds a NaN; Python's
     comparisons for a few elements, cheaper than two reductions)."""
-    if a.size <= 3 * _FEW:
+    if 0 < a.size <= 3 * _FEW:
         x = a.ravel().tolist()
-        if any(c != c for c in x):
+        total = sum(x)   # NaN where an element is NaN (or +inf and -inf meet: NaN bounds, the safe answer)
+        if total != total:
             return math.nan, math.nan
         return min(x), max(x)
     return float(a.min()), float(a.max())
