@@ -710,9 +710,9 @@ def rotate(q, v, inverse=False):
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         if 0 < res.size <= 3 * _blocks.FEW:   # a few: straight into the rows the formula reads
             rows = np.empty((22,) + (batch or (1,)), dtype)   # rows, not scalars, for one rotation
-            for a, dst in ((soa(q), rows[:4]), (soa(v), rows[4:7])):   # batches right-aligned
+            for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
                 dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
-            _rotate_rows(rows[:4], rows[4:7], rows[7:], soa(res.reshape(rows.shape[1:] + (3,))), wsign)
+            _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign)
         else:
             _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=wsign)
     return res
@@ -753,33 +753,37 @@ def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
 
 def rotate_block(q, u, o, wsign):
     """`rotate`'s block kernel: components-first scratch copies q (4, *s) and u (3, *s), which
-    it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q)."""
+    it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q).  Evaluated one component
+    row at a time (`_ops.ARRAY_ROWS`: a row's shifts are views, nothing is copied)."""
+    w, s, e = _rotate_setup(q, u, wsign)
+    x, y, z = q[1:]
+    ux, uy, uz = u
     with _blocks.scratch().frame() as work:
-        _rotate_rows(q, u, work.rows(9, q.shape[1:], o.dtype), o, wsign)
+        t = list(work.rows(9, q.shape[1:], o.dtype))
+        _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux], [uz, ux, uy], s, _ops.ARRAY_ROWS,
+                 list(o), t[:3], t[3:6], t[6:9])
+    _scale.unscale(o, e)
 
 
-def _rotate_rows(q, u, work, o, wsign):
-    """`rotate`'s formula on components-first q (4, *s) and u (3, *s), which it overwrites,
-    into o (3, *s) with `work` rows: 9 for a long block, evaluated one component row at a
-    time (`_ops.ARRAY_ROWS`: the rows and their cyclic shifts are views, nothing is copied);
-    15 for a few elements (up to `_blocks.FEW`), evaluated on stacked rows of three
-    (`_ops.ARRAYS`: a third of the ufunc calls, after copying the rows into shifted
-    layouts).  The same operations per element either way: the same bits."""
+def _rotate_few(rows, o, wsign):
+    """`rotate_block`'s formula for a few pairs (up to `_blocks.FEW`), on stacked rows of three
+    (`_ops.ARRAYS`: a third of the ufunc calls; the same operations per element, the same
+    bits).  `rows` (22, *s) holds q in rows 0-3 and u in rows 6-8; the vector part and u
+    are extended with their first two rows, so that their cyclic shifts are views."""
+    q, u = rows[:4], rows[6:9]
+    w, s, e = _rotate_setup(q, u, wsign)
+    rows[4:6] = rows[1:3]    # x y z x y
+    rows[9:11] = rows[6:8]   # ux uy uz ux uy
+    _rotated(w, rows[2:5], rows[3:6], u, rows[7:10], rows[8:11], s, _ops.ARRAYS, o, rows[11:16],
+             rows[16:19], rows[19:22])
+    _scale.unscale(o, e)
+
+
+def _rotate_setup(q, u, wsign):
+    """(w, 2 / |q|², e) for `rotate`'s formula, rescaling q and u in place where needed."""
     n2 = _scale.guarded_sqnorm(q)
     w = q[0]
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
     e = _scale.shrink_vectors(u, n2)   # vectors near the float maximum are scaled down by a
-    s = np.divide(2.0, n2, out=n2)     # power of two, and the result back up
-    if len(work) == 9:
-        x, y, z = q[1:]
-        ux, uy, uz = u
-        _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux], [uz, ux, uy], s, _ops.ARRAY_ROWS,
-                 list(o), list(work[:3]), list(work[3:6]), list(work[6:9]))
-    else:
-        vec, uu, t = work[:5], work[5:10], work[10:15]
-        vec[:3], vec[3:] = q[1:], q[1:3]     # x y z x y: the vector part and its shifts as views
-        uu[:3], uu[3:] = u, u[:2]
-        # q's x, y, z and u's rows serve as temporaries from here
-        _rotated(w, vec[1:4], vec[2:5], uu[:3], uu[1:4], uu[2:5], s, _ops.ARRAYS, o, t, q[1:], u)
-    _scale.unscale(o, e)
+    return w, np.divide(2.0, n2, out=n2), e   # power of two, and the result back up
