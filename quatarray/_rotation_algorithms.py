@@ -25,9 +25,11 @@ def mean(q, weights, axes, unit=False):
     if weights is not None:
         weights = _weights_in_range(np.broadcast_to(weights, q.shape[:-1]), axes)
     # the 4x4 matrix in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in scipy
-    xyzw = [1, 2, 3, 0]
-    _, vectors = np.linalg.eigh(chordal_sums(q, weights, axes, unit=unit)[..., xyzw, :][..., xyzw])
-    return _convert.canonical(vectors[..., -1][..., [3, 0, 1, 2]]).astype(q.dtype)
+    _, vectors = np.linalg.eigh(chordal_sums(q, weights, axes, unit=unit)[..., _XYZW_ROWS, _XYZW])
+    return _convert.canonical(vectors[..., _WXYZ, -1]).astype(q.dtype, copy=False)
+
+
+_XYZW, _XYZW_ROWS, _WXYZ = np.array([1, 2, 3, 0]), np.array([[1], [2], [3], [0]]), np.array([3, 0, 1, 2])
 
 
 def _weights_in_range(w, axes):
@@ -61,6 +63,9 @@ def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
     """
     batch = q.shape[:-1]
     nb = len(batch)
+    if unit and weights is None and len(axes) == nb and q.size <= 4 * _blocks.block_size(np.float64):
+        c = q.reshape(-1, 4).astype(np.float64, copy=False)   # all of a few unit rotations: one product
+        return np.matmul(c.T, c)
     keep = tuple(a for a in range(nb) if a not in axes)
     order = keep + tuple(axes) + (nb,)
     kshape = tuple(batch[a] for a in keep)
@@ -69,7 +74,7 @@ def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
     lead = qt.shape[len(keep)]
     per_slice = prod(qt.shape[:-1]) // lead
     step = max(1, _blocks.block_size(np.float64) // max(per_slice, 1))
-    acc = np.zeros(kshape + (4, 4))
+    acc = None
     head = (slice(None),) * len(keep)
     for start in range(0, lead, step):   # a loop over blocks, as the block engine's
         sl = head + (slice(start, start + step),)
@@ -82,7 +87,11 @@ def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
             raise
         c = c.reshape(kshape + (-1, 4))
         wc = c if wt is None else c * wt[sl].reshape(kshape + (-1, 1))
-        acc += np.matmul(np.swapaxes(wc, -1, -2), c)
+        part = np.matmul(np.swapaxes(wc, -1, -2), c)
+        if acc is None:
+            acc = part
+        else:
+            acc += part
     return acc
 
 
