@@ -572,8 +572,11 @@ class Rotation:
         array([10.,  0.,  0.])
         """
         q = self._q
-        if q.ndim == 1 and weights is None and axis is None:  # the mean of one rotation is itself
-            return type(self)._wrap(_convert.canonical(q))
+        if weights is None and axis is None:
+            if q.ndim == 1 or q.shape == (1, 4) and self._unit:   # the mean of one rotation is itself
+                return type(self)._wrap(_convert.canonical(q.reshape(4)))
+            if q.ndim == 2 and len(q):
+                return type(self)._wrap(_rotation_algorithms.mean(q, None, (0,), unit=self._unit))
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]
