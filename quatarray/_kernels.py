@@ -32,6 +32,8 @@ def result_dtype(*arrays):
     >>> result_dtype(np.zeros(4, np.float32), np.zeros(4))
     dtype('float64')
     """
+    if len(arrays) == 1 and getattr(arrays[0], "dtype", None) in _COMPLEX:   # one float array: its own
+        return arrays[0].dtype
     return np.result_type(*arrays, np.float32)
 
 
@@ -321,10 +323,11 @@ _SIGNS = {}
 def _conj_signs(dtype, n=None):
     """(1, -1, -1, -1) tiled over `n` quaternions (default one block), per dtype (built once)."""
     n = _blocks.block_size(dtype) if n is None else n
-    key = (np.dtype(dtype), n)
-    if key not in _SIGNS:
-        _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], dtype), n)
-    return _SIGNS[key]
+    key = (dtype, n)
+    signs = _SIGNS.get(key)
+    if signs is None:
+        signs = _SIGNS[key] = np.tile(np.array([1, -1, -1, -1], dtype), n)
+    return signs
 
 
 def conjugate(q, out=None, check=False):
