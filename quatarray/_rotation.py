@@ -548,7 +548,7 @@ class Rotation:
             atol = 1e-8 if p.dtype == q.dtype == np.float64 else 1e-5
         elif degrees:
             atol = np.deg2rad(atol)
-        if p.ndim > 1 or q.ndim > 1:
+        if (p.ndim > 1 or q.ndim > 1) and p.shape != q.shape:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
         res = _convert.magnitude(_kernels.multiply(q, _kernels.conjugate(p))) < atol
