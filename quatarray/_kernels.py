@@ -344,7 +344,7 @@ def conjugate(q, out=None, check=False):
     """
     dtype = result_dtype(q)
     res = _out(out, q.shape, dtype)
-    if q.ndim == 1 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
+    if q.size <= 256 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
         np.multiply(q, _conj_signs(dtype, 1), out=res)
         return _checked(res, check)
     src, dst = q.reshape(-1), res.reshape(-1)
