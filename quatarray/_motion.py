@@ -14,8 +14,11 @@ __all__ = ["apply", "compose", "inverse"]
 
 def apply(q, t, v, inverse=False):
     """``R(q) v + t`` (or ``R(q)ᵀ (v - t)`` with `inverse`) for unit q, broadcasting."""
-    dtype = _kernels.result_dtype(q, t, v)
-    batch = np.broadcast_shapes(q.shape[:-1], t.shape[:-1], v.shape[:-1])
+    if q.shape[:-1] == t.shape[:-1] == v.shape[:-1] and q.dtype == t.dtype == v.dtype:
+        dtype, batch = q.dtype, q.shape[:-1]
+    else:
+        dtype = _kernels.result_dtype(q, t, v)
+        batch = np.broadcast_shapes(q.shape[:-1], t.shape[:-1], v.shape[:-1])
     if inverse:
         return _kernels.rotate(q, np.subtract(v, t, dtype=dtype), inverse=True).reshape(batch + (3,))
     out = np.asarray(_kernels.rotate(q, v))

@@ -338,11 +338,12 @@ class RigidTransform:
         v = np.asarray(vector, dtype=q.dtype)
         if v.ndim < 1 or v.shape[-1] != 3:
             raise ValueError(f"Expected vector to have shape (..., 3), got {v.shape}.")
-        try:
-            np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
-        except ValueError:
-            raise ValueError("operands could not be broadcast together with transforms of shape "
-                             f"{self.shape} and vectors of shape {v.shape}") from None
+        if q.shape[:-1] != v.shape[:-1]:
+            try:
+                np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+            except ValueError:
+                raise ValueError("operands could not be broadcast together with transforms of shape "
+                                 f"{self.shape} and vectors of shape {v.shape}") from None
         if q.shape == (4,) and v.shape == (3,):
             out = _kernels.rotate(q, v - t if inverse else v, inverse=inverse)
             return out if inverse else out + t
