@@ -12,7 +12,7 @@ from math import prod
 import numpy as np
 
 from . import _blocks, _convert, _kernels
-from ._validate import float_array
+from ._validate import all_finite, float_array
 
 __all__ = ["mean", "chordal_sums", "reduce", "align"]
 
@@ -140,10 +140,10 @@ def align(a, b, weights, return_sensitivity):
     n = a2.shape[0]
     if n == 0:
         raise ValueError("expected at least one pair of vectors in a and b, got 0")
-    if not (np.isfinite(a2).all() and np.isfinite(b2).all()):
+    if not (all_finite(a2) and all_finite(b2)):
         raise ValueError("expected finite values in a and b, got nan or inf")
     if weights is None:
-        w = np.ones(n)
+        w = None if n > 1 else np.ones(1)
     else:
         w = float_array(weights, "weights").astype(np.float64)
         if w.ndim != 1:
@@ -153,8 +153,8 @@ def align(a, b, weights, return_sensitivity):
                              f"vectors, got {w.shape[0]} values and {n} vectors")
         if np.isnan(w).any() or (w < 0).any():
             raise ValueError("`weights` may not contain negative values: expected non-negative weights")
-    inf = np.array([True]) if n == 1 else np.isposinf(w)
-    n_inf = int(inf.sum())
+    inf = np.array([True]) if n == 1 else None if w is None else w == np.inf
+    n_inf = 0 if inf is None else int(np.count_nonzero(inf))
     if n_inf > 1:
         raise ValueError("Only one infinite weight is allowed")
     if n_inf == 1:
@@ -162,24 +162,33 @@ def align(a, b, weights, return_sensitivity):
             raise ValueError("Cannot return sensitivity matrix with an infinite weight or one vector pair")
         q, rssd = _align_primary(a2, b2, w, inf)
         return q.astype(dtype), rssd, None
-    big = (w[:, None] * a2).T @ b2
+    big = a2.T @ b2 if w is None else (w[:, None] * a2).T @ b2   # (weights of 1: the same products)
     u, s, vt = np.linalg.svd(big)
-    if np.linalg.det(u @ vt) < 0:
+    if _det3(u @ vt) < 0:
         s[-1] = -s[-1]
         u[:, -1] = -u[:, -1]
     rot = u @ vt
-    if s[1] + s[2] < 1e-16 * s[0]:
+    s0, s1, s2 = s.tolist()
+    if s1 + s2 < 1e-16 * s0:
         warnings.warn("Optimal rotation is not uniquely or poorly defined for the given sets of vectors.",
                       UserWarning, stacklevel=3)
-    rssd = np.sqrt(max(np.sum(w * np.sum(b2 ** 2 + a2 ** 2, axis=1)) - 2 * np.sum(s), 0.0))
+    sq = np.sum(b2 ** 2 + a2 ** 2, axis=1)
+    rssd = np.sqrt(max(float(np.sum(sq if w is None else w * sq)) - 2 * (s0 + s1 + s2), 0.0))
     sens = None
     if return_sensitivity:
+        w = np.ones(n) if w is None else w
         zeta = (s[0] + s[1]) * (s[1] + s[2]) * (s[2] + s[0])
         kappa = s[0] * s[1] + s[1] * s[2] + s[2] * s[0]
         with np.errstate(divide="ignore", invalid="ignore"):
             sens = np.mean(w) / zeta * (kappa * np.eye(3) + big @ big.T)
     q = _convert.from_matrix(rot, assume_valid=True)
     return q.astype(dtype), rssd, sens
+
+
+def _det3(m):
+    """Determinant of a 3x3 matrix, in Python floats (its sign decides a reflection)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 def _align_primary(a, b, w, inf):
