@@ -94,7 +94,7 @@ def quat_array(x, name):
 def all_finite(a):
     """True when every element of `a` is finite (no nan, no ±inf), cheaply.
 
-    One quaternion: a sum of Python floats; small arrays: `np.isfinite`;
+    A few elements (up to 96): a sum of Python floats; small arrays: `np.isfinite`;
     large ones: one sum (a finite sum means finite elements; a sum that is
     not finite is then checked element by element).
 
@@ -106,7 +106,7 @@ def all_finite(a):
     if not isinstance(a, np.ndarray):
         a = np.asarray(a)
     size = a.size
-    if size <= 4:
+    if size <= 96:   # a few: one Python sum (a finite sum means finite elements)
         return math.isfinite(sum(a.ravel().tolist())) or bool(np.isfinite(a).all())
     if size <= 4096:
         return bool(np.isfinite(a).all())
