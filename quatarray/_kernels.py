@@ -686,14 +686,16 @@ def power(q, t):
     return res
 
 
-def rotate(q, v, inverse=False):
+def rotate(q, v, inverse=False, unit=False):
     """Rotate vectors `v` (..., 3) by q/|q|: the vector part of q v q⁻¹.
 
     Uses the expanded form u' = u + w t + vec × t with t = 2 vec × u / |q|²,
     which is the game-developer formula u + 2w(v×u) + 2 v×(v×u) for unit q.
     Every pair (one quaternion with many vectors too) runs this one formula,
     so a vector gets the same bits whatever else is rotated with it.  With
-    `inverse`, rotate by conj(q).  Zero quaternions give nan.
+    `inverse`, rotate by conj(q).  Zero quaternions give nan.  `unit`: the caller knows
+    that q holds finite unit quaternions and v finite vectors (`Rotation.apply`), so no
+    floating-point warning can arise and none is silenced.
 
     >>> import numpy as np
     >>> from quatarray._kernels import rotate
@@ -710,11 +712,15 @@ def rotate(q, v, inverse=False):
     dtype = q.dtype if q.dtype == v.dtype and q.dtype in _COMPLEX else result_dtype(q, v)
     res = np.empty(batch + (3,), dtype)
     wsign = -1.0 if inverse else 1.0
+    if 0 < res.size <= 3 * _blocks.FEW:   # a few: straight into the rows the formula reads
+        rows = np.empty((22,) + (batch or (1,)), dtype)   # rows, not scalars, for one rotation
+        for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
+            dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
+        if unit:
+            _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign)
+            return res
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        if 0 < res.size <= 3 * _blocks.FEW:   # a few: straight into the rows the formula reads
-            rows = np.empty((22,) + (batch or (1,)), dtype)   # rows, not scalars, for one rotation
-            for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
-                dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
+        if 0 < res.size <= 3 * _blocks.FEW:
             _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign)
         else:
             _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=wsign)

@@ -431,7 +431,7 @@ class Rotation:
             _broadcast(q, v[..., :1], f"Cannot broadcast {q.shape[0]} rotations to {v.shape[0]} vectors."
                        if q.ndim <= 2 and v.ndim <= 2 else  # scipy's two wordings
                        f"Cannot broadcast {q.shape[:-1]} rotations to {v.shape} vectors.")
-        return _kernels.rotate(q, v, inverse)
+        return _kernels.rotate(q, v, inverse, unit=self._unit)
 
     def __mul__(self, other):
         """Composition ``self * other``: apply `other`, then `self` (batch shapes broadcast)."""
