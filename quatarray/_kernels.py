@@ -717,7 +717,7 @@ def rotate(q, v, inverse=False, unit=False):
         for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
             dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
         if unit:
-            _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign)
+            _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign, unit=True)
             return res
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         if 0 < res.size <= 3 * _blocks.FEW:
@@ -745,7 +745,8 @@ def _rotate_floats(q, v, inverse):
                     None, _ops.NONE, None, None)
 
 
-_HALF_BIG64 = 0.5 * _scale.BIG_VECTOR[np.dtype(np.float64)]
+_HALF_BIG = {d: 0.5 * big for d, big in _scale.BIG_VECTOR.items()}
+_HALF_BIG64 = _HALF_BIG[np.dtype(np.float64)]
 
 
 def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
@@ -774,13 +775,13 @@ def rotate_block(q, u, o, wsign):
     _scale.unscale(o, e)
 
 
-def _rotate_few(rows, o, wsign):
+def _rotate_few(rows, o, wsign, unit=False):
     """`rotate_block`'s formula for a few pairs (up to `_blocks.FEW`), on stacked rows of three
     (`_ops.ARRAYS`: a third of the ufunc calls; the same operations per element, the same
     bits).  `rows` (22, *s) holds q in rows 0-3 and u in rows 6-8; the vector part and u
     are extended with their first two rows, so that their cyclic shifts are views."""
     q, u = rows[:4], rows[6:9]
-    w, s, e = _rotate_setup(q, u, wsign)
+    w, s, e = _rotate_setup(q, u, wsign, unit)
     rows[4:6] = rows[1:3]    # x y z x y
     rows[9:11] = rows[6:8]   # ux uy uz ux uy
     _rotated(w, rows[2:5], rows[3:6], u, rows[7:10], rows[8:11], s, _ops.ARRAYS, o, rows[11:16],
@@ -788,11 +789,17 @@ def _rotate_few(rows, o, wsign):
     _scale.unscale(o, e)
 
 
-def _rotate_setup(q, u, wsign):
-    """(w, 2 / |q|², e) for `rotate`'s formula, rescaling q and u in place where needed."""
-    n2 = _scale.guarded_sqnorm(q)
+def _rotate_setup(q, u, wsign, unit=False):
+    """(w, 2 / |q|², e) for `rotate`'s formula, rescaling q and u in place where needed.
+    `unit` (finite unit q): the range checks' outcome is known where it cannot differ (no
+    q is rescaled; no vector below half `_scale.BIG_VECTOR` is), so they are skipped there."""
+    if unit:
+        n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype))
+    else:
+        n2 = _scale.guarded_sqnorm(q)
     w = q[0]
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
-    e = _scale.shrink_vectors(u, n2)   # vectors near the float maximum are scaled down by a
-    return w, np.divide(2.0, n2, out=n2), e   # power of two, and the result back up
+    # vectors near the float maximum are scaled down by a power of two, and the result back up
+    e = None if unit and _scale.inside(u, _HALF_BIG[u.dtype]) else _scale.shrink_vectors(u, n2)
+    return w, np.divide(2.0, n2, out=n2), e

@@ -26,7 +26,7 @@ import numpy as np
 from . import _blocks, _ops
 
 __all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
-           "outside", "unscale", "true_norm", "BIG_VECTOR", "shrink_vectors", "small_norms"]
+           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "shrink_vectors", "small_norms"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 ZERO = "expected non-zero quaternions, got a zero quaternion (it is no rotation)"
@@ -201,6 +201,18 @@ def _bounds(a):
             return math.nan, math.nan
         return min(x), max(x)
     return float(a.min()), float(a.max())
+
+
+def inside(v, bound):
+    """True when every element of `v` lies in [-bound, bound] (False for NaN).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import inside
+    >>> inside(np.array([1.0, -2.0]), 2.0), inside(np.array([1.0, np.nan]), 2.0)
+    (True, False)
+    """
+    lo, hi = _bounds(v)
+    return -bound <= lo and hi <= bound
 
 
 def shrink_vectors(v, n2=None):

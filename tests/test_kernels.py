@@ -386,6 +386,21 @@ def test_rotate_stacked_and_component_rows_agree(dtype, inverse):
             np.testing.assert_array_equal(few, long[start:start + 500], strict=True)
 
 
+def test_rotate_unit_skips_only_checks_whose_outcome_is_known(dtype):
+    """`unit=True` (Rotation's finite unit quaternions) skips range checks only where they
+    cannot change the result: the same bits as the checked path, for vectors around half
+    the vector bound (scaled or not) and in a long batch."""
+    from quatarray import _scale
+    rng = np.random.default_rng(11)
+    q = random_quats(rng, (40,), dtype)
+    big = _scale.BIG_VECTOR[np.dtype(dtype)]
+    v = rng.standard_normal((40, 3)).astype(dtype)
+    v[::3] *= dtype(big / 2)   # components around half the bound: either side
+    v[1::3] *= dtype(big)
+    for inverse in (False, True):
+        np.testing.assert_array_equal(K.rotate(q, v, inverse, unit=True), K.rotate(q, v, inverse), strict=True)
+
+
 def test_rotate_mixed_dtypes_promote(rng):
     q = unit(rng, (4,), np.float32)
     v = rng.standard_normal((4, 3))
