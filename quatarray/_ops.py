@@ -74,6 +74,7 @@ ARRAYS.shifts = lambda row, rows: (np.copyto(rows[3:], rows[:2]), rows[1:4], row
 the three rows ``t = rows[:3]``, as views of `rows` (five rows) after copying ``t0, t1``
 into its last two."""
 
+
 def _component_rows(f):
     """The ufunc `f` on rows of three given as lists of three arrays, one call per component
     (a single array operand applies to every component), into the list `out`."""
