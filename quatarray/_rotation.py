@@ -551,7 +551,9 @@ class Rotation:
         if (p.ndim > 1 or q.ndim > 1) and p.shape != q.shape:
             _broadcast(p, q, f"Expected broadcastable shapes in both rotations, got {p.shape[:-1]} "
                              f"rotations in first and {q.shape[:-1]} rotations in second object.")
-        res = _convert.magnitude(_kernels.multiply(q, _kernels.conjugate(p))) < atol
+        # the product of two unit quaternions is one (|q p*|² within a few ulp of 1): magnitude's
+        # range check would find nothing to rescale
+        res = _convert.magnitude(_kernels.multiply(q, _kernels.conjugate(p)), unit=self._unit and other._unit) < atol
         return res.reshape(1) if res.ndim == 0 else res
 
     # --- averaging and reducing ---------------------------------------------------------
