@@ -199,6 +199,11 @@ def _hamilton_stacked(P, Q, O):
     six ufunc calls instead of eight and no scratch; on long blocks the stacked copies
     cost more than the calls they save."""
     n = len(O)
+    if n == 1 and O.dtype == np.complex128:   # one float64 quaternion: the operands from its
+        (a, b), (c, d) = P[0].tolist(), Q[0].tolist()   # Python complex numbers (exact)
+        m = (np.array([a, a, b, b]) * np.array([c, d, d.conjugate(), c.conjugate()])).tolist()
+        O[0] = m[0] - m[2], m[1] + m[3]   # Python's complex - and + round as NumPy's
+        return
     L, R = np.empty((2, 4, n), O.dtype)
     L.reshape(2, 2, n)[...] = P.T[:, None, :]   # a, a, b, b
     R[:2] = Q.T                                 # c, d
