@@ -480,7 +480,8 @@ class Rotation:
                                      f"scipy's) broadcast with the rotations' shape "
                                      f"{q.shape[:-1]}: got shape {t.shape}")
                 t = finite(t.astype(np.result_type(t.dtype, q.dtype), copy=False), "the exponent n")
-                return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q) * t[..., None]))
+                return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q, unit=self._unit) * t[..., None]),
+                                        unit=True)
             n = float(t)
         if not np.isfinite(n):
             raise ValueError(f"expected a finite exponent n, got {n}")
@@ -490,7 +491,7 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
-        return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q) * n))
+        return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q, unit=self._unit) * n), unit=True)
 
     def inv(self):
         """The inverse rotations.
