@@ -11,6 +11,7 @@ float32, any batch shape works everywhere, and ``r ** n`` accepts exponents of
 the batch shape (one per rotation).
 """
 
+import math
 import warnings
 
 import numpy as np
@@ -483,7 +484,11 @@ class Rotation:
                 return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q, unit=self._unit) * t[..., None]),
                                         unit=True)
             n = float(t)
-        if not np.isfinite(n):
+        try:
+            finite_n = math.isfinite(n)
+        except OverflowError:   # an int beyond the float range
+            finite_n = False
+        if not finite_n:
             raise ValueError(f"expected a finite exponent n, got {n}")
         if n == 0:
             return type(self).identity(shape=q.shape[:-1], dtype=q.dtype)
