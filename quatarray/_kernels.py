@@ -471,8 +471,7 @@ def normalize_floats(comps):
 
 def _normalize_flat(q, out):
     """Blocked q / |q| on (N, 4) C-contiguous arrays: the squared norms from one flat
-    pass of squares and three strided adds, then one division of the block by its
-    norms (broadcast along the rows: long inner loops, one call)."""
+    pass of squares and three strided adds, then the divisions by the norms."""
     def block(idx):
         blk, o = q[idx], out[idx]
         if small:   # one small block: fresh rows cost less than the scratch's bookkeeping
@@ -489,7 +488,10 @@ def _normalize_flat(q, out):
             _k_normalize(soa(blk).copy(), soa(o))
             return
         np.sqrt(t, t)
-        _divided([blk], t[:, None], _ops.ARRAYS, [o])   # every component in one call
+        if len(o) <= _blocks.FEW:   # a few: every component in one call (inner loops of 4)
+            _divided([blk], t[:, None], _ops.ARRAYS, [o])
+        else:                       # long blocks: one call per component column (long inner loops)
+            _divided([blk[:, c] for c in range(4)], t, _ops.ARRAYS, [o[:, c] for c in range(4)])
 
     size = _blocks.block_size(q.dtype)
     small = len(q) <= size
