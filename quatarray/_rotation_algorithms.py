@@ -181,7 +181,7 @@ def align(a, b, weights, return_sensitivity):
         kappa = s[0] * s[1] + s[1] * s[2] + s[2] * s[0]
         with np.errstate(divide="ignore", invalid="ignore"):
             sens = np.mean(w) / zeta * (kappa * np.eye(3) + big @ big.T)
-    q = _convert.from_matrix(rot, assume_valid=True)
+    q = _convert.from_matrix(rot)   # checked (U Vᵀ passes): one float64 matrix takes the float formulas
     return q.astype(dtype), rssd, sens
 
 
