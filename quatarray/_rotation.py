@@ -815,11 +815,14 @@ class Rotation:
         self._unit = self._unit and value._unit
 
     def __getstate__(self):
-        return self._q
+        # the unit flag travels with the quaternions: it picks the formulas (as_matrix,
+        # as_mrp), so a copy or an unpickled rotation gives the original's bits
+        return self._q, self._unit
 
     def __setstate__(self, state):
-        self._q = np.array(state, copy=True)
-        self._unit = False
+        q, unit = state if isinstance(state, tuple) else (state, False)   # an array: older pickles
+        self._q = np.array(q, copy=True)
+        self._unit = bool(unit)
 
     def __repr__(self):
         m = repr(self.as_matrix()).splitlines()

@@ -4,6 +4,8 @@ and both dtypes; randomness, averaging and fitting; the bad-input table; the
 documented migration differences; and a realistic workflow run with either
 import giving the same numbers."""
 
+import copy
+import pickle
 import warnings
 
 import numpy as np
@@ -596,8 +598,6 @@ def test_migration_workflow_gives_scipys_numbers():
 # --- scipy's container behaviour, randomness rules and mixing with scipy -----------------------
 
 def test_repr_pickle_copy_and_setitem_like_scipy(rng):
-    import copy
-    import pickle
     q = random_quats(rng, (3,))
     r, s = Rotation.from_quat(q, scalar_first=True), SR.from_quat(q, scalar_first=True)
     assert repr(r) == repr(s) and str(r) == str(s) and repr(r[0]) == repr(s[0])
@@ -616,6 +616,26 @@ def test_repr_pickle_copy_and_setitem_like_scipy(rng):
     with pytest.raises(TypeError, match="value must be a Rotation object"):
         r[0] = q[0]
     assert (r == r) and not (r == Rotation.from_quat(r.as_quat())) and r != r.inv()  # identity, as scipy
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("clone", [copy.copy, copy.deepcopy, lambda r: pickle.loads(pickle.dumps(r))],
+                         ids=["copy", "deepcopy", "pickle"])
+def test_a_copy_or_pickle_gives_the_original_bits(rng, dtype, clone):
+    """A copied or unpickled Rotation (a Dask task's, a cached one) answers with the original's
+    bits: it keeps knowing its quaternions are unit, so it takes the same formulas."""
+    r = Rotation.from_quat(random_quats(rng, (200,)).astype(dtype))
+    c = clone(r)
+    for name, f in [("as_matrix", lambda x: x.as_matrix()), ("as_mrp", lambda x: x.as_mrp()),
+                    ("as_rotvec", lambda x: x.as_rotvec()), ("magnitude", lambda x: x.magnitude()),
+                    ("as_euler", lambda x: x.as_euler("xyz")), ("mul", lambda x: (x * x).as_quat()),
+                    ("apply", lambda x: x.apply([1.0, 2.0, 3.0]))]:
+        np.testing.assert_array_equal(f(c), f(r), err_msg=name, strict=True)
+    c.as_quatarray()[0] = [2, 0, 0, 0]   # a clone shares no memory, and no knowledge once written to
+    np.testing.assert_allclose(np.linalg.det(clone(c).as_matrix()[0]), 1, rtol=1e-6)
+    older = object.__new__(Rotation)   # a pickle from before the flag travelled: the quaternions alone
+    older.__setstate__(r.as_quat(scalar_first=True))
+    np.testing.assert_allclose(older.as_matrix(), r.as_matrix(), rtol=0, atol=4 * np.finfo(dtype).eps)
 
 
 def test_random_legacy_random_state_draws_like_scipy():
