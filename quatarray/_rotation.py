@@ -121,7 +121,9 @@ class Rotation:
     # --- the stored quaternions -----------------------------------------------------------
     @property
     def _quat(self):
-        """The stored quaternions as a `QuatArray` view (scalar-first)."""
+        """The stored quaternions as a `QuatArray` view (scalar-first), for the package's
+        readers (interpolants, time series): unlike `as_quatarray`, which hands the memory to
+        a caller who may write, it keeps the unit flag, so the rotation's answers keep their bits."""
         return self._q.view(QuatArray)
 
     @classmethod

@@ -471,8 +471,8 @@ class Track:
         if _is_scipy_rotation(keys):   # as Slerp accepts them
             keys = Rotation.from_scipy(keys)
         unit = isinstance(keys, Rotation)
-        if unit:  # its quaternions, scalar-first, without a copy
-            keys = keys.as_quatarray()
+        if unit:  # its quaternions, scalar-first, without a copy (nor as_quatarray's unit flag drop)
+            keys = keys._quat
         self._setup(times, keys, method, extrapolate, "times", "keys", unit)
 
     def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False, prepared=False):
@@ -710,7 +710,7 @@ class Slerp(Track):
             raise ValueError("Times must be in strictly increasing order.")
         # a Rotation's quaternions are unit already (only unflipped, see `unit_keys`), but one
         # made with normalize=False may hold anything
-        keys = finite(rotations.as_quatarray().view(np.ndarray), "rotations")
+        keys = finite(rotations._quat.view(np.ndarray), "rotations")
         keys, dots = _scipy_ties(keys)
         self._setup(t, _interp_kernels.unflip(keys, 0, dots), "slerp", "raise", "times", "rotations",
                     prepared=True)

@@ -638,6 +638,31 @@ def test_a_copy_or_pickle_gives_the_original_bits(rng, dtype, clone):
     np.testing.assert_allclose(older.as_matrix(), r.as_matrix(), rtol=0, atol=4 * np.finfo(dtype).eps)
 
 
+def _consumers():
+    from quatarray import RotationSpline, Slerp, Track, timeseries
+    times = np.arange(6.0)
+    return [("Slerp", lambda r: Slerp(times, r)), ("RotationSpline", lambda r: RotationSpline(times, r)),
+            ("Track", lambda r: Track(times, r)), ("reduce_keys", lambda r: timeseries.reduce_keys(times, r, 0.1)),
+            ("integrate initial", lambda r: timeseries.integrate_angular_velocity(times, np.zeros((6, 6, 3)), initial=r)),
+            ("angular_velocity", lambda r: timeseries.angular_velocity(times, r)),
+            ("swing_twist", lambda r: timeseries.swing_twist(r, [0, 0, 1])),
+            ("geodesic_mean", lambda r: timeseries.geodesic_mean(r)),
+            ("smooth", lambda r: timeseries.smooth(times, r, 3))]
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("name", [name for name, _ in _consumers()])
+def test_consumers_leave_a_rotation_as_it_was(rng, dtype, name):
+    """Slerp, RotationSpline, Track and the time-series functions read a Rotation's quaternions
+    without changing it: afterwards it gives the same bits (it still knows they are unit)."""
+    consume = dict(_consumers())[name]
+    r = Rotation.from_quat(random_quats(rng, (6,)).astype(dtype))
+    before = r.as_quat(), r.as_matrix(), r.as_mrp()
+    consume(r)
+    for got, want in zip((r.as_quat(), r.as_matrix(), r.as_mrp()), before):
+        np.testing.assert_array_equal(got, want, strict=True)
+
+
 def test_random_legacy_random_state_draws_like_scipy():
     for ours, theirs in ((Rotation.random(4, 5), SR.random(4, 5)),                         # by position
                          (Rotation.random(4, random_state=5), SR.random(4, random_state=5)),
