@@ -286,3 +286,68 @@ def test_one_rotation_at_the_kernels_branches(s):
             whole = np.asarray(f(r))
             for i in range(len(rows)):
                 _same(f(r[i]), whole[i], f"{name}, row {i}")
+
+
+@DTYPE
+@pytest.mark.parametrize("n", [_blocks.VIEWS_MAX, _blocks.VIEWS_MAX + 1, 1024, 1025, 2048, 2049])
+def test_batches_at_the_engines_size_thresholds(dtype, n):
+    """At either side of the engine's size thresholds (`_blocks.VIEWS_MAX`: strided views of a
+    Rotation's storage or copies; `_blocks.SMALL_ROWS`: fresh scratch rows or the kept buffer,
+    at 1024 float64 / 2048 float32 rows of four), the first, middle and last rows of the batch,
+    alone and as a batch of one, give the batch's bits."""
+    kinds = [KINDS[k % len(KINDS)] for k in range(n)]
+    q = _rows(n, kinds, dtype, False)
+    r = Rotation.from_quat(q, scalar_first=True)
+    v = np.random.default_rng(n).standard_normal((n, 3)).astype(dtype)
+    axes = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
+    R = Rotation
+    ops = [("as_matrix", lambda r: r.as_matrix()), ("as_rotvec", lambda r: r.as_rotvec()),
+           ("as_mrp", lambda r: r.as_mrp()), ("magnitude", lambda r: r.magnitude()),
+           ("as_euler", lambda r: r.as_euler("xyz")), ("as_euler ZYZ", lambda r: r.as_euler("ZYZ")),
+           ("as_davenport", lambda r: r.as_davenport(axes, "e")), ("inv", lambda r: r.inv()),
+           ("mul", lambda r: r * r), ("pow", lambda r: r ** 0.3), ("as_quat canonical", lambda r: r.as_quat(canonical=True))]
+    check([(name, lambda q, f=f: f(R.from_quat(q, scalar_first=True))) for name, f in ops], (q,), 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # gimbal lock
+        for name, f, args in [("apply", lambda q, v: R.from_quat(q, scalar_first=True).apply(v), (q, v)),
+                              ("from_quat", lambda q: R.from_quat(q, scalar_first=True), (q,)),
+                              ("from_matrix", R.from_matrix, (r.as_matrix(),)),
+                              ("from_rotvec", R.from_rotvec, (r.as_rotvec(),)), ("from_mrp", R.from_mrp, (r.as_mrp(),)),
+                              ("from_euler", lambda e: R.from_euler("xyz", e), (r.as_euler("xyz"),))] + [
+                (name, lambda q, f=f: f(R.from_quat(q, scalar_first=True)), (q,)) for name, f in ops]:
+            whole = _raw(f(*args))
+            for i in (0, n // 2, n - 1):
+                _same(_raw(f(*(a[i] for a in args))), whole[i], f"{name} at {i}: alone")
+                _same(_raw(f(*(a[i:i + 1] for a in args)))[0], whole[i], f"{name} at {i}: batch of one")
+
+
+@DTYPE
+@pytest.mark.parametrize("layout", ["strided", "fortran", "reversed", "read-only"])
+def test_any_memory_layout_gives_the_contiguous_bits(dtype, layout):
+    """Input in any memory layout (strided or reversed views, Fortran order, read-only) gives
+    the bits of its contiguous copy, at a small batch (the engine's views) and past one block."""
+    for n in (5, _blocks.VIEWS_MAX + 3):
+        q = _rows(n, [KINDS[k % len(KINDS)] for k in range(n)], dtype, False)
+        if layout == "strided":
+            x = np.repeat(q, 2, axis=0)[::2]
+        elif layout == "fortran":
+            x = np.asfortranarray(q)
+        elif layout == "reversed":
+            x = q[::-1].copy()[::-1]
+        else:
+            x = q.copy()
+            x.flags.writeable = False
+        saved = x.copy()
+        Q, R = QuatArray, Rotation
+        for name, f in [("normalized", lambda a: Q(a).normalized()), ("log", lambda a: Q(a).log()),
+                        ("as_matrix", lambda a: Q(a).as_matrix()), ("as_rotvec", lambda a: Q(a).as_rotvec()),
+                        ("as_mrp", lambda a: Q(a).as_mrp()), ("as_euler", lambda a: Q(a).as_euler("zyx")),
+                        ("product", lambda a: Q(a) * Q(a)),
+                        ("Rotation", lambda a: R.from_quat(a, scalar_first=True)),
+                        ("Rotation normalize=False", lambda a: R(a, scalar_first=True, normalize=False).as_matrix()),
+                        ("from_matrix", lambda a: R.from_matrix(Q(a).as_matrix())),
+                        ("slerp", lambda a: slerp(a, a[::-1], np.linspace(0, 1, n, dtype=dtype)))]:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")   # gimbal lock
+                _same(_raw(f(x)), _raw(f(q)), f"{name}, {n} rows")
+        np.testing.assert_array_equal(x, saved, strict=True)   # never written
