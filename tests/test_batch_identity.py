@@ -351,3 +351,31 @@ def test_any_memory_layout_gives_the_contiguous_bits(dtype, layout):
                 warnings.simplefilter("ignore")   # gimbal lock
                 _same(_raw(f(x)), _raw(f(q)), f"{name}, {n} rows")
         np.testing.assert_array_equal(x, saved, strict=True)   # never written
+
+
+@DTYPE
+@pytest.mark.parametrize("k", [2, 3, 16, 17, 18, 33])
+def test_interpolants_at_their_key_count_thresholds(dtype, k):
+    """Slerp and RotationSpline over 2 keys (the Python-float paths of one float64 pair), and
+    around the spline solve's dense base case (16 block rows): each query alone and as a batch
+    of one gives the batch's bits, at, between and next to the keys; near-identity, half-turn,
+    gimbal, equal and antipodal neighbouring keys included."""
+    keys = _rows(k, [KINDS[(j + k) % len(KINDS)] for j in range(k)], dtype, False)
+    if k > 2:
+        keys[2] = keys[1]       # equal neighbours
+    if k > 3:
+        keys[3] = -keys[2]      # antipodal neighbours (the same rotation)
+    rng = np.random.default_rng(k)
+    times = np.cumsum(rng.uniform(0.1, 2.0, k))
+    at = np.concatenate([times, rng.uniform(times[0], times[-1], 8), (times[:-1] + times[1:]) / 2,
+                         np.nextafter(times[1:], -np.inf)])
+    r = Rotation.from_quat(keys, scalar_first=True)
+    slerp_, spline = Slerp(times, r), RotationSpline(times, r)
+    check([("Slerp", slerp_), ("RotationSpline", spline), ("RotationSpline rate", lambda t: spline(t, 1)),
+           ("RotationSpline acceleration", lambda t: spline(t, 2))], (at,), len(at) - 1)
+    for name, f in [("Slerp", slerp_), ("RotationSpline", spline), ("RotationSpline rate", lambda t: spline(t, 1))]:
+        whole = _raw(f(at))
+        assert np.isfinite(whole).all(), name
+        for i in range(len(at)):
+            _same(_raw(f(at[i])), whole[i], f"{name} at {at[i]}: alone")
+            _same(_raw(f(at[i:i + 1]))[0], whole[i], f"{name} at {at[i]}: batch of one")
