@@ -583,7 +583,7 @@ class Rotation:
         """
         q = self._q
         if weights is None and axis is None:
-            if q.ndim == 1 or q.shape == (1, 4) and self._unit:   # the mean of one rotation is itself
+            if (q.ndim == 1 or q.shape == (1, 4)) and self._unit:   # one unit rotation: itself
                 return type(self)._wrap(_convert.canonical(q.reshape(4)))
             if q.ndim == 2 and len(q):
                 return type(self)._wrap(_rotation_algorithms.mean(q, None, (0,), unit=self._unit))

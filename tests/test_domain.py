@@ -194,6 +194,27 @@ def test_mean_refuses_bad_rows(row, match):
         Rotation([[1, 0, 0, 0], row], scalar_first=True, normalize=False).mean()
 
 
+@pytest.mark.parametrize("shape", [(4,), (1, 4)], ids=["single", "batch of one"])
+@pytest.mark.parametrize("row, match", [
+    ([np.nan, 0, 0, 0], "expected finite rotations to average, got nan or inf"),
+    ([0, np.inf, 0, 0], "expected finite rotations to average, got nan or inf"),
+    ([0, 0, 0, 0], "zero quaternion at index"),
+])
+def test_mean_of_one_rotation_refuses_a_bad_one(shape, row, match):
+    """The mean of one rotation is itself only when it is known unit: one made with
+    normalize=False is checked and normalised as in a longer batch."""
+    with pytest.raises(ValueError, match=match):
+        Rotation(np.reshape(row, shape), scalar_first=True, normalize=False).mean()
+
+
+@pytest.mark.parametrize("shape", [(4,), (1, 4)], ids=["single", "batch of one"])
+@pytest.mark.parametrize("scale", [1e-300, 2.0, 1e300])
+def test_mean_of_one_non_unit_rotation_is_unit(shape, scale):
+    q = np.reshape([0.6 * scale, 0.8 * scale, 0, 0], shape)
+    got = Rotation(q, scalar_first=True, normalize=False).mean().as_quat(scalar_first=True)
+    np.testing.assert_allclose(got, [0.6, 0.8, 0, 0], rtol=0, atol=1e-15)
+
+
 @pytest.mark.parametrize("r", [1e-300, 1e-200, 1e200, 1e300])
 def test_mean_at_extreme_magnitudes(r):
     q = np.array([[0.6, 0.8, 0, 0], [0.8, 0.6, 0, 0]])
