@@ -799,7 +799,7 @@ class Rotation:
         if self._q.ndim == 1:
             raise TypeError("Single rotation is not iterable.")
         cls = type(self)
-        return (cls._wrap(q, unit=self._unit) for q in self._q)
+        return (cls._wrap(q.copy(), unit=self._unit) for q in self._q)   # copies, as scipy's
 
     def __getitem__(self, indexer):
         if self._q.ndim == 1:

@@ -638,6 +638,17 @@ def test_a_copy_or_pickle_gives_the_original_bits(rng, dtype, clone):
     np.testing.assert_allclose(older.as_matrix(), r.as_matrix(), rtol=0, atol=4 * np.finfo(dtype).eps)
 
 
+def test_iterated_rotations_are_copies(rng):
+    """As in scipy, the rotations an iteration yields are independent of the batch: writing
+    into one (through as_quatarray) leaves the batch's quaternions and matrices as they were."""
+    r = Rotation.from_quat(random_quats(rng, (3,)))
+    before = r.as_quat(), r.as_matrix()
+    for item in r:
+        item.as_quatarray()[:] = [2.0, 0, 0, 0]
+    np.testing.assert_array_equal(r.as_quat(), before[0], strict=True)
+    np.testing.assert_array_equal(r.as_matrix(), before[1], strict=True)
+
+
 def _consumers():
     from quatarray import RotationSpline, Slerp, Track, timeseries
     times = np.arange(6.0)
