@@ -289,16 +289,26 @@ def test_one_rotation_at_the_kernels_branches(s):
 
 
 @DTYPE
-@pytest.mark.parametrize("n", [_blocks.VIEWS_MAX, _blocks.VIEWS_MAX + 1, 1024, 1025, 2048, 2049])
+@pytest.mark.parametrize("n", [32, 33, _blocks.VIEWS_MAX, _blocks.VIEWS_MAX + 1, _blocks.FEW, _blocks.FEW + 1,
+                               2048, 2049, 4096, 4097])
 def test_batches_at_the_engines_size_thresholds(dtype, n):
-    """At either side of the engine's size thresholds (`_blocks.VIEWS_MAX`: strided views of a
-    Rotation's storage or copies; `_blocks.SMALL_ROWS`: fresh scratch rows or the kept buffer,
-    at 1024 float64 / 2048 float32 rows of four), the first, middle and last rows of the batch,
-    alone and as a batch of one, give the batch's bits."""
+    """At either side of the size thresholds of the small-batch paths (Python-float range
+    checks up to 32 norms or vectors; `_blocks.VIEWS_MAX`: strided views of a Rotation's
+    storage or copies; `_blocks.FEW`: rotations and products on stacked rows;
+    `_blocks.SMALL_ROWS`: fresh scratch rows or the kept buffer, at 1024 float64 / 2048 float32
+    rows of four; squares of 4096 elements stacked), the first, middle and last rows of the
+    batch, alone and as a batch of one, give the batch's bits."""
     kinds = [KINDS[k % len(KINDS)] for k in range(n)]
     q = _rows(n, kinds, dtype, False)
     r = Rotation.from_quat(q, scalar_first=True)
     v = np.random.default_rng(n).standard_normal((n, 3)).astype(dtype)
+    v[n // 2] *= np.finfo(dtype).max / 4   # one vector past the rescaling bound, mid-batch
+    p = _rows(n + 1, kinds, dtype, True)     # any magnitude, for the QuatArray algebra
+    Q = QuatArray
+    check([("product", lambda q, p, v: Q(q) * Q(p)), ("rotate", lambda q, p, v: Q(p).rotate(v)),
+           ("norm", lambda q, p, v: Q(p).norm()), ("normalized", lambda q, p, v: Q(p).normalized()),
+           ("log", lambda q, p, v: Q(p).log()), ("as_rotvec", lambda q, p, v: Q(p).as_rotvec()),
+           ("as_matrix", lambda q, p, v: Q(p).as_matrix())], (q, p, v), n // 2)
     axes = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
     R = Rotation
     ops = [("as_matrix", lambda r: r.as_matrix()), ("as_rotvec", lambda r: r.as_rotvec()),
