@@ -315,7 +315,8 @@ def test_batches_at_the_engines_size_thresholds(dtype, n):
            ("as_mrp", lambda r: r.as_mrp()), ("magnitude", lambda r: r.magnitude()),
            ("as_euler", lambda r: r.as_euler("xyz")), ("as_euler ZYZ", lambda r: r.as_euler("ZYZ")),
            ("as_davenport", lambda r: r.as_davenport(axes, "e")), ("inv", lambda r: r.inv()),
-           ("mul", lambda r: r * r), ("pow", lambda r: r ** 0.3), ("as_quat canonical", lambda r: r.as_quat(canonical=True))]
+           ("mul", lambda r: r * r), ("pow", lambda r: r ** 0.3),
+           ("as_quat canonical", lambda r: r.as_quat(canonical=True))]
     check([(name, lambda q, f=f: f(R.from_quat(q, scalar_first=True))) for name, f in ops], (q,), 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")   # gimbal lock

@@ -654,7 +654,8 @@ def _consumers():
     times = np.arange(6.0)
     return [("Slerp", lambda r: Slerp(times, r)), ("RotationSpline", lambda r: RotationSpline(times, r)),
             ("Track", lambda r: Track(times, r)), ("reduce_keys", lambda r: timeseries.reduce_keys(times, r, 0.1)),
-            ("integrate initial", lambda r: timeseries.integrate_angular_velocity(times, np.zeros((6, 6, 3)), initial=r)),
+            ("integrate initial",
+             lambda r: timeseries.integrate_angular_velocity(times, np.zeros((6, 6, 3)), initial=r)),
             ("angular_velocity", lambda r: timeseries.angular_velocity(times, r)),
             ("swing_twist", lambda r: timeseries.swing_twist(r, [0, 0, 1])),
             ("geodesic_mean", lambda r: timeseries.geodesic_mean(r)),
