@@ -121,10 +121,20 @@ class Rotation:
     # --- the stored quaternions -----------------------------------------------------------
     @property
     def _quat(self):
-        """The stored quaternions as a `QuatArray` view (scalar-first), for the package's
-        readers (interpolants, time series): unlike `as_quatarray`, which hands the memory to
-        a caller who may write, it keeps the unit flag, so the rotation's answers keep their bits."""
+        """The stored quaternions as a `QuatArray` view (scipy-style private name; scipy's own
+        test suite reads it).  The package's readers use `_unit_quat`: these may not be unit."""
         return self._q.view(QuatArray)
+
+    def _unit_quat(self, name="rotations"):
+        """The rotations as unit scalar-first quaternions (ndarray, not to be written), for the
+        package's readers (interpolants, time series).  Known unit ones (``_unit``) are the
+        stored array itself, so the readers' answers keep their bits; others (``normalize=False``,
+        or handed out by `as_quatarray`) are normalised into a new array by `_convert.from_quat`
+        (`_kernels.normalize`, safe at any magnitude), whose `ValueError` for a zero, NaN or
+        infinite quaternion names `name`.  Unlike `as_quatarray` it keeps the unit flag."""
+        if self._unit:
+            return self._q
+        return _convert.from_quat(self._q, scalar_first=True, name=name)
 
     @classmethod
     def from_quatarray(cls, q):

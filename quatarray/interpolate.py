@@ -471,8 +471,8 @@ class Track:
         if _is_scipy_rotation(keys):   # as Slerp accepts them
             keys = Rotation.from_scipy(keys)
         unit = isinstance(keys, Rotation)
-        if unit:  # its quaternions, scalar-first, without a copy (nor as_quatarray's unit flag drop)
-            keys = keys._quat
+        if unit:  # its unit quaternions, scalar-first, without a copy where known unit
+            keys = keys._unit_quat("keys")
         self._setup(times, keys, method, extrapolate, "times", "keys", unit)
 
     def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False, prepared=False):
@@ -708,9 +708,9 @@ class Slerp(Track):
         finite(t, "times")
         if (t[1:] <= t[:-1]).any():
             raise ValueError("Times must be in strictly increasing order.")
-        # a Rotation's quaternions are unit already (only unflipped, see `unit_keys`), but one
-        # made with normalize=False may hold anything
-        keys = finite(rotations._quat.view(np.ndarray), "rotations")
+        # unit quaternions (only unflipped from here on, see `unit_keys`): the stored ones where
+        # known unit, else normalised (a Rotation made with normalize=False may hold anything)
+        keys = finite(rotations._unit_quat("rotations"), "rotations")
         keys, dots = _scipy_ties(keys)
         self._setup(t, _interp_kernels.unflip(keys, 0, dots), "slerp", "raise", "times", "rotations",
                     prepared=True)

@@ -121,7 +121,7 @@ def block_tridiagonal_banded(A, B, d):
 def _keys(rotations):
     in_memory(rotations, "rotations")
     if isinstance(rotations, Rotation):
-        return rotations._quat.view(np.ndarray)   # read only: the rotation keeps its unit flag
+        return rotations._unit_quat("rotations")   # read only: the rotation keeps its unit flag
     if hasattr(rotations, "as_quat") and not isinstance(rotations, QuatArray):
         # a scipy Rotation (or anything with scipy's as_quat): read its quaternions
         q = np.asarray(rotations.as_quat())

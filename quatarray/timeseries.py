@@ -42,7 +42,7 @@ def _raw_series(keys, name, min_len=2):
     if isinstance(keys, Rotation):
         if keys.single:
             raise ValueError(f"expected {name} of shape (T, ...) (a sequence of rotations), got a single rotation")
-        keys = keys._quat   # read only: not as_quatarray, which drops the rotation's unit flag
+        keys = keys._unit_quat(name)   # read only: not as_quatarray, which drops the rotation's unit flag
     keys = float_array(keys, name)
     if keys.ndim < 2 or keys.shape[-1] != 4:
         raise ValueError(f"expected {name} of shape (T, ..., 4), got {keys.shape}")
@@ -255,7 +255,7 @@ def integrate_angular_velocity(times, omega, *, initial=None, frame="world", met
         q0[..., 0] = 1
     else:
         if isinstance(initial, Rotation):
-            initial = initial._quat
+            initial = initial._unit_quat("initial")
         q0 = float_array(initial, "initial", last=4).astype(np.float64)
         finite(q0, "initial")
         try:
@@ -273,7 +273,7 @@ def integrate_angular_velocity(times, omega, *, initial=None, frame="world", met
 
 def _given_quats(rotations):
     """The quaternions as given (signs kept), as an ndarray."""
-    return np.asarray(rotations._quat if isinstance(rotations, Rotation) else rotations)
+    return np.asarray(rotations._unit_quat() if isinstance(rotations, Rotation) else rotations)
 
 
 def _orientations(rotations, name="rotations"):
@@ -428,7 +428,7 @@ def swing_twist(rotations, axis):
     True
     """
     if isinstance(rotations, Rotation):
-        rotations = rotations._quat
+        rotations = rotations._unit_quat()
     q = float_array(rotations, "rotations", last=4)
     finite(q, "rotations")
     a = float_array(axis, "axis", last=3)
@@ -483,7 +483,7 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise ValueError(f"expected max_iter to be an int >= 1, got {max_iter!r}")
     start = r.mean(weights=weights, axis=axis)   # validates weights and axis as the chordal mean does
-    q = np.asarray(r._quat, np.float64)
+    q = np.asarray(r._unit_quat(), np.float64)
     if q.ndim == 1:
         q = q[None]
     batch = q.shape[:-1]
@@ -499,7 +499,7 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     total = wm.sum(axis=-1, keepdims=True)
     if not (total > 0).all():
         raise ValueError("expected weights with a positive sum along the averaged axes, got a zero sum")
-    mu0 = np.asarray(start._quat, np.float64).reshape(kshape + (4,))
+    mu0 = np.asarray(start._unit_quat(), np.float64).reshape(kshape + (4,))
     mu, it, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
     if step > tol:
         raise ValueError(f"expected the geodesic mean to converge within max_iter={max_iter} iterations "
