@@ -1070,3 +1070,71 @@ def test_one_pair_slerp_equals_the_batch_path(rng, dtype, shortest):
     one = np.array([IK.slerp(x, y, np.array(h), shortest) for x, y, h in zip(a, b, t)])
     assert one.dtype == dtype
     np.testing.assert_array_equal(one, batch)
+
+
+# --- keys of a Rotation made with normalize=False ---------------------------------------------------------
+
+def _scaled(rng, keys, low=1e-3, high=1e3):
+    """`keys` each times its own positive factor, log-uniform in [low, high] (same rotations)."""
+    return keys * np.exp(rng.uniform(np.log(low), np.log(high), keys.shape[:-1] + (1,))).astype(keys.dtype)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_slerp_of_non_unit_rotation_keys_equals_scipy(rng, dtype):
+    times, keys = random_track(rng, 12, step=1.5)
+    raw = _scaled(rng, keys).astype(dtype)
+    t = np.concatenate([rng.uniform(times[0], times[-1], 50), times])
+    sci = SciRotation.from_quat(raw.astype(np.float64), scalar_first=True)
+    ref = SciSlerp(times, sci)(t).as_quat(scalar_first=True)
+    given = raw.copy()
+    rot = Rotation(raw, normalize=False, copy=False, scalar_first=True)
+    got = Slerp(times, rot)(t).as_quat(scalar_first=True)
+    assert got.dtype == dtype
+    assert_allclose(got, ref, atol=tol(dtype, 20), double_cover=True)
+    track = Track(times, rot)(t)
+    assert_allclose(track, ref, atol=tol(dtype, 20), double_cover=True)
+    np.testing.assert_array_equal(raw, given)   # the rotation's memory is read, not normalised in place
+    np.testing.assert_array_equal(rot.as_quat(scalar_first=True), given)
+
+
+def test_slerp_of_scipy_issue_keys():
+    # scipy 1.17: Slerp([0, 1], Rotation([[0,0,0,1],[0,0,1,1]], normalize=False, copy=False))(0.5) is the unit 45°
+    keys = np.array([[0, 0, 0, 1], [0, 0, 1, 1]], dtype=float)
+    ref = SciSlerp([0, 1], SciRotation(keys, normalize=False, copy=False))(0.5).as_quat()
+    got = Slerp([0, 1], Rotation(keys, normalize=False, copy=False))(0.5).as_quat()
+    assert_allclose(got, ref, atol=tol(np.float64, 4))
+    assert_allclose(got, [0, 0, np.sin(np.pi / 8), np.cos(np.pi / 8)], atol=tol(np.float64, 4))
+
+
+def test_slerp_of_non_unit_rotation_keys_batched_equals_per_track(rng):
+    times, keys = random_track(rng, 5, (2, 3), step=1.2)
+    raw = _scaled(rng, keys)
+    t = rng.uniform(times[0], times[-1], 20)
+    got = Slerp(times, Rotation(raw, normalize=False, scalar_first=True), batched=True)(t).as_quat(scalar_first=True)
+    for i in range(2):
+        for j in range(3):
+            ref = SciSlerp(times, SciRotation.from_quat(raw[:, i, j], scalar_first=True))(t)
+            assert_allclose(got[:, i, j], ref.as_quat(scalar_first=True), atol=tol(np.float64, 20), double_cover=True)
+
+
+@pytest.mark.parametrize("make, name", [(lambda r: Slerp([0, 1, 2], r), "rotations"),
+                                        (lambda r: Track([0, 1, 2], r), "keys")], ids=["Slerp", "Track"])
+def test_zero_rotation_key_raises_naming_the_argument(make, name):
+    keys = np.array([[0, 0, 0, 1], [0, 0, 0, 0], [0, 0, 1, 1]], dtype=float)
+    with pytest.raises(ValueError, match="zero norm quaternions"):   # scipy's answer
+        SciSlerp([0, 1, 2], SciRotation(keys, normalize=False))
+    with pytest.raises(ValueError, match=rf"zero norm quaternions in `{name}`.*index \(1,\)"):
+        make(Rotation(keys, normalize=False))
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e-200, 1e300])
+def test_huge_and_tiny_rotation_keys_slerp_as_their_unit_ones(rng, scale):
+    # scipy's squared norm over- or underflows here (it raises "zero norm"); the rotations are
+    # the unit ones all the same
+    times, keys = random_track(rng, 6, step=1.0)
+    t = rng.uniform(times[0], times[-1], 30)
+    ref = SciSlerp(times, SciRotation.from_quat(keys, scalar_first=True))(t).as_quat(scalar_first=True)
+    rot = Rotation(keys * scale, normalize=False, scalar_first=True)
+    for got in (Slerp(times, rot)(t).as_quat(scalar_first=True), np.asarray(Track(times, rot)(t))):
+        assert np.isfinite(got).all()
+        assert_allclose(got, ref, atol=tol(np.float64, 20), double_cover=True)

@@ -255,3 +255,73 @@ def test_relative_rotvecs_of_two_keys_on_floats_give_the_rows_bits(rng):
     assert np.array_equal(rows[4], np.zeros(3))
     for i in range(len(keys) - 1):
         assert np.array_equal(S.relative_rotvecs(keys[i:i + 2])[0], rows[i]), i
+
+
+# --- keys of a Rotation made with normalize=False ---------------------------------------------------------
+
+def _scaled(rng, keys):
+    """`keys` each times its own positive factor, log-uniform in [1e-3, 1e3] (same rotations)."""
+    return keys * np.exp(rng.uniform(np.log(1e-3), np.log(1e3), keys.shape[:-1] + (1,))).astype(keys.dtype)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_non_unit_rotation_keys_match_scipy(rng, dtype):
+    times, keys = _track(rng, 6)
+    raw = _scaled(rng, keys).astype(dtype)
+    given = raw.copy()
+    rot = Rotation(raw, normalize=False, copy=False, scalar_first=True)
+    ours = RotationSpline(times, rot)
+    ref = _scipy(times, raw)   # scipy normalises the keys it reads from a normalize=False Rotation too
+    t = np.linspace(times[0], times[-1], 41)
+    q = ours(t).as_quat(scalar_first=True)
+    assert q.dtype == dtype
+    eps = np.finfo(dtype).eps
+    assert np.allclose(np.abs(np.sum(q * ref(t).as_quat(scalar_first=True), axis=-1)), 1, atol=100 * eps)
+    assert np.allclose(np.linalg.norm(q, axis=-1), 1, atol=10 * eps)
+    assert np.allclose(ours(t, 1), ref(t, 1), atol=1e4 * eps * (1 + np.abs(ref(t, 1)).max()))
+    np.testing.assert_array_equal(raw, given)
+    assert ours.rotations is rot
+
+
+@pytest.mark.parametrize("keys", [[[0, 0, 0, 1], [0, 0, 1, 1]], [[0, 0, 0, 2], [0, 0, 3, 3]]])
+def test_scipy_issue_keys(keys):
+    # scipy 1.17: RotationSpline([0, 1], Rotation([[0,0,0,1],[0,0,1,1]], normalize=False))(0.5) is the unit 45°
+    keys = np.array(keys, dtype=float)
+    ref = SRS([0, 1], SR(keys, normalize=False, copy=False))(0.5).as_quat()
+    got = RotationSpline([0, 1], Rotation(keys, normalize=False, copy=False))(0.5).as_quat()
+    assert np.allclose(got, ref, atol=1e-15)
+    assert np.allclose(got, [0, 0, np.sin(np.pi / 8), np.cos(np.pi / 8)], atol=1e-15)
+
+
+def test_non_unit_batched_rotation_keys_equal_per_track(rng):
+    times, keys = _track(rng, 5, (2, 3))
+    raw = _scaled(rng, keys)
+    t = np.linspace(times[0], times[-1], 17)
+    got = RotationSpline(times, Rotation(raw, normalize=False, scalar_first=True))(t).as_quat(scalar_first=True)
+    for i in range(2):
+        for j in range(3):
+            ref = RotationSpline(times, Rotation.from_quat(raw[:, i, j], scalar_first=True))(t)
+            assert np.allclose(np.abs(np.sum(got[:, i, j] * ref.as_quat(scalar_first=True), axis=-1)), 1,
+                               atol=1e-13)
+
+
+def test_zero_rotation_key_raises_like_scipy():
+    keys = np.array([[0, 0, 0, 1], [0, 0, 0, 0], [0, 0, 1, 1]], dtype=float)
+    with pytest.raises(ValueError, match="zero norm quaternions"):
+        SRS([0, 1, 2], SR(keys, normalize=False))
+    with pytest.raises(ValueError, match=r"zero norm quaternions in `rotations`.*index \(1,\)"):
+        RotationSpline([0, 1, 2], Rotation(keys, normalize=False))
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e-200, 1e300])
+def test_huge_and_tiny_rotation_keys_give_their_unit_ones(rng, scale):
+    # scipy's squared norm over- or underflows here (it raises "zero norm"); the rotations are
+    # the unit ones all the same
+    times, keys = _track(rng, 5)
+    t = np.linspace(times[0], times[-1], 23)
+    ref = RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))
+    ours = RotationSpline(times, Rotation(keys * scale, normalize=False, scalar_first=True))
+    q = ours(t).as_quat(scalar_first=True)
+    assert np.isfinite(q).all()
+    assert np.allclose(np.abs(np.sum(q * ref(t).as_quat(scalar_first=True), axis=-1)), 1, atol=1e-14)
+    assert np.allclose(ours(t, 1), ref(t, 1), atol=1e-9 * (1 + np.abs(ref(t, 1)).max()))
