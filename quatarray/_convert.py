@@ -683,7 +683,7 @@ def from_rotvec(rotvec, degrees=False):
 
 
 def _k_magnitude(q, o, unit=False):
-    arctan2(_vector_norm(q, unit), np.abs(q[0]), out=o[0], x_nonneg=True)
+    arctan2(_vector_norm(q, unit), np.abs(q[0]), out=o[0], x_nonneg=True, defined=unit)
     o[0] *= 2.0
 
 

@@ -105,7 +105,7 @@ def half_angle(angle, scale):
     return cos_sin(angle * (2 * scale))
 
 
-def arctan2(y, x, out=None, x_nonneg=False):
+def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     """``np.arctan2(y, x)`` from one ``arctan`` of the ratio: arctan(y / x), plus
     ±π (the sign of y) where x is negative or -0.0.
 
@@ -114,7 +114,9 @@ def arctan2(y, x, out=None, x_nonneg=False):
     fraction of its cost on CPUs without AVX-512 (benchmarks/README.md).
     Differs from `np.arctan2` only where both are infinite (NaN here).
     `x_nonneg`: the caller knows x >= +0 (a norm, an absolute value), so no
-    ±π fix is looked for.  `out` must not be `x` or `y`.
+    ±π fix is looked for.  `defined`: the caller knows no x, y pair is NaN or both
+    zero (the angle of a unit quaternion), so no 0 / 0 ratio is looked for.  `out`
+    must not be `x` or `y`.
 
     >>> import numpy as np
     >>> from quatarray._kernels import arctan2
@@ -136,7 +138,8 @@ def arctan2(y, x, out=None, x_nonneg=False):
         return float(arctan2(np.array(y), np.array(x), out=np.empty(()), x_nonneg=x_nonneg))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
-    if out.size and np.isnan(np.minimum.reduce(out, axis=None)):   # a reduction, no mask, when none
+    # a reduction, no mask, when no ratio is 0 / 0
+    if not defined and out.size and np.isnan(np.minimum.reduce(out, axis=None)):
         nan = np.isnan(out)   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
         np.copyto(out, y, where=nan & (x == 0))
     np.arctan(out, out=out)
