@@ -536,7 +536,8 @@ def inverse(q):
 def _k_exp(q, o):
     with _blocks.scratch().frame() as work:
         vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
-        e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
+        with np.errstate(over="ignore"):   # only there: e**w that overflows still warns
+            e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
         np.exp(q[0], out=ew)
         # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
         np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)

@@ -168,9 +168,9 @@ def true_norm(v, out):
     where the squares overflow: such a block is rescaled in place by 2**-e first, and the
     norm scaled back.  Returns e (None on the common path), so that callers multiplying the
     rescaled components can undo it.  Underflowing squares are left as they are: callers
-    take the norm as an angle, and their limits at 0 hold there."""
-    with np.errstate(over="ignore"):   # squares that overflow are rescaled below
-        sum_squares(v, out)
+    take the norm as an angle, and their limits at 0 hold there.  Squares that overflow are
+    rescaled: callers run under ``np.errstate(over="ignore")``, as for `sum_squares`."""
+    sum_squares(v, out)
     e = None
     if out.size and not out.max() <= HIGH[out.dtype]:
         e = rescale(v, ~(out <= HIGH[out.dtype]))
