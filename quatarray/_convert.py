@@ -802,7 +802,7 @@ def _k_from_mrp(p, q):
     x, y, z = p
     with np.errstate(over="ignore"):   # |p|² that overflows: the block is redone below
         n = x * x + y * y + z * z
-    if n.size and not n.max() <= _scale.HIGH[n.dtype]:
+    if not _scale.at_most(n, _scale.HIGH[n.dtype]):
         return _k_from_huge_mrp(p, q)
     _, d = _mrp_quat(n, q[0])
     np.multiply(x, d, out=q[1])

@@ -26,7 +26,7 @@ import numpy as np
 from . import _blocks, _ops
 
 __all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
-           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "shrink_vectors", "small_norms"]
+           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "at_most", "shrink_vectors", "small_norms"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 ZERO = "expected non-zero quaternions, got a zero quaternion (it is no rotation)"
@@ -69,6 +69,21 @@ def fits(n2):
         total = sum(x)
         return not x or total == total and min(x) >= lo and max(x) <= hi
     return n2.min() >= lo and n2.max() <= hi
+
+
+def at_most(a, bound):
+    """True when every element of `a` is at most `bound` (False for NaN; True when empty).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import at_most
+    >>> at_most(np.array([1.0, 2.0]), 2.0), at_most(np.array([1.0, np.nan]), 2.0)
+    (True, False)
+    """
+    if a.size <= _FEW:   # a few: Python's max and sum (NaN) cost less than a reduction
+        x = a.ravel().tolist()
+        total = sum(x)
+        return not x or total == total and max(x) <= bound
+    return bool(a.max() <= bound)
 
 
 def sum_squares(q, out, start=0):
@@ -172,7 +187,7 @@ def true_norm(v, out):
     rescaled: callers run under ``np.errstate(over="ignore")``, as for `sum_squares`."""
     sum_squares(v, out)
     e = None
-    if out.size and not out.max() <= HIGH[out.dtype]:
+    if not at_most(out, HIGH[out.dtype]):
         e = rescale(v, ~(out <= HIGH[out.dtype]))
         sum_squares(v, out)
     np.sqrt(out, out=out)
