@@ -705,8 +705,9 @@ def rotate(q, v, inverse=False, unit=False):
     Every pair (one quaternion with many vectors too) runs this one formula,
     so a vector gets the same bits whatever else is rotated with it.  With
     `inverse`, rotate by conj(q).  Zero quaternions give nan.  `unit`: the caller knows
-    that q holds finite unit quaternions and v finite vectors (`Rotation.apply`), so no
-    floating-point warning can arise and none is silenced.
+    that q holds finite unit quaternions (`Rotation.apply`): |q|² is not range-checked,
+    and where the vectors are finite and far from the float maximum no floating-point
+    warning can arise and none is silenced (the same bits).
 
     >>> import numpy as np
     >>> from quatarray._kernels import rotate
@@ -727,14 +728,10 @@ def rotate(q, v, inverse=False, unit=False):
         rows = np.empty((22,) + (batch or (1,)), dtype)   # rows, not scalars, for one rotation
         for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
             dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
-        if unit:
-            _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign, unit=True)
-            return res
+        _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign, unit)
+        return res
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        if 0 < res.size <= 3 * _blocks.FEW:
-            _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign)
-        else:
-            _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=wsign)
+        _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=wsign)
     return res
 
 
@@ -792,18 +789,29 @@ def _rotate_few(rows, o, wsign, unit=False):
     bits).  `rows` (22, *s) holds q in rows 0-3 and u in rows 6-8; the vector part and u
     are extended with their first two rows, so that their cyclic shifts are views."""
     q, u = rows[:4], rows[6:9]
-    w, s, e = _rotate_setup(q, u, wsign, unit)
+    if unit and _scale.inside(u, _HALF_BIG[u.dtype]):
+        # finite unit q, no vector near the float maximum and none non-finite: nothing
+        # to rescale, and no operation can warn
+        _rotate_rows(rows, o, *_rotate_setup(q, u, wsign, unit, checked=True))
+        return
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
+        _rotate_rows(rows, o, *_rotate_setup(q, u, wsign, unit))
+
+
+def _rotate_rows(rows, o, w, s, e):
+    """`_rotate_few`'s formula once `_rotate_setup` has given w, 2 / |q|² and e."""
     rows[4:6] = rows[1:3]    # x y z x y
     rows[9:11] = rows[6:8]   # ux uy uz ux uy
-    _rotated(w, rows[2:5], rows[3:6], u, rows[7:10], rows[8:11], s, _ops.ARRAYS, o, rows[11:16],
+    _rotated(w, rows[2:5], rows[3:6], rows[6:9], rows[7:10], rows[8:11], s, _ops.ARRAYS, o, rows[11:16],
              rows[16:19], rows[19:22])
     _scale.unscale(o, e)
 
 
-def _rotate_setup(q, u, wsign, unit=False):
+def _rotate_setup(q, u, wsign, unit=False, checked=False):
     """(w, 2 / |q|², e) for `rotate`'s formula, rescaling q and u in place where needed.
     `unit` (finite unit q): the range checks' outcome is known where it cannot differ (no
-    q is rescaled; no vector below half `_scale.BIG_VECTOR` is), so they are skipped there."""
+    q is rescaled; no vector below half `_scale.BIG_VECTOR` is), so they are skipped there;
+    `checked`: the caller has found every vector below that bound."""
     if unit:
         n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype))
     else:
@@ -812,5 +820,5 @@ def _rotate_setup(q, u, wsign, unit=False):
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
     # vectors near the float maximum are scaled down by a power of two, and the result back up
-    e = None if unit and _scale.inside(u, _HALF_BIG[u.dtype]) else _scale.shrink_vectors(u, n2)
+    e = None if unit and (checked or _scale.inside(u, _HALF_BIG[u.dtype])) else _scale.shrink_vectors(u, n2)
     return w, np.divide(2.0, n2, out=n2), e

@@ -12,29 +12,31 @@ from . import _kernels
 __all__ = ["apply", "compose", "inverse"]
 
 
-def apply(q, t, v, inverse=False):
-    """``R(q) v + t`` (or ``R(q)ᵀ (v - t)`` with `inverse`) for unit q, broadcasting."""
+def apply(q, t, v, inverse=False, unit=False):
+    """``R(q) v + t`` (or ``R(q)ᵀ (v - t)`` with `inverse`) for unit q, broadcasting; `unit`:
+    q is known to be finite and unit (`_kernels.rotate`'s `unit`)."""
     if q.shape[:-1] == t.shape[:-1] == v.shape[:-1] and q.dtype == t.dtype == v.dtype:
         dtype, batch = q.dtype, q.shape[:-1]
     else:
         dtype = _kernels.result_dtype(q, t, v)
         batch = np.broadcast_shapes(q.shape[:-1], t.shape[:-1], v.shape[:-1])
     if inverse:
-        return _kernels.rotate(q, np.subtract(v, t, dtype=dtype), inverse=True).reshape(batch + (3,))
-    out = np.asarray(_kernels.rotate(q, v))
+        return _kernels.rotate(q, np.subtract(v, t, dtype=dtype), inverse=True, unit=unit).reshape(batch + (3,))
+    out = np.asarray(_kernels.rotate(q, v, unit=unit))
     if out.shape != batch + (3,) or out.dtype != dtype or not out.flags.writeable:
         out = np.broadcast_to(out, batch + (3,)).astype(dtype)
     out += t
     return out
 
 
-def compose(q1, t1, q2, t2):
-    """The motion ``(q2, t2)`` then ``(q1, t1)``: ``(q1 q2, R(q1) t2 + t1)``."""
-    return _kernels.multiply(q1, q2), apply(q1, t1, t2)
+def compose(q1, t1, q2, t2, unit=False):
+    """The motion ``(q2, t2)`` then ``(q1, t1)``: ``(q1 q2, R(q1) t2 + t1)``; `unit`: q1 is
+    known to be finite and unit."""
+    return _kernels.multiply(q1, q2), apply(q1, t1, t2, unit=unit)
 
 
-def inverse(q, t):
-    """``(q*, -R(q*) t)``."""
+def inverse(q, t, unit=False):
+    """``(q*, -R(q*) t)``; `unit`: q is known to be finite and unit."""
     qi = _kernels.conjugate(q)
-    ti = np.asarray(_kernels.rotate(qi, t))
+    ti = np.asarray(_kernels.rotate(qi, t, unit=unit))
     return qi, np.negative(ti, out=ti) if ti.flags.writeable else -ti

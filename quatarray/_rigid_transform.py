@@ -54,6 +54,13 @@ def _is_rotation(x):
     return hasattr(x, "as_quat") and hasattr(type(x), "from_rotvec") and not isinstance(x, RigidTransform)
 
 
+def _is_unit(q):
+    """True when every quaternion of `q` (..., 4) is finite with |q|² within 64 ulp of 1 (a
+    normalising path's result): products of such stay far inside `_kernels.rotate`'s range."""
+    n2 = np.sum(q * q, axis=-1)
+    return bool(n2.size == 0 or np.max(np.abs(n2 - 1)) <= 64 * np.finfo(q.dtype).eps)
+
+
 def _quat_of(rotation, name="rotation"):
     if not _is_rotation(rotation):
         raise TypeError(f"Expected `{name}` to be a `Rotation` instance, got {type(rotation)}.")
@@ -153,7 +160,10 @@ class RigidTransform:
            [0., 0., 0., 1.]])
     """
 
-    __slots__ = ("_q", "_t", "_m", "_single", "_matrix_of_one", "__weakref__")
+    # _unit: every stored quaternion is known to be finite with |q|² within rounding of 1 (made
+    # by a normalising path, or checked), so that rotating vectors may skip |q|²'s range checks
+    # (`_kernels.rotate`'s `unit`: the same bits); False is always safe
+    __slots__ = ("_q", "_t", "_m", "_single", "_unit", "_matrix_of_one", "__weakref__")
 
     def __init__(self, matrix, normalize=True, copy=True):
         self._matrix_of_one = None
@@ -162,6 +172,7 @@ class RigidTransform:
             raise ValueError(f"Expected `matrix` to have shape (..., 4, 4), got {m.shape}.")
         _last_row_check(m)
         self._single = m.ndim == 2
+        self._unit = bool(normalize)
         if normalize:
             self._m = None
             self._q = _convert.from_matrix(m[..., :3, :3])
@@ -171,9 +182,11 @@ class RigidTransform:
             self._q = self._t = None
 
     @classmethod
-    def _from_parts(cls, quat, translation, single):
-        """From raw unit scalar-first quaternions (..., 4) and translations (..., 3), not copied."""
+    def _from_parts(cls, quat, translation, single, unit=False):
+        """From raw unit scalar-first quaternions (..., 4) and translations (..., 3), not copied;
+        `unit`: the quaternions are known to be unit (see ``_unit``)."""
         tf = cls.__new__(cls)
+        tf._unit = unit
         tf._q = quat
         tf._t = translation
         tf._m = None
@@ -214,7 +227,7 @@ class RigidTransform:
     def from_rotation(cls, rotation):
         """Pure rotations from a `Rotation` (quatarray's or scipy's)."""
         q = _quat_of(rotation)
-        return cls._from_parts(q.copy(), np.zeros(q.shape[:-1] + (3,), q.dtype), q.ndim == 1)
+        return cls._from_parts(q.copy(), np.zeros(q.shape[:-1] + (3,), q.dtype), q.ndim == 1, _is_unit(q))
 
     @classmethod
     def from_translation(cls, translation):
@@ -223,7 +236,7 @@ class RigidTransform:
         _check_last(t, "translation", 3)
         q = np.zeros(t.shape[:-1] + (4,), t.dtype)
         q[..., 0] = 1
-        return cls._from_parts(q, t.copy(), t.ndim == 1)
+        return cls._from_parts(q, t.copy(), t.ndim == 1, unit=True)
 
     @classmethod
     def from_components(cls, translation, rotation):
@@ -243,7 +256,7 @@ class RigidTransform:
         if scale is not None:
             t = np.ldexp(t, scale)
         q = _convert.from_rotvec(phi).astype(e.dtype, copy=False)
-        return cls._from_parts(q, t.astype(e.dtype, copy=False), e.ndim == 1)
+        return cls._from_parts(q, t.astype(e.dtype, copy=False), e.ndim == 1, unit=True)
 
     @classmethod
     def from_dual_quat(cls, dual_quat, *, scalar_first=False):
@@ -254,7 +267,7 @@ class RigidTransform:
             dq = dq[..., _TO_FIRST]
         dq = _dualquat.normalize(dq)
         q, t = _dualquat.as_rotation_translation(dq)
-        return cls._from_parts(q, t, dq.ndim == 1)
+        return cls._from_parts(q, t, dq.ndim == 1, unit=True)
 
     @staticmethod
     def identity(num=None, *, shape=None):
@@ -271,18 +284,19 @@ class RigidTransform:
             raise ValueError("`shape` must be an int or a tuple of ints or None.")
         q = np.zeros(shape + (4,))
         q[..., 0] = 1
-        return RigidTransform._from_parts(q, np.zeros(shape + (3,)), shape == ())
+        return RigidTransform._from_parts(q, np.zeros(shape + (3,)), shape == (), unit=True)
 
     @classmethod
     def concatenate(cls, transforms):
         """Join transforms (single ones count as one) along the first axis."""
         if isinstance(transforms, RigidTransform):
-            return cls._from_parts(transforms._quat.copy(), transforms._translation.copy(), transforms._single)
+            return cls._from_parts(transforms._quat.copy(), transforms._translation.copy(), transforms._single,
+                                   transforms._unit)
         if not all(isinstance(x, RigidTransform) for x in transforms):
             raise TypeError("input must contain RigidTransform objects only")
         q = np.concatenate([np.atleast_2d(x._quat) for x in transforms])
         t = np.concatenate([np.atleast_2d(x._translation) for x in transforms])
-        return cls._from_parts(q, t, False)
+        return cls._from_parts(q, t, False, all(x._unit for x in transforms))
 
     # ------------------------------------------------------------------ conversions
     def as_matrix(self):
@@ -345,9 +359,9 @@ class RigidTransform:
                 raise ValueError("operands could not be broadcast together with transforms of shape "
                                  f"{self.shape} and vectors of shape {v.shape}") from None
         if q.shape == (4,) and v.shape == (3,):
-            out = _kernels.rotate(q, v - t if inverse else v, inverse=inverse)
+            out = _kernels.rotate(q, v - t if inverse else v, inverse=inverse, unit=self._unit)
             return out if inverse else out + t
-        out = _motion.apply(q, t, v, inverse)
+        out = _motion.apply(q, t, v, inverse, self._unit)
         if self._single and v.ndim == 1:
             return out
         if self._single and out.ndim == 1:
@@ -356,8 +370,8 @@ class RigidTransform:
 
     def inv(self):
         """The inverse transforms."""
-        q, t = _motion.inverse(self._quat, self._translation)
-        return type(self)._from_parts(q, t, self._single)
+        q, t = _motion.inverse(self._quat, self._translation, self._unit)
+        return type(self)._from_parts(q, t, self._single, self._unit)
 
     def __mul__(self, other):
         """Composition: ``(a * b).apply(v) == a.apply(b.apply(v))``; `other` may be a `Rotation`."""
@@ -376,8 +390,8 @@ class RigidTransform:
         if not single:
             q1, t1 = (q1[None], t1[None]) if self._single else (q1, t1)
             q2, t2 = (q2[None], t2[None]) if other._single else (q2, t2)
-        q, t = _motion.compose(q1, t1, q2, t2)
-        return type(self)._from_parts(q, np.asarray(t), single)
+        q, t = _motion.compose(q1, t1, q2, t2, self._unit)
+        return type(self)._from_parts(q, np.asarray(t), single, self._unit and other._unit)
 
     def __rmul__(self, other):
         if _is_rotation(other):
@@ -399,7 +413,7 @@ class RigidTransform:
         if n == -1:
             return self.inv()
         if n == 1:
-            return type(self)._from_parts(self._quat.copy(), self._translation.copy(), self._single)
+            return type(self)._from_parts(self._quat.copy(), self._translation.copy(), self._single, self._unit)
         res = type(self).from_exp_coords(self.as_exp_coords() * n)
         res._single = self._single
         return res
@@ -478,7 +492,7 @@ class RigidTransform:
         if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and self._quat.shape[0] == 0:
             raise IndexError("cannot take from an empty array")
         q = self._quat[index]
-        return type(self)._from_parts(q.copy(), self._translation[index].copy(), q.ndim == 1)
+        return type(self)._from_parts(q.copy(), self._translation[index].copy(), q.ndim == 1, self._unit)
 
     def __setitem__(self, index, value):
         if self._single:
@@ -490,9 +504,10 @@ class RigidTransform:
             return
         self._q[index] = value._quat
         self._t[index] = value._translation
+        self._unit = self._unit and value._unit
 
     def __reduce__(self):
-        return (type(self)._from_parts, (self._quat, self._translation, self._single))
+        return (type(self)._from_parts, (self._quat, self._translation, self._single, self._unit))
 
     def __repr__(self):
         m = f"{self.as_matrix()!r}".splitlines()

@@ -172,3 +172,43 @@ def test_powers_equal_repeated_composition(shape):
         half = p ** f
         np.testing.assert_allclose((half * half).as_matrix(), (p ** whole).as_matrix(), atol=1e-12)
     assert (RigidTransform.identity() ** 3).as_matrix().shape == (4, 4)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("n", [1, 10, 100, 2000])
+def test_known_unit_quaternions_give_the_checked_paths_bits(dtype, n):
+    # transforms from normalising constructors skip |q|²'s range checks when rotating; the
+    # same quaternions without that knowledge take the checked path: the same bits, also
+    # for vectors near the float maximum and non-finite ones, and no new warnings
+    import warnings
+    from quatarray import Rotation
+    rng = np.random.default_rng(n)
+    tf = RigidTransform.from_components(rng.normal(size=(n, 3)).astype(dtype),
+                                        Rotation.from_quat(rng.normal(size=(n, 4)).astype(dtype)))
+    assert tf._unit and (tf * tf).inv()._unit
+    plain = RigidTransform._from_parts(tf._quat.copy(), tf._translation.copy(), False)
+    assert not plain._unit
+    v = rng.normal(size=(n, 3)).astype(dtype)
+    v[0, 0] = np.finfo(dtype).max / 1.5
+    if n > 1:
+        v[1, 1] = np.inf
+    results, caught = [], []
+    for r in (tf, plain):
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            results.append([r.apply(v), r.apply(v, inverse=True), r.inv().as_matrix(), (r * r[::-1]).as_matrix()])
+        caught.append(len(w))
+    for a, b in zip(*results):
+        np.testing.assert_array_equal(a.view(np.uint8), b.view(np.uint8))
+    assert caught[0] <= caught[1]
+
+
+def test_rotations_not_known_unit_are_not_taken_as_unit():
+    from quatarray import Rotation
+    q = np.array([[0.0, 0.0, 0.0, 2.0], [1.0, 1.0, 0.0, 0.0]])
+    tf = RigidTransform.from_rotation(Rotation(q, normalize=False))
+    assert not tf._unit
+    ref = st.RigidTransform.from_rotation(st.Rotation.from_quat(q))
+    v = np.array([[1.0, 2.0, 3.0], [-1.0, 0.5, 2.0]])
+    np.testing.assert_allclose(tf.apply(v), ref.apply(v), atol=1e-14)
+    assert RigidTransform.from_rotation(Rotation.from_quat(q))._unit
