@@ -597,7 +597,7 @@ _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 def _k_from_rotvec(r, q, factor):
     with _blocks.scratch().frame() as work:
         rows = work.rows(6, r.shape[1:], q.dtype)
-        e = _scale.true_norm(r, rows[0])     # |r|; r scaled by 2**-e where |r|² overflows
+        e = _scale.true_norm(r, rows[0], rows[1:4])   # |r|; r scaled by 2**-e where |r|² overflows
         if e is not None and not np.isfinite(r).all():   # |r|² in range: finite; else look
             raise ValueError(_scale.NONFINITE)             # (from_rotvec finds the element)
         _rotvec_quat(*r, rows[0], factor, e, _ops.ARRAYS, q, rows)

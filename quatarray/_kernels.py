@@ -792,7 +792,7 @@ def _rotate_few(rows, o, wsign, unit=False):
     if unit and _scale.inside(u, _HALF_BIG[u.dtype]):
         # finite unit q, no vector near the float maximum and none non-finite: nothing
         # to rescale, and no operation can warn
-        _rotate_rows(rows, o, *_rotate_setup(q, u, wsign, unit, checked=True))
+        _rotate_rows(rows, o, *_rotate_setup(q, u, wsign, unit, checked=True, work=rows[11:15]))
         return
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
         _rotate_rows(rows, o, *_rotate_setup(q, u, wsign, unit))
@@ -807,13 +807,14 @@ def _rotate_rows(rows, o, w, s, e):
     _scale.unscale(o, e)
 
 
-def _rotate_setup(q, u, wsign, unit=False, checked=False):
+def _rotate_setup(q, u, wsign, unit=False, checked=False, work=None):
     """(w, 2 / |q|², e) for `rotate`'s formula, rescaling q and u in place where needed.
     `unit` (finite unit q): the range checks' outcome is known where it cannot differ (no
     q is rescaled; no vector below half `_scale.BIG_VECTOR` is), so they are skipped there;
-    `checked`: the caller has found every vector below that bound."""
+    `checked`: the caller has found every vector below that bound; `work`: four free rows
+    for the squares (`_scale.sum_squares`)."""
     if unit:
-        n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype))
+        n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype), rows=work)
     else:
         n2 = _scale.guarded_sqnorm(q)
     w = q[0]

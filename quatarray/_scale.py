@@ -86,24 +86,31 @@ def at_most(a, bound):
     return bool(a.max() <= bound)
 
 
-def sum_squares(q, out, start=0):
+def sum_squares(q, out, start=0, rows=None):
     """``out = q[start]² + ... + q[-1]²`` for a components-first block (q is not modified).
 
     Squares may overflow (that is what `guard` looks for): callers run under
-    ``np.errstate(over="ignore")``, once per call rather than once per block."""
+    ``np.errstate(over="ignore")``, once per call rather than once per block.
+    `rows`: free work rows of the caller's (one per component) for a small block,
+    instead of the thread's scratch (whose frame costs more than the ufuncs)."""
     comps = q[start:]
     if len(comps) == 1:
         return np.multiply(comps[0], comps[0], out=out)
+    if rows is not None and out.size <= _STACK_MAX:
+        return _summed(np.multiply(comps, comps, out=rows[:len(comps)]), out)
     with _blocks.scratch().frame() as work:   # no temporary allocated per component
         if out.size > _STACK_MAX:   # one work row, reused while it is in cache
             return squares(list(comps), _ops.ARRAYS, out, work.rows(1, out.shape, out.dtype)[0])
-        # small blocks: all squares in one call (calls cost more than passes), summed in
-        # `squares`' order, so the bits are the same
-        sq = np.multiply(comps, comps, out=work.rows(len(comps), out.shape, out.dtype))
-        np.add(sq[0], sq[1], out=out)
-        for c in sq[2:]:
-            out += c
-        return out
+        return _summed(np.multiply(comps, comps, out=work.rows(len(comps), out.shape, out.dtype)), out)
+
+
+def _summed(sq, out):
+    """Small blocks: all squares `sq` made in one call (calls cost more than passes), summed
+    into `out` in `squares`' order, so the bits are the same."""
+    np.add(sq[0], sq[1], out=out)
+    for c in sq[2:]:
+        out += c
+    return out
 
 
 _STACK_MAX = 4096
@@ -178,18 +185,19 @@ def guard(q, n2, start=0, zero=False):
     return e
 
 
-def true_norm(v, out):
+def true_norm(v, out, rows=None):
     """``out = |v|`` for a components-first block `v` (a scratch copy), at its true size even
     where the squares overflow: such a block is rescaled in place by 2**-e first, and the
     norm scaled back.  Returns e (None on the common path), so that callers multiplying the
     rescaled components can undo it.  Underflowing squares are left as they are: callers
     take the norm as an angle, and their limits at 0 hold there.  Squares that overflow are
-    rescaled: callers run under ``np.errstate(over="ignore")``, as for `sum_squares`."""
-    sum_squares(v, out)
+    rescaled: callers run under ``np.errstate(over="ignore")``, as for `sum_squares` (and
+    `rows`: its free work rows)."""
+    sum_squares(v, out, rows=rows)
     e = None
     if not at_most(out, HIGH[out.dtype]):
         e = rescale(v, ~(out <= HIGH[out.dtype]))
-        sum_squares(v, out)
+        sum_squares(v, out, rows=rows)
     np.sqrt(out, out=out)
     if e is not None:
         np.ldexp(out, e, out=out)
