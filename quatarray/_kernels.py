@@ -726,8 +726,12 @@ def rotate(q, v, inverse=False, unit=False):
     wsign = -1.0 if inverse else 1.0
     if 0 < res.size <= 3 * _blocks.FEW:   # a few: straight into the rows the formula reads
         rows = np.empty((22,) + (batch or (1,)), dtype)   # rows, not scalars, for one rotation
-        for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
-            dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
+        if q.ndim == v.ndim == 2:   # flat batches: the transposes broadcast as they are
+            rows[:4] = q.T
+            rows[6:9] = v.T
+        else:
+            for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
+                dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
         _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign, unit)
         return res
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
