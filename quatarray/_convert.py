@@ -600,31 +600,31 @@ def _k_from_rotvec(r, q, factor):
         e = _scale.true_norm(r, rows[0], rows[1:4])   # |r|; r scaled by 2**-e where |r|² overflows
         if e is not None and not np.isfinite(r).all():   # |r|² in range: finite; else look
             raise ValueError(_scale.NONFINITE)             # (from_rotvec finds the element)
-        _rotvec_quat(*r, rows[0], factor, e, _ops.ARRAYS, q, rows)
+        _rotvec_quat(r, rows[0], factor, e, _ops.ARRAYS, _ops.STACKS, q, rows)
         if e is not None and not np.isfinite(rows[0]).all():
             _huge_rotvecs(r, q, e, ~np.isfinite(rows[0]), factor)
 
 
-def _rotvec_quat(x, y, z, theta, factor, e, op, q, rows):
-    """The unit quaternion of the rotation vector (x, y, z) of norm `theta` (times `factor`;
-    `e` the exponents by which a block's x, y, z were scaled down, or None) in `op`'s
-    arithmetic (`_ops`), into ``q`` (four rows) with the six work rows `rows`; returned."""
-    q = list(q[:4])
+def _rotvec_quat(r, theta, factor, e, op, stack, q, rows):
+    """The unit quaternion of the rotation vector `r` (x, y, z) of norm `theta` (times
+    `factor`; `e` the exponents by which a block's x, y, z were scaled down, or None) in
+    `op`'s arithmetic (`_ops`, `stack` its stacked form: r as three rows scaled in one call),
+    into ``q`` (four rows) with the six work rows `rows`; returned as a list."""
+    q0, qv = q[0], q[1:4]
     _, t, u, v, c, d = rows[:6]
     if factor != 1.0:
         theta = op.mul(theta, factor, theta)
     theta = op.max(theta, ANGLE_FLOOR[np.dtype(np.float64) if type(theta) is float else theta.dtype], theta)
     t = op.mul(theta, 0.5, t)
     c, d = _cos_sin(t, c, d, (u, v))     # cos(θ/2), sin(θ/2)
-    q[0] = op.copy(c, q[0])
+    q0 = op.copy(c, q0)
     # sin(θ/2) / θ, times the degree factor that converts v itself
     d = op.div(d, theta, d)
     if factor != 1.0:
         d = op.mul(d, factor, d)
     if e is not None:
         np.ldexp(d, e, out=d)
-    q[1:] = [op.mul(a, d, r) for a, r in zip((x, y, z), q[1:])]
-    return q
+    return [q0, *stack.scale(r, d, qv)]
 
 
 def _huge_rotvecs(r, q, e, huge, factor):
@@ -671,7 +671,7 @@ def from_rotvec(rotvec, degrees=False):
     one = _ops.floats64(v, 3) if _trig.SIMD_TAN else None   # else the tangent is `_trig`'s rational
     n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
     if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one float64 vector that `true_norm` keeps
-        q = _rotvec_quat(*one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.NONE, _ops.NONE)
+        q = _rotvec_quat(one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
         return _ops.to_array(q, v.shape[:-1] + (4,))
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     try:
