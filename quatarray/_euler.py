@@ -471,27 +471,29 @@ def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    abcd = []
-    for coef in lmat:   # the kernel's order: q0 c0 + q1 c1 + q2 c2 + q3 c3, left to right
-        row = comps[0] * coef[0]
-        for k in (1, 2, 3):
-            row = row + comps[k] * coef[k]
-        abcd.append(row)
-    o = _angles_floats(abcd, extrinsic, False, 1, lamb)
+    o = _angles_floats(_davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None), extrinsic, False, 1, lamb)
     if o is not None and flip:
         o[1] = -o[1]
     return o
 
 
+def _davenport_abcd(q, lmat, op, rows, t):
+    """(a, b, c, d) = L q, each summed in one order (q0 c0 + q1 c1 + q2 c2 + q3 c3, left to
+    right), in `op`'s arithmetic (`_ops`): into the four `rows` with the work row `t` (or
+    `_ops.NONE` and None on floats); returned as a list."""
+    abcd = []
+    for row, coef in zip(rows, lmat):
+        row = op.mul(q[0], coef[0], row)
+        for k in (1, 2, 3):
+            row = op.add(row, op.mul(q[k], coef[k], t), row)
+        abcd.append(row)
+    return abcd
+
+
 def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
     with _blocks.scratch().frame() as work:
         abcd = work.rows(4, q.shape[1:], q.dtype)
-        t = work.rows(1, q.shape[1:], q.dtype)[0]
-        for row, coef in zip(abcd, lmat):    # (a, b, c, d) = L q, summed in one order for every row
-            np.multiply(q[0], coef[0], out=row)
-            for k in (1, 2, 3):
-                np.multiply(q[k], coef[k], out=t)
-                row += t
+        _davenport_abcd(q, lmat, _ops.ARRAYS, abcd, work.rows(1, q.shape[1:], q.dtype)[0])
         gimbal = _angles(abcd, o, extrinsic, False, 1, lamb)
     if flip:
         _negate(o[1])
