@@ -290,13 +290,25 @@ def _shepperd(mat, q):
     q /= np.sqrt(_scale.squares(q, _ops.ARRAYS, None, None))
 
 
+def det3(mat):
+    """Determinants of 3x3 matrices given as their nine entries, row-major (rows of a block
+    or Python floats), expanded along the first row, written with operators.
+
+    >>> from quatarray._convert import det3
+    >>> det3([2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 4.0])
+    24.0
+    """
+    m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
+    return (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
+            + m02 * (m10 * m21 - m11 * m20))
+
+
 def _orthogonality(mat, op):
     """(det, worst |row·row - 1|, worst |row·row'|) of rotation matrices `mat` (nine entries,
     row-major), written with operators and `op`'s abs and max (`_ops`): scipy's test
     ``isclose(M Mᵀ, I)`` entry by entry, on a block's rows or one matrix's floats."""
     m00, m01, m02, m10, m11, m12, m20, m21, m22 = mat
-    det = (m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20)
-           + m02 * (m10 * m21 - m11 * m20))
+    det = det3(mat)
     r0, r1, r2 = (m00, m01, m02), (m10, m11, m12), (m20, m21, m22)
     diag = [op.abs(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0, None) for a in (r0, r1, r2)]
     off = [op.abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2], None) for a, b in ((r0, r1), (r0, r2), (r1, r2))]

@@ -164,7 +164,7 @@ def align(a, b, weights, return_sensitivity):
         return q.astype(dtype), rssd, None
     big = a2.T @ b2 if w is None else (w[:, None] * a2).T @ b2   # (weights of 1: the same products)
     u, s, vt = np.linalg.svd(big)
-    if _det3(u @ vt) < 0:
+    if _convert.det3((u @ vt).ravel().tolist()) < 0:   # Python floats
         s[-1] = -s[-1]
         u[:, -1] = -u[:, -1]
     rot = u @ vt
@@ -183,12 +183,6 @@ def align(a, b, weights, return_sensitivity):
             sens = np.mean(w) / zeta * (kappa * np.eye(3) + big @ big.T)
     q = _convert.from_matrix(rot)   # checked (U Vᵀ passes): one float64 matrix takes the float formulas
     return q.astype(dtype), rssd, sens
-
-
-def _det3(m):
-    """Determinant of a 3x3 matrix, in Python floats (its sign decides a reflection)."""
-    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 def _align_primary(a, b, w, inf):
