@@ -64,11 +64,8 @@ def fits(n2):
     [True, False, False, False]
     """
     lo, hi = _RANGE[n2.dtype]
-    if n2.size <= _FEW:   # a few: Python's min, max and sum (NaN) cost less than two reductions
-        x = n2.ravel().tolist()
-        total = sum(x)
-        return not x or total == total and min(x) >= lo and max(x) <= hi
-    return n2.min() >= lo and n2.max() <= hi
+    least, most = _bounds(n2, _FEW)
+    return lo <= least and most <= hi
 
 
 def at_most(a, bound):
@@ -79,11 +76,9 @@ def at_most(a, bound):
     >>> at_most(np.array([1.0, 2.0]), 2.0), at_most(np.array([1.0, np.nan]), 2.0)
     (True, False)
     """
-    if a.size <= _FEW:   # a few: Python's max and sum (NaN) cost less than a reduction
-        x = a.ravel().tolist()
-        total = sum(x)
-        return not x or total == total and max(x) <= bound
-    return bool(a.max() <= bound)
+    if a.size <= _FEW:
+        return _bounds(a, _FEW)[1] <= bound
+    return bool(a.max() <= bound)   # one reduction: the lower bound is not needed
 
 
 def sum_squares(q, out, start=0, rows=None):
@@ -214,10 +209,13 @@ def guarded_sqnorm(q, zero=False):
     return n2
 
 
-def _bounds(a):
-    """(min, max) of `a` as Python floats (NaN for both where `a` holds a NaN; Python's
-    comparisons for a few elements, cheaper than two reductions)."""
-    if 0 < a.size <= 3 * _FEW:
+def _bounds(a, few=3 * _FEW):
+    """(min, max) of `a` as Python floats: NaN for both where `a` holds a NaN (every
+    comparison with them fails, the safe answer), (inf, -inf) when empty.  Up to `few`
+    elements by Python's min, max and sum, cheaper than two reductions (about 1.5 µs each)."""
+    if a.size <= few:
+        if not a.size:
+            return math.inf, -math.inf
         x = a.ravel().tolist()
         total = sum(x)   # NaN where an element is NaN (or +inf and -inf meet: NaN bounds, the safe answer)
         if total != total:
