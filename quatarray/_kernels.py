@@ -813,10 +813,9 @@ def _rotate_rows(rows, o, w, s, e):
 
 def _rotate_setup(q, u, wsign, unit=False, checked=False, work=None):
     """(w, 2 / |q|², e) for `rotate`'s formula, rescaling q and u in place where needed.
-    `unit` (finite unit q): the range checks' outcome is known where it cannot differ (no
-    q is rescaled; no vector below half `_scale.BIG_VECTOR` is), so they are skipped there;
-    `checked`: the caller has found every vector below that bound; `work`: four free rows
-    for the squares (`_scale.sum_squares`)."""
+    `unit` (finite unit q): no q is rescaled, so |q|²'s range check is skipped; `checked`:
+    the caller has found every vector below half `_scale.BIG_VECTOR`, so none is rescaled
+    either; `work`: four free rows for the squares (`_scale.sum_squares`)."""
     if unit:
         n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype), rows=work)
     else:
@@ -825,5 +824,5 @@ def _rotate_setup(q, u, wsign, unit=False, checked=False, work=None):
     if wsign < 0:
         np.multiply(w, -1.0, out=w)
     # vectors near the float maximum are scaled down by a power of two, and the result back up
-    e = None if unit and (checked or _scale.inside(u, _HALF_BIG[u.dtype])) else _scale.shrink_vectors(u, n2)
+    e = None if checked else _scale.shrink_vectors(u, n2)
     return w, np.divide(2.0, n2, out=n2), e
