@@ -730,7 +730,11 @@ def magnitude(q, unit=False):
     return out
 
 
-def _k_as_mrp(q, o):
+def _k_as_mrp(q, o, unit=False):
+    if unit:   # finite unit q (only read): scipy's v / copysign(1 + |w|, w)
+        s, d = np.empty((2,) + q.shape[1:], q.dtype)
+        np.divide(q[1:], _mrp_denominator(q[0], _ops.ARRAYS, s, d), out=o)
+        return
     k = _scale.guarded_sqnorm(q, zero=True)   # a scratch row; q may be rescaled in place
     w, x, y, z = q
     with _blocks.scratch().frame() as work:
@@ -753,11 +757,6 @@ def _mrp_denominator(w, op, s, d):
     s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign
     s = op.copysign(1.0, s, s)
     return op.add(w, s, d)
-
-
-def _k_as_mrp_unit(q, o):
-    s, d = np.empty((2,) + q.shape[1:], q.dtype)
-    np.divide(q[1:], _mrp_denominator(q[0], _ops.ARRAYS, s, d), out=o)
 
 
 def as_mrp(q, unit=False):
@@ -790,10 +789,7 @@ def as_mrp(q, unit=False):
             d = _mrp_denominator(one[0], _ops.FLOATS, None, None)
             return _ops.to_array([one[1] / d, one[2] / d, one[3] / d], q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    if unit:   # finite unit input: nothing to warn about, nothing written into q
-        _blocks.blockwise(_k_as_mrp_unit, [q.reshape(-1, 4)], [out.reshape(-1, 3)], read_only=True)
-    else:
-        _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
+    _blockwise_unit(_k_as_mrp, q.reshape(-1, 4), out.reshape(-1, 3), unit)
     return out
 
 
