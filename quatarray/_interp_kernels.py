@@ -606,11 +606,9 @@ def unflip(q, axis, d=None):
         return q.astype(dtype, copy=True)
     # float32: summed in float64 (exact products), so that rotations close to π
     # apart get the sign of their exact dot product, as `hemisphere` gives slerp
-    if d is not None:
-        pass
-    elif dtype != np.float32:
+    if d is None and dtype != np.float32:
         d = vdot(qa[1:], qa[:-1])
-    else:   # `vdot`'s order, each product cast to float64 as NumPy computes it (no float64 copy of q)
+    elif d is None:   # `vdot`'s order, each product cast to float64 as NumPy computes it (no float64 copy of q)
         d = np.multiply(qa[1:, ..., 0], qa[:-1, ..., 0], dtype=np.float64)
         for k in (1, 2, 3):
             d += np.multiply(qa[1:, ..., k], qa[:-1, ..., k], dtype=np.float64)
