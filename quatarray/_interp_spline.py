@@ -603,6 +603,13 @@ def coefficient_size(tab):
     return float(np.maximum.reduce(np.abs(tab[16:25]), axis=None, initial=0.0))
 
 
+def _needs_check(cmax, umax):
+    """Whether `_rotation`'s unit check is needed for coefficients of size `cmax` at segment
+    times of size up to `umax`: |r| is at most ``cmax * max(1, umax)³`` (coefficients above
+    the bound always need it; callers may test that first and skip looking at u)."""
+    return cmax > _CHECK_BELOW or not cmax * max(1.0, float(umax)) ** 3 <= _CHECK_BELOW
+
+
 def evaluate(index, times, tab, t, order, batch, cmax=None):
     """The spline at query times ``t`` (M,): quaternions (order 0), rates (1) or accelerations (2).
 
@@ -624,7 +631,7 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
         i = min(max(int(index.find(t)[0]), 0), K1 - 1)
         t0 = float(times[i])
         s = (float(t[0]) - t0) / (float(times[i + 1]) - t0)
-        check = cmax > _CHECK_BELOW or not cmax * max(1.0, abs(s)) ** 3 <= _CHECK_BELOW
+        check = _needs_check(cmax, abs(s))
         out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _tan_float,
                               _TINY[dtype], check, _renorm_floats, _ops.NONE)
         return out.reshape(t.shape + tuple(batch) + (width,))
@@ -642,10 +649,7 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
         G = _track.gather(tab, i, sb)
         O = soa(out[sm, sb])
         if order == 0:
-            # (coefficients above the bound need the check whatever u: u is not looked at)
-            check = cmax > _CHECK_BELOW or not (
-                cmax * max(1.0, float(np.abs(s).max(initial=0.0))) ** 3 <= _CHECK_BELOW)
-            _rotation_rows(G, s, O, check=check)
+            _rotation_rows(G, s, O, check=cmax > _CHECK_BELOW or _needs_check(cmax, np.abs(s).max(initial=0.0)))
         else:
             _rate_rows(G, s, order, O)
             span = span.astype(dtype, copy=False)[:, None]
