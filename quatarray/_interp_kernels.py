@@ -34,7 +34,7 @@ import numpy as np
 from . import _blocks
 from . import _ops
 from ._blocks import soa
-from ._kernels import norm, result_dtype
+from ._kernels import normalize, result_dtype
 from ._trig import atan_unit32, tan
 from ._validate import all_finite
 
@@ -564,11 +564,13 @@ def _nlerp_block(A, B, h, O, shortest):
 
 
 def unit_keys(keys, name="keys", unit=False):
-    """Finite keyframes (K, ..., 4) unflipped along axis 0, then normalised.
+    """Finite keyframes (K, ..., 4) unflipped along axis 0, then normalised
+    (`_kernels.normalize`, the package's one normalisation).
 
-    Each key is first multiplied by a power of two near 1/its largest
-    component: exact (the same directions and dot-product signs), and no
-    overflow or underflow at any magnitude.  Zero keys raise `ValueError`.
+    The signs follow the dot products of the keys as given: each key is first
+    multiplied by a power of two near 1/its largest component (exact: the same
+    directions and dot-product signs, and no overflow or underflow at any
+    magnitude).  Zero keys raise `ValueError`.
     ``unit=True``: the keys are a Rotation's, unit already, and only
     unflipped (normalising again moves a third of them by an ulp, and an
     interpolant of equal keys must give back the key itself).
@@ -578,12 +580,11 @@ def unit_keys(keys, name="keys", unit=False):
     a = np.abs(keys)
     # the largest of the four, column by column (NumPy's max over a length-4 axis is much slower)
     _, e = np.frexp(np.maximum(np.maximum(a[..., 0], a[..., 1]), np.maximum(a[..., 2], a[..., 3]))[..., None])
-    keys = np.ldexp(keys, -e).astype(keys.dtype, copy=False)
-    n = norm(keys)
-    if not (n > 0).all():
-        raise ValueError(f"expected non-zero {name}, got a zero quaternion")
-    # unflipped before normalising: the signs follow the dot products of the keys as given
-    return unflip(keys, 0) / n[..., None].astype(keys.dtype, copy=False)
+    keys = unflip(np.ldexp(keys, -e).astype(keys.dtype, copy=False), 0)
+    try:
+        return normalize(keys, out=keys)
+    except ValueError:
+        raise ValueError(f"expected non-zero {name}, got a zero quaternion") from None
 
 
 def unflip(q, axis, d=None):

@@ -8,7 +8,6 @@ as `Rotation`.  Beyond scipy, the keys may hold any batch of tracks
 import numpy as np
 
 from . import _interp_spline
-from . import _kernels, _scale
 from ._array import QuatArray
 from ._interp_lookup import SegmentIndex
 from ._rotation import Rotation
@@ -189,17 +188,13 @@ class RotationSpline:
             raise ValueError("Values in `times` must be in a strictly increasing order.")
         if keys.dtype not in (np.float32, np.float64):
             keys = keys.astype(np.float64)
-        if not isinstance(rotations, Rotation):   # a Rotation's keys are unit already: normalising
-            # them again would move a third of them by an ulp, and equal keys must give the key
-            with np.errstate(over="ignore", under="ignore"):
-                n = np.linalg.norm(keys, axis=-1, keepdims=True)
-                ordinary = _scale.fits(n * n)
-            if not ordinary:   # keys of extreme magnitude: a norm that neither over- nor underflows
-                n = _kernels.norm(keys)[..., None]
-            keys = keys / n
+        # a Rotation's keys are unit already (normalising them again would move a third of
+        # them by an ulp, and equal keys must give the key); others go through `Rotation`'s
+        # one normalisation (`_kernels.normalize`), whose result is also the stored keys
         self.times = times
         self.rotations = (rotations if isinstance(rotations, Rotation)
                           else Rotation.from_quat(keys, scalar_first=True))
+        keys = keys if isinstance(rotations, Rotation) else self.rotations._q
         self._keys = keys
         self._table = _interp_spline.table(keys, _interp_spline.coefficients(times, keys))
         self._cmax = _interp_spline.coefficient_size(self._table)
