@@ -16,6 +16,7 @@ import numpy as np
 
 from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise, from_rotvec
+from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._kernels import arctan2, multiply
 from ._validate import finite, float_array, quat_array
@@ -415,10 +416,15 @@ def _unit_axes(axes, n=None):
 def _k_from_davenport(angles, q, axes, extrinsic, scale):
     """One elementary quaternion (cos, sin · axis) per axis, all half angles in one call,
     composed in order with `_kernels.multiply` on (m, 4) rows."""
-    c, s = _half_angle(angles, scale)                 # (k, m) each
-    turns = np.empty(angles.shape + (4,), q.dtype)    # (k, m, 4): one elementary turn per axis
-    turns[..., 0] = c
-    np.multiply(s[..., None], np.asarray(axes, q.dtype)[:, None, :], out=turns[..., 1:])
+    if angles.shape[1] == 1 and angles.dtype == np.float64 and _trig.SIMD_TAN:
+        # one float64 rotation: each half angle's `cos_sin` on its float (the same formula)
+        cs = [_cos_sin(a * (2 * scale)) for a in angles[:, 0].tolist()]
+        turns = np.array([[[c, s * x, s * y, s * z]] for (c, s), (x, y, z) in zip(cs, axes)])
+    else:
+        c, s = _half_angle(angles, scale)                 # (k, m) each
+        turns = np.empty(angles.shape + (4,), q.dtype)    # (k, m, 4): one elementary turn per axis
+        turns[..., 0] = c
+        np.multiply(s[..., None], np.asarray(axes, q.dtype)[:, None, :], out=turns[..., 1:])
     p = turns[0]
     for e in turns[1:]:
         p = multiply(e, p) if extrinsic else multiply(p, e)
@@ -461,7 +467,7 @@ def from_davenport(axes, order, angles, degrees=False):
     scale = np.pi / 720.0 if degrees else 0.25
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
-               axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale)
+               axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale, read_only=True)
     return out
 
 

@@ -384,9 +384,7 @@ class Rotation:
         if a.shape[-1] != n or (ax2.ndim > 2 and not _broadcastable(ax2.shape[:-2], a.shape[:-1])):
             raise ValueError(f"Expected `angles` to match number of axes, got {a.shape} angles "
                              f"and {ax2.shape} axes.")
-        if ax2.ndim == 2:
-            if any(abs(c) > 1e-7 for c in _cosines(ax2)):
-                raise ValueError("Consecutive axes must be orthogonal.")
+        if ax2.ndim == 2:   # `_euler.from_davenport` checks that consecutive axes are orthogonal
             return cls._wrap(_euler.from_davenport(ax2, order, a, degrees=degrees), unit=True)
         unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
         if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
