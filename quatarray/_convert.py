@@ -730,11 +730,7 @@ def magnitude(q, unit=False):
     return out
 
 
-def _k_as_mrp(q, o, unit=False):
-    if unit:   # finite unit q (only read): scipy's v / copysign(1 + |w|, w)
-        s, d = np.empty((2,) + q.shape[1:], q.dtype)
-        np.divide(q[1:], _mrp_denominator(q[0], _ops.ARRAYS, s, d), out=o)
-        return
+def _k_as_mrp(q, o):
     k = _scale.guarded_sqnorm(q, zero=True)   # a scratch row; q may be rescaled in place
     w, x, y, z = q
     with _blocks.scratch().frame() as work:
@@ -752,11 +748,42 @@ def _k_as_mrp(q, o, unit=False):
 
 def _mrp_denominator(w, op, s, d):
     """``|q| + |w|`` for a unit q, signed as w (w = -0 counts as positive, as in scipy), in
-    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it.
-    ``w ± 1`` is exactly ``±(1 + |w|)`` (rounding is symmetric), one call fewer."""
-    s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign
-    s = op.copysign(1.0, s, s)
-    return op.add(w, s, d)
+    `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it (scipy's
+    ``v / copysign(1 + |w|, w)``).  ``s ± 1`` (s = w + 0: w with -0 made +0) is exactly
+    ``±(1 + |w|)`` (rounding is symmetric), one call fewer."""
+    s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign (and a contiguous row)
+    d = op.copysign(1.0, s, d)
+    return op.add(s, d, d)
+
+
+def _unit_mrp(q):
+    """`as_mrp` of finite unit quaternions `q` (..., 4), `Rotation`'s storage: ``v`` over
+    `_mrp_denominator`, read in place from the rows of `q` (a scale per row: no
+    component-major copy)."""
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 rotation: the same formula on its floats
+        d = _mrp_denominator(one[0], _ops.FLOATS, None, None)
+        return _ops.to_array([one[1] / d, one[2] / d, one[3] / d], q.shape[:-1] + (3,))
+    out = np.empty(q.shape[:-1] + (3,), q.dtype)
+    flat, o = (q, out) if q.ndim == 2 else (q.reshape(-1, 4), out.reshape(-1, 3))
+    n, size = len(flat), _blocks.block_size(q.dtype)
+    if n <= size:   # one block: fresh rows
+        _k_unit_mrp(flat, o, None, None)
+    else:
+        def block(idx):
+            s, d = _blocks.scratch().rows(2, (size,), q.dtype)
+            b = flat[idx]
+            _k_unit_mrp(b, o[idx], s[:len(b)], d[:len(b)])
+        _blocks.run(block, _blocks.split((n,), size), n)
+    return out
+
+
+def _k_unit_mrp(q, o, s, d):
+    """`_unit_mrp` of rows `q` (n, 4) into `o` (n, 3), with work rows `s`, `d` (None: new)."""
+    d = _mrp_denominator(q[:, 0], _ops.ARRAYS, s, d)
+    # one call for x, y, z: iterated in C order over the transposed views, each
+    # component's row is one long (strided) inner loop, not n loops of three
+    np.divide(q.T[1:], d, out=o.T, order="C")
 
 
 def as_mrp(q, unit=False):
@@ -766,9 +793,10 @@ def as_mrp(q, unit=False):
     ----------
     q : ndarray, shape (..., 4)
     unit : bool, default False
-        The caller knows every q is a finite unit quaternion (`Rotation`'s
-        storage): |q| is taken as 1, as scipy does (``v / (1 + |w|)``),
-        saving the squared norms and their range check.
+        The caller knows `q` is a float32 or float64 ndarray of finite unit
+        quaternions (`Rotation`'s storage): it is not checked, and |q| is
+        taken as 1, as scipy does (``v / (1 + |w|)``), saving the squared
+        norms and their range check.
 
     Returns
     -------
@@ -782,14 +810,11 @@ def as_mrp(q, unit=False):
     >>> np.round(as_mrp(np.array([0.0, 0, 0, 1])), 12)  # 180° about z
     array([0., 0., 1.])
     """
+    if unit:   # `Rotation`'s own storage: a float ndarray of shape (..., 4) already
+        return _unit_mrp(q)
     q = quat_array(q, "quat")
-    if unit:
-        one = _ops.floats64(q)
-        if one is not None:   # one float64 rotation: the same formula on its floats
-            d = _mrp_denominator(one[0], _ops.FLOATS, None, None)
-            return _ops.to_array([one[1] / d, one[2] / d, one[3] / d], q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    _blockwise_unit(_k_as_mrp, q.reshape(-1, 4), out.reshape(-1, 3), unit)
+    _blockwise(_k_as_mrp, [q.reshape(-1, 4)], [out.reshape(-1, 3)])
     return out
 
 

@@ -226,6 +226,8 @@ def test_long_batches_across_real_blocks(dtype):
     cases = [("product", lambda q, p: Q(q) * Q(p), (q, p)), ("normalized", lambda q: Q(q).normalized(), (q,)),
              ("log", lambda q: Q(q).log(), (q,)), ("as_matrix", lambda q: R.from_quat(q).as_matrix(), (q,)),
              ("as_euler", lambda q: R.from_quat(q).as_euler("zyx"), (q,)),
+             ("as_mrp", lambda q: R.from_quat(q).as_mrp(), (q,)), ("from_mrp", R.from_mrp, (v,)),
+             ("from_rotvec", R.from_rotvec, (v,)),
              ("apply", lambda q, v: R.from_quat(q).apply(v), (q, v)), ("slerp", slerp, (q, p, t)),
              ("rigid apply", lambda q, v: RigidTransform.from_components(v, R.from_quat(q)).apply(v), (q, v))]
     edge = _blocks.block_size(dtype)
