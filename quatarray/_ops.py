@@ -115,7 +115,22 @@ def floats64(q, k=4):
     ([1.0, 0.0, 0.0, 0.0], None)
     """
     if q.dtype is _FLOAT64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:   # `is`: a fifth of ==
-        return q.tolist() if q.ndim == 1 else q.reshape(k).tolist()
+        return q.tolist() if q.ndim == 1 else q.tolist()[0]   # (1, k): half a reshape's cost
+    return None
+
+
+def first64(q, k=4):
+    """The first component (w) of one float64 quaternion (or vector), shape (k,) or (1, k),
+    as a Python float, or None for any other input: for formulas whose other components
+    enter as one array operation with that float (`floats64` without the list).
+
+    >>> import numpy as np
+    >>> from quatarray._ops import first64
+    >>> first64(np.array([[0.5, 0, 0, 1]])), first64(np.ones((2, 4)))
+    (0.5, None)
+    """
+    if q.dtype is _FLOAT64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:
+        return q.item(0)
     return None
 
 
@@ -132,4 +147,6 @@ def to_array(values, shape):
     array([[1., 2., 3.]])
     """
     a = np.array(values)
-    return a if a.shape == shape else a.reshape(shape)
+    if a.shape == shape:
+        return a
+    return a[None] if shape[1:] == a.shape and shape[0] == 1 else a.reshape(shape)   # [None]: 0.6 of a reshape
