@@ -760,10 +760,9 @@ def _unit_mrp(q):
     """`as_mrp` of finite unit quaternions `q` (..., 4), `Rotation`'s storage: ``v`` over
     `_mrp_denominator`, read in place from the rows of `q` (a scale per row: no
     component-major copy)."""
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 rotation: the same formula on its floats
-        d = _mrp_denominator(one[0], _ops.FLOATS, None, None)
-        return _ops.to_array([one[1] / d, one[2] / d, one[3] / d], q.shape[:-1] + (3,))
+    w = _ops.first64(q)
+    if w is not None:   # one float64 rotation: the denominator on its float, v over it in one call
+        return np.divide(q[..., 1:], _mrp_denominator(w, _ops.FLOATS, None, None))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     flat, o = (q, out) if q.ndim == 2 else (q.reshape(-1, 4), out.reshape(-1, 3))
     n, size = len(flat), _blocks.block_size(q.dtype)
