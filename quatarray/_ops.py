@@ -30,10 +30,14 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
 """The same operations on Python floats; the row argument is ignored."""
 
 STACKS = SimpleNamespace(
-    sub=lambda a, b, out: np.subtract(a, b, out=out), add=lambda a, b, out: np.add(a, b, out=out),
-    mul=lambda a, b, out: np.multiply(a, b, out=out), scale=lambda a, x, out: np.multiply(a, x, out=out))
+    sub=lambda a, b, out: np.subtract(a, b, out=out, order="C"),
+    add=lambda a, b, out: np.add(a, b, out=out, order="C"),
+    mul=lambda a, b, out: np.multiply(a, b, out=out, order="C"),
+    scale=lambda a, x, out: np.multiply(a, x, out=out, order="C"))
 """`ARRAYS`' operations on stacks of k rows (k, ...), one call for the stack: ``a - b``,
-``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`."""
+``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`.
+Iterated in C order, row after row: stacks may be component-major views of (n, k)
+arrays (e.g. ``o.T``), which NumPy's default order would walk in n inner loops of k."""
 
 FLOAT_STACKS = SimpleNamespace(
     sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
