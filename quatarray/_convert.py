@@ -606,6 +606,42 @@ _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 """Rotation vector over half-angle times unit axis, radians and degrees."""
 
 
+def _rowwise(kernel, a, o, k, **params):
+    """Run ``kernel(a_block, o_block, rows, **params)`` over blocks of the rows of `a` (n, i)
+    into those of `o` (n, j), both read and written in place in their row layout (no
+    component-major copies: for formulas that scale whole rows, whose component-major
+    views are iterated in C order by one call), with `k` work rows (k, block length):
+    fresh ones for a few rows, the thread's scratch for long blocks, which run on the
+    block engine's threads."""
+    n = len(a)
+    if n <= _blocks.FEW:
+        kernel(a, o, np.empty((k, n), a.dtype), **params)
+        return
+    size = _blocks.block_size(a.dtype)
+
+    def block(idx):
+        b = a[idx]
+        kernel(b, o[idx], _blocks.scratch().rows(k, (len(b),), a.dtype), **params)
+
+    _blocks.run(block, _blocks.split((n,), size), n)
+
+
+def _k_rotvec_rows(r, o, rows, factor):
+    """`from_rotvec` of the rows `r` (n, 3) into `o` (n, 4) with six work rows (6, n): the
+    norms from one pass of squares over the rows; blocks where a |r|² leaves the range
+    (huge, nan or inf vectors) go to the component-major kernel `_k_from_rotvec`, which
+    gives the other rows the same bits."""
+    theta = rows[0]
+    sq = np.multiply(r, r, out=rows[1:4].reshape(r.shape))   # x², y², z² summed in `squares`' order
+    np.add(sq[:, 0], sq[:, 1], out=theta)
+    theta += sq[:, 2]
+    if not _scale.at_most(theta, _scale.HIGH[theta.dtype]):
+        _k_from_rotvec(r.T.copy(), o.T, factor)
+        return
+    np.sqrt(theta, out=theta)
+    _rotvec_quat(r.T, theta, factor, None, _ops.ARRAYS, _ops.STACKS, o.T, rows)
+
+
 def _k_from_rotvec(r, q, factor):
     with _blocks.scratch().frame() as work:
         rows = work.rows(6, r.shape[1:], q.dtype)
@@ -687,7 +723,8 @@ def from_rotvec(rotvec, degrees=False):
         return _ops.to_array(q, v.shape[:-1] + (4,))
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     try:
-        _blockwise(_k_from_rotvec, [v.reshape(-1, 3)], [out.reshape(-1, 4)], factor=factor)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # huge vectors: handled
+            _rowwise(_k_rotvec_rows, v.reshape(-1, 3), out.reshape(-1, 4), 6, factor=factor)
     except ValueError:
         finite(v, "rotvec")   # the message with the first non-finite element's index
         raise
@@ -758,30 +795,20 @@ def _mrp_denominator(w, op, s, d):
 
 def _unit_mrp(q):
     """`as_mrp` of finite unit quaternions `q` (..., 4), `Rotation`'s storage: ``v`` over
-    `_mrp_denominator`, read in place from the rows of `q` (a scale per row: no
-    component-major copy)."""
+    `_mrp_denominator`, read in place from the rows of `q`."""
     w = _ops.first64(q)
     if w is not None:   # one float64 rotation: the denominator on its float, v over it in one call
         return np.divide(q[..., 1:], _mrp_denominator(w, _ops.FLOATS, None, None))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    flat, o = (q, out) if q.ndim == 2 else (q.reshape(-1, 4), out.reshape(-1, 3))
-    n, size = len(flat), _blocks.block_size(q.dtype)
-    if n <= size:   # one block: fresh rows
-        _k_unit_mrp(flat, o, None, None)
-    else:
-        def block(idx):
-            s, d = _blocks.scratch().rows(2, (size,), q.dtype)
-            b = flat[idx]
-            _k_unit_mrp(b, o[idx], s[:len(b)], d[:len(b)])
-        _blocks.run(block, _blocks.split((n,), size), n)
+    _rowwise(_k_unit_mrp, q.reshape(-1, 4), out.reshape(-1, 3), 2)
     return out
 
 
-def _k_unit_mrp(q, o, s, d):
-    """`_unit_mrp` of rows `q` (n, 4) into `o` (n, 3), with work rows `s`, `d` (None: new)."""
-    d = _mrp_denominator(q[:, 0], _ops.ARRAYS, s, d)
-    # one call for x, y, z: iterated in C order over the transposed views, each
-    # component's row is one long (strided) inner loop, not n loops of three
+def _k_unit_mrp(q, o, rows):
+    """`_unit_mrp` of the rows `q` (n, 4) into `o` (n, 3) with two work rows (2, n)."""
+    d = _mrp_denominator(q[:, 0], _ops.ARRAYS, rows[0], rows[1])
+    # x, y, z in one call, iterated in C order over the component-major views: each
+    # component is one long (strided) inner loop, not n loops of three
     np.divide(q.T[1:], d, out=o.T, order="C")
 
 
@@ -817,48 +844,43 @@ def as_mrp(q, unit=False):
     return out
 
 
-def _mrp_quat(n, w):
-    """(w, f) of the unit quaternion ``((1 - n), 2 p) / (1 + n)`` = (w, f p) of the MRP p with
-    n = |p|², written with operators so that it runs on a block's rows and on the floats of one
-    MRP alike; `w` is where the arrays' w goes (an output row) or None for floats."""
-    d = 1.0 / (1.0 + n)
-    if w is None:
-        w = (1.0 - n) * d
-    else:
-        np.multiply(1.0 - n, d, out=w)
-    d *= 2.0
-    return w, d
+def _mrp_quat(n, op, e, h, w):
+    """(w, h) of the unit quaternion ``((1 - n), 2 p) / (1 + n)`` = (w, p / h) of the MRP p
+    with n = |p|², in `op`'s arithmetic (`_ops`) into the rows `e`, `h`, `w`: scipy's
+    ``((2 - e) / e, 2 p / e)`` with e = 1 + n (``p / h`` with h = e / 2 is ``2 p / e``
+    exactly: halving is exact), one rounding per component."""
+    e = op.add(n, 1.0, e)
+    h = op.mul(e, 0.5, h)
+    w = op.sub(2.0, e, w)
+    return op.div(w, e, w), h
 
 
-def _k_from_mrp(p, q):
-    x, y, z = p
-    with np.errstate(over="ignore"):   # |p|² that overflows: the block is redone below
-        n = x * x + y * y + z * z
-    if not _scale.at_most(n, _scale.HIGH[n.dtype]):
-        return _k_from_huge_mrp(p, q)
-    _, d = _mrp_quat(n, q[0])
-    np.multiply(x, d, out=q[1])
-    np.multiply(y, d, out=q[2])
-    np.multiply(z, d, out=q[3])
+def _k_mrp_rows(p, o, rows):
+    """`from_mrp` of the rows `p` (n, 3) into `o` (n, 4) with four work rows (4, n)."""
+    n = rows[0]
+    sq = np.multiply(p, p, out=rows[1:4].reshape(p.shape))   # x², y², z² summed in that order
+    np.add(sq[:, 0], sq[:, 1], out=n)
+    n += sq[:, 2]
+    _, h = _mrp_quat(n, _ops.ARRAYS, rows[1], rows[2], o[:, 0])
+    np.divide(p.T, h, out=o.T[1:], order="C")   # x, y, z in one call (as in `_k_unit_mrp`)
+    if not _scale.at_most(n, _scale.HIGH[n.dtype]):   # nan, inf or |p|² overflowing: look
+        if not np.isfinite(p).all():
+            raise ValueError(_scale.NONFINITE)     # (from_mrp finds the element)
+        _huge_mrps(p, o, ~(n <= _scale.HIGH[n.dtype]))
 
 
-def _k_from_huge_mrp(p, q):
-    """`_k_from_mrp` for a block where |p|² overflows (|p| past about 1e154): with
+def _huge_mrps(p, o, huge):
+    """The rows of `o` where |p|² overflows (|p| past about 1e138, float64): with
     s = 1/|p|² (= |p/m|⁻² / m², m a power of two near max |p_k|, no overflow),
-    q = ((s - 1), 2 p s) / (1 + s), the same value as ((1 - |p|²), 2 p) / (1 + |p|²);
-    taken where |p| > 1 only, the usual form elsewhere."""
-    big = np.max(np.abs(p), axis=0) > 1
-    e = _scale.rescale(p, big)                  # p 2**-e where |p| > 1, exact
-    n = _scale.sum_squares(p, np.empty(p.shape[1:], p.dtype))
-    with np.errstate(over="ignore", under="ignore"):
-        s = np.ldexp(1.0 / n, -2 * e)           # 1/|p|², may underflow to 0 (harmless)
-        usual = np.ldexp(n, 2 * e)              # |p|², only used where |p| <= 1
-    m = np.where(big, s, usual)
-    d = 1.0 / (1.0 + m)
-    np.multiply(np.where(big, m - 1.0, 1.0 - m), d, out=q[0])
-    # 2 p / (1 + |p|²) = 2 (p 2**-e) 2**e d_usual, or 2 (p 2**-e) 2**-e / |p 2**-e|² · d_big
-    f = np.where(big, np.ldexp(2.0 / n, -e) * d, np.ldexp(2.0 * d, e))
-    np.multiply(p, f, out=q[1:])
+    q = ((s - 1), 2 p s) / (1 + s), the same value as ((1 - |p|²), 2 p) / (1 + |p|²)."""
+    ps = p[huge].T.copy()                       # components-first, scaled in place:
+    e = _scale.rescale(ps)                      # p 2**-e, exact
+    n = _scale.sum_squares(ps, np.empty(ps.shape[1:], ps.dtype))
+    s = np.ldexp(1.0 / n, -2 * e)               # 1/|p|², may underflow to 0 (harmless)
+    d = 1.0 / (1.0 + s)
+    o[huge, 0] = (s - 1.0) * d
+    # 2 p / (1 + |p|²) = 2 (p 2**-e) 2**-e / |p 2**-e|² · d
+    o[huge, 1:] = (ps * (np.ldexp(2.0 / n, -e) * d)).T
 
 
 def from_mrp(mrp):
@@ -879,16 +901,21 @@ def from_mrp(mrp):
     >>> from_mrp([0, 0, 1])
     array([0., 0., 0., 1.])
     """
-    p = finite(_vec3(mrp, "mrp"), "mrp")
+    p = _vec3(mrp, "mrp")   # finiteness: found by the kernel's range check of |p|² (or n here)
     one = _ops.floats64(p, 3)
     if one is not None:
         x, y, z = one
         n = x * x + y * y + z * z   # the kernel's |p|², in its order
         if n <= _scale.HIGH[p.dtype]:   # one float64 MRP: the kernel's formula on its floats
-            w, d = _mrp_quat(n, None)
-            return _ops.to_array([w, x * d, y * d, z * d], p.shape[:-1] + (4,))
+            w, h = _mrp_quat(n, _ops.FLOATS, None, None, None)
+            return _ops.to_array([w, x / h, y / h, z / h], p.shape[:-1] + (4,))
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
-    _blockwise(_k_from_mrp, [p.reshape(-1, 3)], [out.reshape(-1, 4)])
+    try:
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            _rowwise(_k_mrp_rows, p.reshape(-1, 3), out.reshape(-1, 4), 4)
+    except ValueError:
+        finite(p, "mrp")   # the message with the first non-finite element's index
+        raise
     return out
 
 

@@ -326,6 +326,8 @@ def test_batches_at_the_engines_size_thresholds(dtype, n):
                               ("from_quat", lambda q: R.from_quat(q, scalar_first=True), (q,)),
                               ("from_matrix", R.from_matrix, (r.as_matrix(),)),
                               ("from_rotvec", R.from_rotvec, (r.as_rotvec(),)), ("from_mrp", R.from_mrp, (r.as_mrp(),)),
+                              ("from_rotvec, a huge vector", R.from_rotvec, (v,)),
+                              ("from_mrp, a huge vector", R.from_mrp, (v,)),
                               ("from_euler", lambda e: R.from_euler("xyz", e), (r.as_euler("xyz"),))] + [
                 (name, lambda q, f=f: f(R.from_quat(q, scalar_first=True)), (q,)) for name, f in ops]:
             whole = _raw(f(*args))
