@@ -45,6 +45,9 @@ def float_array(x, name, last=None, dtype=None):
     ...
     ValueError: expected quat of shape (..., 4), got (3,)
     """
+    if (type(x) is np.ndarray and dtype is None and (x.dtype is _FLOATS[1] or x.dtype is _FLOATS[0])
+            and (last is None or x.shape[-1:] == (last,))):
+        return x   # the common case at once (`is`: NumPy's native float dtypes), cheaper than the checks below
     if dtype is not None:
         dtype = np.dtype(dtype)
         if dtype not in (np.float32, np.float64):
