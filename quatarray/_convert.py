@@ -606,6 +606,11 @@ _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 """Rotation vector over half-angle times unit axis, radians and degrees."""
 
 
+def _rows(a, k):
+    """`a` (..., k) as (n, k) rows (a 2-D array as it is: a reshape costs a tenth of a small call)."""
+    return a if a.ndim == 2 else a.reshape(-1, k)
+
+
 def _rowwise(kernel, a, o, k, **params):
     """Run ``kernel(a_block, o_block, rows, **params)`` over blocks of the rows of `a` (n, i)
     into those of `o` (n, j), both read and written in place in their row layout (no
@@ -724,7 +729,7 @@ def from_rotvec(rotvec, degrees=False):
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     try:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # huge vectors: handled
-            _rowwise(_k_rotvec_rows, v.reshape(-1, 3), out.reshape(-1, 4), 6, factor=factor)
+            _rowwise(_k_rotvec_rows, _rows(v, 3), _rows(out, 4), 6, factor=factor)
     except ValueError:
         finite(v, "rotvec")   # the message with the first non-finite element's index
         raise
@@ -800,12 +805,16 @@ def _unit_mrp(q):
     if w is not None:   # one float64 rotation: the denominator on its float, v over it in one call
         return np.divide(q[..., 1:], _mrp_denominator(w, _ops.FLOATS, None, None))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    _rowwise(_k_unit_mrp, q.reshape(-1, 4), out.reshape(-1, 3), 2)
+    if q.ndim == 2 and len(q) <= _blocks.FEW:   # a few rows as stored: work rows made by the ufuncs
+        _k_unit_mrp(q, out, _ops.NONE)
+    else:
+        _rowwise(_k_unit_mrp, _rows(q, 4), _rows(out, 3), 2)
     return out
 
 
 def _k_unit_mrp(q, o, rows):
-    """`_unit_mrp` of the rows `q` (n, 4) into `o` (n, 3) with two work rows (2, n)."""
+    """`_unit_mrp` of the rows `q` (n, 4) into `o` (n, 3) with two work rows (2, n), or
+    `_ops.NONE` (new ones)."""
     d = _mrp_denominator(q[:, 0], _ops.ARRAYS, rows[0], rows[1])
     # x, y, z in one call, iterated in C order over the component-major views: each
     # component is one long (strided) inner loop, not n loops of three
@@ -844,15 +853,15 @@ def as_mrp(q, unit=False):
     return out
 
 
-def _mrp_quat(n, op, e, h, w):
+def _mrp_quat(n, op, e, h, t, w):
     """(w, h) of the unit quaternion ``((1 - n), 2 p) / (1 + n)`` = (w, p / h) of the MRP p
-    with n = |p|², in `op`'s arithmetic (`_ops`) into the rows `e`, `h`, `w`: scipy's
-    ``((2 - e) / e, 2 p / e)`` with e = 1 + n (``p / h`` with h = e / 2 is ``2 p / e``
-    exactly: halving is exact), one rounding per component."""
+    with n = |p|², in `op`'s arithmetic (`_ops`) into the rows `e`, `h`, `w` (`t` a work
+    row): scipy's ``((2 - e) / e, 2 p / e)`` with e = 1 + n (``p / h`` with h = e / 2 is
+    ``2 p / e`` exactly: halving is exact), one rounding per component."""
     e = op.add(n, 1.0, e)
     h = op.mul(e, 0.5, h)
-    w = op.sub(2.0, e, w)
-    return op.div(w, e, w), h
+    t = op.sub(2.0, e, t)
+    return op.div(t, e, w), h
 
 
 def _k_mrp_rows(p, o, rows):
@@ -861,7 +870,7 @@ def _k_mrp_rows(p, o, rows):
     sq = np.multiply(p, p, out=rows[1:4].reshape(p.shape))   # x², y², z² summed in that order
     np.add(sq[:, 0], sq[:, 1], out=n)
     n += sq[:, 2]
-    _, h = _mrp_quat(n, _ops.ARRAYS, rows[1], rows[2], o[:, 0])
+    _, h = _mrp_quat(n, _ops.ARRAYS, rows[1], rows[2], rows[3], o[:, 0])
     np.divide(p.T, h, out=o.T[1:], order="C")   # x, y, z in one call (as in `_k_unit_mrp`)
     if not _scale.at_most(n, _scale.HIGH[n.dtype]):   # nan, inf or |p|² overflowing: look
         if not np.isfinite(p).all():
@@ -907,12 +916,12 @@ def from_mrp(mrp):
         x, y, z = one
         n = x * x + y * y + z * z   # the kernel's |p|², in its order
         if n <= _scale.HIGH[p.dtype]:   # one float64 MRP: the kernel's formula on its floats
-            w, h = _mrp_quat(n, _ops.FLOATS, None, None, None)
+            w, h = _mrp_quat(n, _ops.FLOATS, None, None, None, None)
             return _ops.to_array([w, x / h, y / h, z / h], p.shape[:-1] + (4,))
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     try:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-            _rowwise(_k_mrp_rows, p.reshape(-1, 3), out.reshape(-1, 4), 4)
+            _rowwise(_k_mrp_rows, _rows(p, 3), _rows(out, 4), 4)
     except ValueError:
         finite(p, "mrp")   # the message with the first non-finite element's index
         raise
