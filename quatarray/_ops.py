@@ -124,16 +124,16 @@ def floats64(q, k=4):
 
 
 def first64(q, k=4):
-    """The first component (w) of one float64 quaternion (or vector), shape (k,) or (1, k),
-    as a Python float, or None for any other input: for formulas whose other components
-    enter as one array operation with that float (`floats64` without the list).
+    """The first component (w) of one float64 quaternion (or vector), `q` of shape (..., k)
+    holding one, as a Python float, or None for any other input: for formulas whose other
+    components enter as one array operation with that float (`floats64` without the list).
 
     >>> import numpy as np
     >>> from quatarray._ops import first64
     >>> first64(np.array([[0.5, 0, 0, 1]])), first64(np.ones((2, 4)))
     (0.5, None)
     """
-    if q.dtype is _FLOAT64 and q.size == k and q.ndim <= 2 and q.shape[-1] == k:
+    if q.size == k and q.dtype is _FLOAT64:
         return q.item(0)
     return None
 
