@@ -361,6 +361,7 @@ def test_any_memory_layout_gives_the_contiguous_bits(dtype, layout):
                         ("Rotation", lambda a: R.from_quat(a, scalar_first=True)),
                         ("Rotation normalize=False", lambda a: R(a, scalar_first=True, normalize=False).as_matrix()),
                         ("from_matrix", lambda a: R.from_matrix(Q(a).as_matrix())),
+                        ("from_rotvec", lambda a: R.from_rotvec(a[:, 1:])), ("from_mrp", lambda a: R.from_mrp(a[:, 1:])),
                         ("slerp", lambda a: slerp(a, a[::-1], np.linspace(0, 1, n, dtype=dtype)))]:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")   # gimbal lock
