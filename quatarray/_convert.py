@@ -15,7 +15,9 @@ Long inputs are processed by the block engine (`_blocks.blockwise`): each
 block is copied into component-major scratch (one contiguous row per
 component, so that every ufunc runs on contiguous memory) and computed with
 whole-row ufuncs that write into the preallocated output.  No per-element
-Python, no ``(N, 4, 4)`` temporaries.
+Python, no ``(N, 4, 4)`` temporaries.  Formulas that scale whole rows (MRPs
+both ways, `from_rotvec`) read and write the ``(N, 3)`` / ``(N, 4)`` rows in
+place instead (`_rowwise`), each component-major view walked by one call.
 
 Half-angle sines and cosines come from `_kernels.cos_sin`: in float64 one
 tangent, ``t = tan(a / 4)``, gives ``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and
