@@ -549,10 +549,10 @@ class Rotation:
         >>> r.approx_equal(Rotation.from_rotvec([0, 0, 1 + 1e-10]))
         array([ True, False])
         """
-        if _is_scipy_rotation(other):
+        if not isinstance(other, Rotation):
+            if not _is_scipy_rotation(other):
+                raise TypeError(f"expected other to be a Rotation, got {type(other).__name__}")
             other = Rotation.from_scipy(other)
-        elif not isinstance(other, Rotation):
-            raise TypeError(f"expected other to be a Rotation, got {type(other).__name__}")
         # quaternions held as given (`from_quatarray`) may have any magnitude: their
         # product could overflow, so they are normalised first
         p = self._q if self._unit else _kernels.normalize(self._q)
