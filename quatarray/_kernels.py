@@ -350,8 +350,8 @@ def conjugate(q, out=None, check=False):
     >>> conjugate(np.array([1., 2, 3, 4]))
     array([ 1., -2., -3., -4.])
     """
-    if out is None and not check and q.size <= 256 and q.dtype in _COMPLEX:   # a few, float32/64
-        return np.multiply(q, _conj_signs(q.dtype, 1))
+    if out is None and not check and q.size <= 256 and type(q) is np.ndarray and q.dtype in _COMPLEX:
+        return np.multiply(q, _conj_signs(q.dtype, 1))   # a few float32/64 quaternions
     dtype = result_dtype(q)
     res = _out(out, q.shape, dtype)
     if q.size <= 256 or not (res.flags.c_contiguous and q.flags.c_contiguous and q.dtype == dtype):
