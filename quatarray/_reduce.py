@@ -88,12 +88,18 @@ def _chord2(p, q, work):
     """
     s = p.shape[1:]
     D = work.rows(4, s, p.dtype)
-    a = work.rows(2, s, p.dtype)
+    a = work.rows(1, s, p.dtype)[0]
     np.subtract(p, q, out=D)
-    _interp_kernels.sqsum(D, a[0])
-    np.add(p, q, out=D)
-    _interp_kernels.sqsum(D, a[1])
-    return np.minimum(a[0], a[1], out=a[0])
+    _interp_kernels.sqsum(D, a)
+    # |p - q|² + |p + q|² = 4: only where |p - q|² > 1 can |p + q|² be the smaller
+    far = np.flatnonzero(a > 1)
+    if far.size:
+        at = np.unravel_index(far, s)
+        P, Q = p[(slice(None),) + at], q[(slice(None),) + at]
+        np.add(P, Q, out=P)
+        flat = a.reshape(-1)
+        flat[far] = np.minimum(flat[far], _interp_kernels.sqsum(P, np.empty(far.size, p.dtype)))
+    return a
 
 
 def _hemisphere(ref, q):
@@ -375,8 +381,13 @@ def _track_chords(track, times, ref, at=None):
         tk = times[k]
         q = np.asarray(track(tk)).reshape(len(tk), -1, 4).astype(np.float64, copy=False)
         r = (ref[k] if at is None else np.take(ref, k, axis=0)).astype(np.float64, copy=False)
-        c2 = _interp_kernels.vdot(q - r, q - r)
-        yield np.minimum(c2, _interp_kernels.vdot(q + r, q + r), out=c2)
+        d = q - r
+        c2 = _interp_kernels.vdot(d, d)
+        far = np.nonzero(c2 > 1)   # the other sign can be nearer only there (see `_chord2`)
+        if far[0].size:
+            d = q[far] + r[far]
+            c2[far] = np.minimum(c2[far], _interp_kernels.vdot(d, d))
+        yield c2
 
 
 def check_errors(track, times, ref, at=None):

@@ -218,6 +218,28 @@ def test_segment_errors_against_the_curve(method, dtype, rng):
         assert abs(expected[worst[j] - s[j] - 1] - expected.max()) <= atol
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_chord_is_the_nearer_sign(dtype, rng):
+    """The search's squared chord is min(|p - q|², |p + q|²) bit for bit, also where q
+    is more than a third of a turn from p (the only place |p + q|² is formed)."""
+    from quatarray import _blocks, _reduce
+    p = unit(rng.standard_normal((4, 3, 500)).transpose(1, 2, 0)).astype(dtype)
+    q = unit(rng.standard_normal((4, 3, 500)).transpose(1, 2, 0)).astype(dtype)
+    q[0, :100] = p[0, :100] + 1e-3            # close: |p - q|² small
+    q[1, :100] = -p[1, :100]                  # the other sign: |p + q|² = 0
+    q = unit(q.astype(np.float64)).astype(dtype)
+    P, Qc = np.moveaxis(p, -1, 0), np.moveaxis(q, -1, 0)
+    with _blocks.scratch().frame() as work:
+        got = _reduce._chord2(P, Qc, work).copy()
+    minus = ((p - q) ** 2).astype(dtype)
+    plus = ((p + q) ** 2).astype(dtype)
+    # the kernel's summation order: ((x0 + x1) + x2) + x3
+    expected = np.minimum(((minus[..., 0] + minus[..., 1]) + minus[..., 2]) + minus[..., 3],
+                          ((plus[..., 0] + plus[..., 1]) + plus[..., 2]) + plus[..., 3])
+    assert (got > 1).any() and (got < 1e-4).any()
+    np.testing.assert_array_equal(got, expected)
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_segment_errors_in_groups(method, rng, monkeypatch):
     """Many segments are handled in groups (bounded memory); each segment's error and worst
