@@ -172,18 +172,19 @@ def _table_errors(method, table, seg, u, X):
         return err[:, 0].copy() if b == 1 else err.max(axis=1)
 
 
-def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
+def segment_errors(method, times, Q, s, c, p=None, n=None, b=None, locate=True):
     """Largest angular error, shape (m,), of the segments [s, c] (m,) at the samples
     strictly inside them, of track b (m,) or of all tracks (b None: max over tracks),
-    and the sample where it occurs (s where there is none).  p, n (m,) are the keys
-    before s and after c (-1: not known) for 'squad'."""
+    and the sample where it occurs (s where there is none, or everywhere if not
+    `locate`: the search needs the errors only).  p, n (m,) are the keys before s
+    and after c (-1: not known) for 'squad'."""
     m = len(s)
     if m > SEGMENTS:   # in groups: each segment's error is its own, whatever the group
         def part(x, i):
             return None if x is None else x[i:i + SEGMENTS]
 
         parts = [segment_errors(method, times, Q, s[i:i + SEGMENTS], c[i:i + SEGMENTS], part(p, i), part(n, i),
-                                part(b, i)) for i in range(0, m, SEGMENTS)]
+                                part(b, i), locate) for i in range(0, m, SEGMENTS)]
         return np.concatenate([e for e, _ in parts]), np.concatenate([w for _, w in parts])
     inner = c - s - 1
     out = np.zeros(m)
@@ -215,15 +216,22 @@ def segment_errors(method, times, Q, s, c, p=None, n=None, b=None):
             continue
         seg = np.repeat(np.arange(lo, hi), n_in)
         starts = np.cumsum(n_in) - n_in
-        s_seg = np.repeat(s[lo:hi], n_in)
-        k = np.arange(tot) - np.repeat(starts, n_in) + s_seg + 1
-        t0 = np.repeat(times[s[lo:hi]], n_in)
-        u = ((np.take(times, k) - t0) / (np.repeat(times[c[lo:hi]], n_in) - t0)).astype(Q.dtype)
-        X = _take(Q, k, None if b is None else b[seg])
-        err = _table_errors(method, table, seg, u, X)
+        base = s[lo:hi] + 1 - starts                 # k = base + position in the batch
+        k = np.arange(tot) + np.repeat(base, n_in)
+        t0 = times[s[lo:hi]]
+        u = np.take(times, k) - np.repeat(t0, n_in)
+        u /= np.repeat(times[c[lo:hi]] - t0, n_in)
+        if b is None:
+            X = np.take(Q, k, axis=0)
+        else:   # the samples' rows in the track-major array, gathered at once
+            X = np.take(Q.reshape(-1, 4), np.arange(tot) + np.repeat(base + b[lo:hi] * Q.shape[1], n_in), axis=0)
+            X = X[:, None]
+        err = _table_errors(method, table, seg, u.astype(Q.dtype, copy=False), X)
         nz = n_in > 0
         worst = np.maximum.reduceat(err, starts[nz])
         out[lo:hi][nz] = 4 * np.arcsin(np.sqrt(worst) / 2)
+        if not locate:
+            continue
         hit = np.flatnonzero(err == np.repeat(worst, n_in[nz]))
         first_hit = hit[np.concatenate([[True], seg[hit][1:] != seg[hit][:-1]])]
         where[seg[first_hit]] = k[first_hit]
@@ -286,16 +294,16 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
         c = cand[test]
         tb = None if shared else lane_b[test]
         if method != "squad":
-            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb)
+            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb, False)
         else:
             # squad: the candidate also sets the previous segment's end control point, so
             # that segment is tested again with it (and its own previous key) where the
             # candidate's own segment passes (where it fails, the candidate does anyway)
-            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb)
+            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb, False)
             back = np.flatnonzero((prev[test] >= 0) & (err <= tol))
             if back.size:
                 e_back, _ = segment_errors(method, times, Q, prev[test][back], s[test][back], pprev[test][back],
-                                           c[back], None if shared else tb[back])
+                                           c[back], None if shared else tb[back], False)
                 err[back] = np.maximum(err[back], e_back)
         ok = err <= tol
         lo[test[ok]] = c[ok]
@@ -329,7 +337,7 @@ def _merge(method, times, Q, kept, tol, b, forced):
             prev = np.where(pos >= 2, kept[np.maximum(pos - 2, 0)], -1)
             nxt = np.where(pos + 2 < len(kept), kept[np.minimum(pos + 2, len(kept) - 1)], -1)
             err, _ = segment_errors(method, times, Q, kept[pos - 1], kept[pos + 1], prev, nxt,
-                                    None if b is None else np.full(len(pos), b))
+                                    None if b is None else np.full(len(pos), b), False)
             drop = kept[pos[err <= tol]]
             if drop.size:
                 kept = _without(kept, drop)
