@@ -449,6 +449,15 @@ def refine(method, times, kept, tol, make_track, ref):
         c2[at] = check_errors(track, times, ref, at)
 
 
+def _track_groups(B, T):
+    """Slices (b0, b1) of tracks reduced together, one per thread of the pool (more
+    slices are slower: every slice's search pays the lock-step's per-step costs)."""
+    threads = _blocks.get_num_threads() if B * T >= _blocks.PARALLEL_MIN else 1
+    n = min(B, threads)
+    edges = (np.arange(n + 1) * B) // n
+    return [(int(b0), int(b1)) for b0, b1 in zip(edges[:-1], edges[1:])]
+
+
 def reduce(method, times, Q, tol, shared, make_track):
     """Greedy reduction, then the check: ``(kept indices, Tracks, max errors)``.
 
@@ -457,19 +466,23 @@ def reduce(method, times, Q, tol, shared, make_track):
     track-major (B, T, 4) (C-contiguous: a track's samples lie together).
     Returns a list per track (one entry with `shared`) and the errors per
     track (B,): the errors of the returned Tracks at every original time.
-    """
-    kept = greedy(method, times, Q, tol, shared)
-    tracks, errors, out = [], np.zeros(Q.shape[1] if shared else Q.shape[0]), []
-    for j, k in enumerate(kept):
-        b = None if shared else j
-        ref = Q if shared else Q[j][:, None]
-        k, track, err = refine(method, times, k, tol, lambda idx: make_track(idx, b), ref)
-        if shared:
-            # the largest error of each track: one more pass (the check above keeps the max over tracks)
-            errors[:] = track_errors(track, times, ref)
-        else:
-            errors[j] = err
-        out.append(k)
-        tracks.append(track)
-    return out, tracks, errors
 
+    Tracks reduced on their own are independent: groups of them are searched
+    and checked on the threads of `_blocks.run` (each track's keys are the same
+    whatever group it falls in: every segment's error is its own).
+    """
+    if shared:
+        (k,) = greedy(method, times, Q, tol, True)
+        k, track, _ = refine(method, times, k, tol, lambda idx: make_track(idx, None), Q)
+        # the largest error of each track: one more pass (the check above keeps the max over tracks)
+        return [k], [track], track_errors(track, times, Q)
+
+    def group(bounds):
+        b0, b1 = bounds
+        kept = greedy(method, times, Q[b0:b1], tol, False)
+        return [refine(method, times, k, tol, lambda idx, b=b: make_track(idx, b), Q[b][:, None])
+                for b, k in enumerate(kept, b0)]
+
+    B, T = Q.shape[:2]
+    done = [r for part in _blocks.run(group, _track_groups(B, T), B * T) for r in part]
+    return [k for k, _, _ in done], [tr for _, tr, _ in done], np.array([e for _, _, e in done])

@@ -60,29 +60,39 @@ def _unit_series(raw, name, track_major, rows=None):
     A block starts with the previous block's last raw sample, its sign set as the
     previous block left it: `unit_keys` keeps the first key's sign and unflips the
     others from exact dot products of the keys as given, so the signs continue
-    across blocks exactly as in one call.
+    across blocks exactly as in one call.  Tracks are independent: groups of
+    them run on the threads of `_blocks.run`.
     """
     T, B = raw.shape[:2]
     out = np.empty((B, T, 4) if track_major else (T, B, 4), raw.dtype)
-    rows = rows or max(2, _blocks.BLOCK // max(B, 1))
-    sign = None
-    for t0 in range(0, T, rows):
-        t1 = min(t0 + rows, T)
-        if sign is None:
-            unit = _interp_kernels.unit_keys(raw[t0:t1], name)
-        else:
-            block = raw[t0 - 1:t1].copy()
-            block[0] *= sign
-            unit = _interp_kernels.unit_keys(block, name)[1:]
-        if track_major:
-            out[:, t0:t1] = unit.transpose(1, 0, 2)
-        else:
-            out[t0:t1] = unit
-        # the sign this block gave its last sample: compare the largest raw component
-        last = raw[t1 - 1]
-        k = np.argmax(np.abs(last), axis=-1)[:, None]
-        sign = np.where((np.take_along_axis(unit[-1], k, -1) < 0) == (np.take_along_axis(last, k, -1) < 0),
-                        1, -1).astype(raw.dtype)
+
+    def fill(bounds):   # tracks b0:b1 (each track is unflipped on its own: any grouping gives the same bits)
+        b0, b1 = bounds
+        part = raw[:, b0:b1]
+        n = rows or max(2, _blocks.BLOCK // max(b1 - b0, 1))
+        sign = None
+        for t0 in range(0, T, n):
+            t1 = min(t0 + n, T)
+            if sign is None:
+                unit = _interp_kernels.unit_keys(part[t0:t1], name)
+            else:
+                block = part[t0 - 1:t1].copy()
+                block[0] *= sign
+                unit = _interp_kernels.unit_keys(block, name)[1:]
+            if track_major:
+                out[b0:b1, t0:t1] = unit.transpose(1, 0, 2)
+            else:
+                out[t0:t1, b0:b1] = unit
+            # the sign this block gave its last sample: compare the largest raw component
+            last = part[t1 - 1]
+            k = np.argmax(np.abs(last), axis=-1)[:, None]
+            sign = np.where((np.take_along_axis(unit[-1], k, -1) < 0) == (np.take_along_axis(last, k, -1) < 0),
+                            1, -1).astype(raw.dtype)
+
+    threads = _blocks.get_num_threads() if T * B >= _blocks.PARALLEL_MIN else 1
+    n = max(1, min(B, threads))
+    edges = (np.arange(n + 1) * B) // n
+    _blocks.run(fill, list(zip(edges[:-1], edges[1:])), T * B)
     return out
 
 

@@ -105,12 +105,13 @@ def test_bound_real(method, shared):
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 @pytest.mark.parametrize("rows", [2, 3, 50, 1000])
-def test_unit_series_blocked_over_time(dtype, rows, rng):
+def test_unit_series_blocked_over_time(dtype, rows, rng, monkeypatch):
     """reduce_keys normalises and unflips its samples over blocks of times: the same bits
     as `unit_keys` of the whole series, in either layout, with sign flips at the block
     edges, exactly orthogonal neighbours (a zero dot product restarts the signs) and
     huge magnitudes."""
-    from quatarray import _interp_kernels, timeseries
+    import quatarray
+    from quatarray import _blocks, _interp_kernels, timeseries
     T, B = 301, 5
     q = rng.normal(size=(T, B, 4)).astype(dtype)
     q[rng.random((T, B)) < 0.3] *= -1
@@ -120,6 +121,11 @@ def test_unit_series_blocked_over_time(dtype, rows, rng):
     whole = _interp_kernels.unit_keys(q)
     np.testing.assert_array_equal(timeseries._unit_series(q, "keys", False, rows), whole)
     np.testing.assert_array_equal(timeseries._unit_series(q, "keys", True, rows), whole.transpose(1, 0, 2))
+    # groups of tracks on two threads
+    monkeypatch.setattr(_blocks, "PARALLEL_MIN", 0)
+    with quatarray.num_threads(2):
+        np.testing.assert_array_equal(timeseries._unit_series(q, "keys", False, rows), whole)
+        np.testing.assert_array_equal(timeseries._unit_series(q, "keys", True, rows), whole.transpose(1, 0, 2))
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -277,6 +283,24 @@ def test_search_reaches_farthest(method, tol, rng):
         longer = c < T - 1
         err, _ = _reduce.segment_errors(method, times, Q, s[longer], c[longer] + 1, None, None, bb[longer])
         assert (err > tol).all()
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_threads_give_the_same_keys(method, monkeypatch):
+    """Tracks reduced on their own are searched and checked in groups on several threads:
+    the same keys and errors as on one thread."""
+    import quatarray
+    from quatarray import _blocks
+    monkeypatch.setattr(_blocks, "PARALLEL_MIN", 0)
+    t, q = smooth_series(400, (5,), seed=11)
+    with quatarray.num_threads(1):
+        one, err1 = reduce_keys(t, q, 1e-3, method=method)
+    with quatarray.num_threads(2):
+        two, err2 = reduce_keys(t, q, 1e-3, method=method)
+    np.testing.assert_array_equal(err2, err1)
+    for a, b in zip(one, two):
+        np.testing.assert_array_equal(a.times, b.times)
+        np.testing.assert_array_equal(np.asarray(a.keys), np.asarray(b.keys))
 
 
 def test_degrees_and_rotation_input():
