@@ -159,13 +159,13 @@ def _segment_table(method, qs, qc, a_s=None, a_c=None, dtype=np.float64):
     return np.ascontiguousarray(table, dtype=dtype)
 
 
-def _table_errors(method, table, seg, u, X):
+def _table_errors(method, G, u, X):
     """Per sample (n,), the squared chord (`_chord2`, max over tracks) between samples
-    X (n, b, 4) and the curve of segments `seg` (n,) of `table` at parameters u (n,)."""
+    X (n, b, 4) and the curve of their segments' table rows G (R, n, b) (overwritten)
+    at parameters u (n,)."""
     n, b = X.shape[:2]
     with _blocks.scratch().frame() as work:
-        G = _track.gather(table, seg, slice(None))
-        O = work.rows(4, (n, b), table.dtype)
+        O = work.rows(4, (n, b), G.dtype)
         _track.rotation_block(method, G, u[:, None], O)
         err = _chord2(O, np.moveaxis(X, -1, 0), work)
         # (one track: a copy out of the scratch; NumPy's max over an axis of length 1 is slow)
@@ -214,7 +214,6 @@ def segment_errors(method, times, Q, s, c, p=None, n=None, b=None, locate=True):
         tot = int(n_in.sum())
         if tot == 0:
             continue
-        seg = np.repeat(np.arange(lo, hi), n_in)
         starts = np.cumsum(n_in) - n_in
         base = s[lo:hi] + 1 - starts                 # k = base + position in the batch
         k = np.arange(tot) + np.repeat(base, n_in)
@@ -226,13 +225,16 @@ def segment_errors(method, times, Q, s, c, p=None, n=None, b=None, locate=True):
         else:   # the samples' rows in the track-major array, gathered at once
             X = np.take(Q.reshape(-1, 4), np.arange(tot) + np.repeat(base + b[lo:hi] * Q.shape[1], n_in), axis=0)
             X = X[:, None]
-        err = _table_errors(method, table, seg, u.astype(Q.dtype, copy=False), X)
+        # each segment's rows repeated for its samples (a repeat along rows: faster than a take)
+        G = np.repeat(table[:, lo:hi], n_in, axis=1)
+        err = _table_errors(method, G, u.astype(Q.dtype, copy=False), X)
         nz = n_in > 0
         worst = np.maximum.reduceat(err, starts[nz])
         out[lo:hi][nz] = 4 * np.arcsin(np.sqrt(worst) / 2)
         if not locate:
             continue
         hit = np.flatnonzero(err == np.repeat(worst, n_in[nz]))
+        seg = np.repeat(np.arange(lo, hi), n_in)
         first_hit = hit[np.concatenate([[True], seg[hit][1:] != seg[hit][:-1]])]
         where[seg[first_hit]] = k[first_hit]
     return out, where
