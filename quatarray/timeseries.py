@@ -65,6 +65,8 @@ def _unit_series(raw, name, track_major, rows=None):
     """
     T, B = raw.shape[:2]
     out = np.empty((B, T, 4) if track_major else (T, B, 4), raw.dtype)
+    item = np.dtype((np.void, 4 * raw.dtype.itemsize))
+    out_items = out.view(item)[..., 0]
 
     def fill(bounds):   # tracks b0:b1 (each track is unflipped on its own: any grouping gives the same bits)
         b0, b1 = bounds
@@ -79,8 +81,8 @@ def _unit_series(raw, name, track_major, rows=None):
                 block = part[t0 - 1:t1].copy()
                 block[0] *= sign
                 unit = _interp_kernels.unit_keys(block, name)[1:]
-            if track_major:
-                out[b0:b1, t0:t1] = unit.transpose(1, 0, 2)
+            if track_major:   # whole quaternions as 32- or 16-byte items: a copy per item, not per component
+                out_items[b0:b1, t0:t1] = np.ascontiguousarray(unit).view(item)[..., 0].T
             else:
                 out[t0:t1, b0:b1] = unit
             # the sign this block gave its last sample: compare the largest raw component
