@@ -249,7 +249,8 @@ def test_chord_is_the_nearer_sign(dtype, rng):
 @pytest.mark.parametrize("method", METHODS)
 def test_segment_errors_in_groups(method, rng, monkeypatch):
     """Many segments are handled in groups (bounded memory); each segment's error and worst
-    sample are the same bits whatever group it falls in."""
+    sample are the same bits whatever group it falls in, and the errors the same when the
+    worst samples are not looked for."""
     from quatarray import _reduce
     Q = _walk(rng, 3, 500, 0.05, np.float64)
     times = np.cumsum(rng.uniform(0.5, 1.5, 500))
@@ -263,6 +264,10 @@ def test_segment_errors_in_groups(method, rng, monkeypatch):
     grouped = _reduce.segment_errors(method, times, Q, s, c, p, n, b)
     np.testing.assert_array_equal(grouped[0], whole[0])
     np.testing.assert_array_equal(grouped[1], whole[1])
+    # the search's call, without locating the worst samples: the same errors
+    err, where = _reduce.segment_errors(method, times, Q, s, c, p, n, b, locate=False)
+    np.testing.assert_array_equal(err, whole[0])
+    np.testing.assert_array_equal(where, s)
 
 
 @pytest.mark.parametrize("method", ["linear", "slerp"])
