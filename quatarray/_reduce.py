@@ -104,8 +104,10 @@ def _chord2(p, q, work):
 
 def _hemisphere(ref, q):
     """q with its sign flipped where it points away from `ref` (shape (..., 4) both)."""
-    d = _interp_kernels.vdot(ref, q)
-    return np.where((d < 0)[..., None], -q, q)
+    flip = _interp_kernels.vdot(ref, q) < 0
+    q = q.copy()
+    q[flip] *= -1   # the few flipped ones (a select over every component costs more)
+    return q
 
 
 def _controls(Q, times, p, s, c, n, b, first, last):
@@ -125,8 +127,8 @@ def _controls(Q, times, p, s, c, n, b, first, last):
     # one call for both: a key's control point depends on its two neighbours only
     _, a_s, a_c, _ = _interp_curves.squad_controls(np.stack([qp, qs, qc, qn]), np.stack([tp, ts, tc, tn]))
     # the track's ends: the control point is the key itself (squad_controls' reflection)
-    a_s = np.where((s == first)[:, None, None], qs, a_s)
-    a_c = np.where((c == last)[:, None, None], qc, a_c)
+    a_s[s == first] = qs[s == first]
+    a_c[c == last] = qc[c == last]
     return qs, qc, a_s.astype(Q.dtype, copy=False), a_c.astype(Q.dtype, copy=False)
 
 
