@@ -265,17 +265,20 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
     found = [a, e]
     active = s < e
     while True:
+        # the lanes' state is updated with masks over all lanes (elementwise: most lanes
+        # take part in every step, where fancy indexing per array costs several times more)
         commit = active & (((hi < 0) & (lo >= e)) | ((hi >= 0) & (hi - lo <= 1)))
         if commit.any():
-            found.append(lane_b[commit] * T + lo[commit] if not shared else lo[commit])
-            guess[commit] = lo[commit] - s[commit]
-            pprev[commit] = prev[commit]
-            prev[commit] = s[commit]
-            s[commit] = lo[commit]
-            lo[commit] = s[commit] + 1
-            hi[commit] = -1
-            bisect[commit] = False
-            tests[commit] = 0
+            done = np.flatnonzero(commit)
+            found.append(lane_b[done] * T + lo[done] if not shared else lo[done])
+            np.copyto(guess, lo - s, where=commit)
+            np.copyto(pprev, prev, where=commit)
+            np.copyto(prev, s, where=commit)
+            np.copyto(s, lo, where=commit)
+            np.copyto(lo, s + 1, where=commit)
+            np.copyto(hi, -1, where=commit)
+            bisect &= ~commit
+            np.copyto(tests, 0, where=commit)
             active &= s < e
         if not active.any():
             break
@@ -292,7 +295,8 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
         # the second test sits next to the first (the previous segment's length):
         # lengths change slowly, so it mostly brackets the reach at once
         cand = np.where(tests == 1, np.where(hi < 0, np.minimum(lo + 1, e), hi - 1), cand)
-        test = np.flatnonzero(active & (cand > lo))
+        tested = active & (cand > lo)
+        test = np.flatnonzero(tested)
         if test.size == 0:
             continue
         c = cand[test]
@@ -309,13 +313,14 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
                 e_back, _ = segment_errors(method, times, Q, prev[test][back], s[test][back], pprev[test][back],
                                            c[back], None if shared else tb[back], False)
                 err[back] = np.maximum(err[back], e_back)
-        ok = err <= tol
-        lo[test[ok]] = c[ok]
-        hi[test[~ok]] = c[~ok]
-        last_len[test] = c - s[test]
+        passed = np.zeros(len(s), bool)
+        passed[test] = err <= tol
+        np.copyto(lo, cand, where=passed)
+        np.copyto(hi, cand, where=tested & ~passed)
+        np.copyto(last_len, cand - s, where=tested)
         last_err[test] = err
-        bisect[test] = ~bisect[test] & (hi[test] >= 0)
-        tests[test] += 1
+        np.copyto(bisect, ~bisect & (hi >= 0), where=tested)
+        tests += tested
     if shared:
         kept = [_unique(np.concatenate([found[0], found[1]] + found[2:]))]
     else:
