@@ -301,8 +301,8 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             continue
         c = cand[test]
         tb = None if shared else lane_b[test]
-        if method != "squad":
-            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb, False)
+        if method != "squad":   # (the keys around a segment matter to squad only)
+            err, _ = segment_errors(method, times, Q, s[test], c, None, None, tb, False)
         else:
             # squad: the candidate also sets the previous segment's end control point, so
             # that segment is tested again with it (and its own previous key) where the
