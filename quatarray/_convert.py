@@ -174,26 +174,117 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
+def _unit_matrix(w, x, y, z):
+    """The nine entries of the rotation matrix of a unit q, row-major, in plain arithmetic:
+    scipy's diagonal (w² ∓ z²) ± (x² ∓ y²) (exact zeros where two components are equal in
+    magnitude) and the off-diagonal pairs p ∓ r.  Runs as it is on the Python floats of
+    one rotation; arrays run `_UNIT_PLAN`, this function's operations traced once and
+    stacked (`_plan`)."""
+    xs, ys, zs = x + x, y + y, z + z
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    a, b = ww - zz, xx - yy
+    xy, xz, yz, wx, wy, wz = x * ys, x * zs, y * zs, w * xs, w * ys, w * zs
+    return [a + b, xy - wz, xz + wy,
+            xy + wz, a - b, yz - wx,
+            xz - wy, yz + wx, (ww + zz) - (xx + yy)]
+
+
+class _Traced:
+    """A value of a formula traced on symbols: a component (``op`` None, ``args`` its
+    index) or an operation on two traced values."""
+
+    __slots__ = ("op", "args")
+
+    def __init__(self, op, *args):
+        self.op, self.args = op, args
+
+    def __add__(self, other):
+        return _Traced("+", self, other)
+
+    def __sub__(self, other):
+        return _Traced("-", self, other)
+
+    def __mul__(self, other):
+        return _Traced("*", self, other)
+
+
+def _signed_terms(v):
+    """A traced entry as signed products ``(a, b, c)``, each ``q[a] * (c q[b])``: two terms
+    (their sum) or two pairs (the sum of the pairs' sums).  ``c`` is ±1 or ±2: scaling
+    by it is exact, so ``q[a] * (-c q[b])`` is exactly ``-(q[a] * (c q[b]))``, ``s + (-t)``
+    is exactly ``s - t`` (IEEE subtraction is defined so), and the sum of two products in
+    either order rounds alike: the terms, summed pairwise, give the formula's bits."""
+    if v.op == "*":
+        p, r = v.args
+        if p.op is None and r.op is None:
+            return (p.args[0], r.args[0], 1)
+        if p.op is None and r.op == "+" and r.args[0] is r.args[1] and r.args[0].op is None:
+            return (p.args[0], r.args[0].args[0], 2)
+    elif v.op in "+-":
+        left, right = (_signed_terms(u) for u in v.args)
+        if v.op == "-":
+            # -(t2 + t3) as (-t2) + (-t3): the same bits unless t2 + t3 cancels to +0 where
+            # the other pair is -0; no pair of squares or of scaled products here does
+            right = _negated(right)
+        if type(left) is type(right):
+            return [left, right]
+    raise ValueError("the matrix formula must be sums of products q[a] * q[b] or q[a] * (q[b] + q[b])")
+
+
+def _negated(t):
+    return (t[0], t[1], -t[2]) if type(t) is tuple else [_negated(u) for u in t]
+
+
+def _plan(formula):
+    """`formula` (nine entries of q's rotation matrix, e.g. `_unit_matrix`) traced and laid
+    out for stacked rows: (gather, scale, off, diagonal).  The off-diagonal entries must be
+    sums of two products and the diagonal ones sums of two such pairs, so that each stage is
+    one NumPy call: ``G = q.take(gather)`` (48 rows), ``G[24:] *= scale``, ``P = G[:24] *
+    G[24:]``, then P rows 0-5 + 12-17 are entries 1, 2, 3, 5, 6, 7; rows 6-11 + 18-23 are
+    the diagonal's pair sums, of which rows 0-2 + 3-5 are entries 0, 4, 8."""
+    traced = formula(*(_Traced(None, k) for k in range(4)))
+    entries = [_signed_terms(e) for e in traced]
+    off = [entries[k] for k in _OFF]
+    diag = [entries[k] for k in _DIAG]
+    if not all(type(e) is list and type(e[0]) is tuple for e in off) or \
+            not all(type(e) is list and type(e[0]) is list for e in diag):
+        raise ValueError("the matrix formula must give two-term off-diagonal and four-term diagonal entries")
+    first = [e[0] for e in off] + [e[0][0] for e in diag] + [e[1][0] for e in diag]
+    second = [e[1] for e in off] + [e[0][1] for e in diag] + [e[1][1] for e in diag]
+    terms = first + second
+    gather = np.array([t[0] for t in terms] + [t[1] for t in terms])
+    scale = {d: np.array([t[2] for t in terms], d)[:, None] for d in (np.float32, np.float64)}
+    return traced, gather, scale
+
+
+_OFF, _DIAG = (1, 2, 3, 5, 6, 7), (0, 4, 8)
+_UNIT_ENTRIES, *_UNIT_PLAN = _plan(_unit_matrix)
+
+
+def _unit_rows(q, o):
+    """The matrix entries of the unit quaternions whose components are the rows of `q`
+    (4, n), as `_unit_matrix` computes them, into `o` (9, n) (any strides), by `_UNIT_PLAN`:
+    four ufunc calls on contiguous rows and two copies, whatever n."""
+    gather, scale = _UNIT_PLAN
+    n = q.shape[1]
+    g = q.take(gather, axis=0)   # (48, n): the products' factors
+    f, d = g[:24], g[24:]
+    np.multiply(d, scale[g.dtype.type], out=d)
+    p = np.multiply(f, d, out=f)
+    s = np.add(p[:12], p[12:], out=p[:12])   # entries 1, 2, 3, 5, 6, 7; the diagonal's pairs
+    o[1:].reshape(2, 4, n)[:, :3] = s[:6].reshape(2, 3, n)
+    o[::4] = np.add(s[6:9], s[9:12], out=s[6:9])
+
+
 def _matrix(w, x, y, z, s, op, o, t):
-    """The nine entries of the rotation matrix of q, row-major, into ``o`` (nine rows, or
-    `_ops.NONE`) and returned as a list: each entry is one `op` call (`_ops`: a block's
-    rows, or the floats of one rotation) on intermediates written with operators (arrays:
-    temporaries; floats: no function calls), with `t` (three work rows) for the general
-    case.  ``s = 2 / |q|²``, or None for a unit q: then scipy's diagonal (w² ∓ z²) ± (x² ∓ y²),
-    with exact zeros where |w| = |z| etc."""
+    """The nine entries of the rotation matrix of q, row-major, into ``o`` (nine rows) with
+    ``s = 2 / |q|²`` (a row) and `t` (three work rows), for any q; each entry is one `op`
+    call (`_ops.ARRAYS`) on intermediates written with operators."""
     o = list(o[:9])
-    if s is None:
-        xs, ys, zs = x + x, y + y, z + z
-        ww, xx, yy, zz = w * w, x * x, y * y, z * z
-        a, b = ww - zz, xx - yy
-        o[0] = op.add(a, b, o[0])
-        o[4] = op.sub(a, b, o[4])
-        o[8] = op.sub(ww + zz, xx + yy, o[8])
-    else:
-        xs, ys, zs = [op.mul(c, s, r) for c, r in zip((x, y, z), t[:3])]
-        xx, yy, zz = x * xs, y * ys, z * zs
-        for k, p, r in ((0, yy, zz), (4, xx, zz), (8, xx, yy)):
-            o[k] = op.sub(1.0, p + r, o[k])
+    xs, ys, zs = [op.mul(c, s, r) for c, r in zip((x, y, z), t[:3])]
+    xx, yy, zz = x * xs, y * ys, z * zs
+    for k, p, r in ((0, yy, zz), (4, xx, zz), (8, xx, yy)):
+        o[k] = op.sub(1.0, p + r, o[k])
     # off-diagonal pairs (i, j) = p -/+ r, each output row written once
     for i, j, p1, p2, r1, r2 in ((1, 3, x, ys, w, zs), (6, 2, x, zs, w, ys), (5, 7, y, zs, w, xs)):
         a, b = p1 * p2, r1 * r2
@@ -202,9 +293,70 @@ def _matrix(w, x, y, z, s, op, o, t):
     return o
 
 
+def _program(entries):
+    """The traced formula `entries` as straight-line steps ``(ufunc, a, b, dst, row, free)``
+    over numbered values (0-3 the components): ``dst = ufunc(a, b)``, into output `row`
+    for an entry (else a temporary), after which the values in `free` are no longer
+    needed.  In the formula's own order; intermediates it shares are computed once."""
+    order, number = [], {}
+
+    def visit(v):
+        if id(v) not in number and v.op:
+            for u in v.args:
+                visit(u)
+            number[id(v)] = 4 + len(order)
+            order.append(v)
+
+    leaves = {}
+    for e in entries:
+        for v in _walk([e]):
+            if v.op is None:
+                leaves[id(v)] = v.args[0]
+    number.update(leaves)
+    for e in entries:
+        visit(e)
+    last = {}
+    for k, v in enumerate(order):
+        for u in v.args:
+            last[number[id(u)]] = k
+    rows = {id(e): k for k, e in enumerate(entries)}
+    return [(_UFUNCS[v.op], number[id(v.args[0])], number[id(v.args[1])], 4 + k, rows.get(id(v)),
+             tuple(i for i, j in last.items() if j == k and i >= 4))
+            for k, v in enumerate(order)]
+
+
+def _traced_rows(program, q, o):
+    """`_program`'s steps on the component rows `q` (4, ...), each entry into its row of
+    `o`; a temporary is dropped after its last use, so that a long block's temporaries are
+    few and reused rather than fresh pages."""
+    values = [*q[:4], *[None] * len(program)]
+    for f, a, b, dst, row, free in program:
+        values[dst] = f(values[a], values[b]) if row is None else f(values[a], values[b], out=o[row])
+        for i in free:
+            values[i] = None
+
+
+def _walk(entries):
+    """Every distinct traced value behind `entries`, each once."""
+    seen, stack = {}, list(entries)
+    while stack:
+        v = stack.pop()
+        if id(v) not in seen:
+            seen[id(v)] = v
+            stack.extend(v.args if v.op else ())
+    return seen.values()
+
+
+_UFUNCS = {"+": np.add, "-": np.subtract, "*": np.multiply}
+_UNIT_PROGRAM = _program(_UNIT_ENTRIES)
+
+
 def _k_as_matrix(q, o, unit=False):
+    if unit:
+        _traced_rows(_UNIT_PROGRAM, q, o)
+        return
     with _blocks.scratch().frame() as work:
-        s = None if unit else np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
+        s = np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
         _matrix(*q, s, _ops.ARRAYS, o, work.rows(3, q.shape[1:], o.dtype))
 
 
@@ -240,10 +392,19 @@ def as_matrix(q, unit=False):
     q = quat_array(q, "quat")
     one = _ops.floats64(q) if unit else None
     if one is not None:   # one float64 rotation: the same formula on its floats
-        return _ops.to_array(_matrix(*one, None, _ops.FLOATS, _ops.NONE, _ops.NONE), q.shape[:-1] + (3, 3))
+        return _ops.to_array(_unit_matrix(*one), q.shape[:-1] + (3, 3))
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
-    _blockwise(_k_as_matrix, [q.reshape(-1, 4)], [out.reshape(-1, 9)], unit=unit)
+    flat = q.reshape(-1, 4)
+    if unit and 0 < len(flat) <= _MATRIX_FEW:   # a few: the plan's six calls, no block engine
+        _unit_rows(flat.T, out.reshape(-1, 9).T)
+        return out
+    _blockwise(_k_as_matrix, [flat], [out.reshape(-1, 9)], unit=unit)
     return out
+
+
+_MATRIX_FEW = 512
+"""Unit batches up to this many rotations run `_unit_rows` on their storage's transposed
+view at once; longer ones go through the block engine."""
 
 
 def _shepperd_k(mat, op, k):
