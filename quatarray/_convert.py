@@ -28,6 +28,7 @@ arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
 costs behind these choices are in benchmarks/README.md.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -236,44 +237,44 @@ def _negated(t):
 
 
 def _plan(formula):
-    """`formula` (nine entries of q's rotation matrix, e.g. `_unit_matrix`) traced and laid
-    out for stacked rows: (gather, scale, off, diagonal).  The off-diagonal entries must be
-    sums of two products and the diagonal ones sums of two such pairs, so that each stage is
-    one NumPy call: ``G = q.take(gather)`` (48 rows), ``G[24:] *= scale``, ``P = G[:24] *
-    G[24:]``, then P rows 0-5 + 12-17 are entries 1, 2, 3, 5, 6, 7; rows 6-11 + 18-23 are
-    the diagonal's pair sums, of which rows 0-2 + 3-5 are entries 0, 4, 8."""
+    """`formula` (nine entries of q's rotation matrix, e.g. `_unit_matrix`) traced, and laid
+    out for stacked rows: (traced entries, gather, scale).  The off-diagonal entries must be
+    sums of two products and the diagonal ones sums of two such pairs.  Row k of the 30
+    products ``P = q.take(gather)[:30] * (q.take(gather)[30:] * scale)`` is, for k < 9, the
+    first term of entry k, for 9 <= k < 18 the second term of entry k - 9 (off the
+    diagonal; the diagonal's rows there are filled in later), rows 18-23 are the first
+    terms of the diagonal's pairs and rows 24-29 their second terms, so that
+    ``P[18:24] + P[24:30]`` are the pairs and, with those in rows 0, 4, 8, 9, 13, 17, ``P[:9] + P[9:18]``
+    is the matrix: one NumPy call per stage."""
     traced = formula(*(_Traced(None, k) for k in range(4)))
     entries = [_signed_terms(e) for e in traced]
-    off = [entries[k] for k in _OFF]
-    diag = [entries[k] for k in _DIAG]
-    if not all(type(e) is list and type(e[0]) is tuple for e in off) or \
-            not all(type(e) is list and type(e[0]) is list for e in diag):
+    if not all(type(e[0]) is (list if k in _DIAG else tuple) for k, e in enumerate(entries)):
         raise ValueError("the matrix formula must give two-term off-diagonal and four-term diagonal entries")
-    first = [e[0] for e in off] + [e[0][0] for e in diag] + [e[1][0] for e in diag]
-    second = [e[1] for e in off] + [e[0][1] for e in diag] + [e[1][1] for e in diag]
-    terms = first + second
+    spare = (0, 0, 1)   # a finite product in the diagonal's rows until its pairs are written
+    first = [spare if k in _DIAG else e[0] for k, e in enumerate(entries)]
+    second = [spare if k in _DIAG else e[1] for k, e in enumerate(entries)]
+    diagonal = [entries[k][i][j] for j in (0, 1) for i in (0, 1) for k in _DIAG]
+    terms = first + second + diagonal
     gather = np.array([t[0] for t in terms] + [t[1] for t in terms])
-    scale = {d: np.array([t[2] for t in terms], d)[:, None] for d in (np.float32, np.float64)}
-    return traced, gather, scale
+    return traced, gather, tuple(float(t[2]) for t in terms)
 
 
-_OFF, _DIAG = (1, 2, 3, 5, 6, 7), (0, 4, 8)
+_DIAG = (0, 4, 8)
 _UNIT_ENTRIES, *_UNIT_PLAN = _plan(_unit_matrix)
 
 
 def _unit_rows(q, o):
     """The matrix entries of the unit quaternions whose components are the rows of `q`
     (4, n), as `_unit_matrix` computes them, into `o` (9, n) (any strides), by `_UNIT_PLAN`:
-    four ufunc calls on contiguous rows and two copies, whatever n."""
+    four ufunc calls on contiguous rows, one sum on strided rows and one copy, whatever n."""
     gather, scale = _UNIT_PLAN
     n = q.shape[1]
-    g = q.take(gather, axis=0)   # (48, n): the products' factors
-    f, d = g[:24], g[24:]
-    np.multiply(d, scale[g.dtype.type], out=d)
+    g = q.take(gather, axis=0)   # (60, n): the products' factors
+    f, d = g[:30], g[30:]
+    np.multiply(d, _scale_rows(scale, g.dtype, n), out=d)
     p = np.multiply(f, d, out=f)
-    s = np.add(p[:12], p[12:], out=p[:12])   # entries 1, 2, 3, 5, 6, 7; the diagonal's pairs
-    o[1:].reshape(2, 4, n)[:, :3] = s[:6].reshape(2, 3, n)
-    o[::4] = np.add(s[6:9], s[9:12], out=s[6:9])
+    p[:18].reshape(2, 9, n)[:, ::4] = np.add(p[18:24], p[24:30], out=p[18:24]).reshape(2, 3, n)
+    o[...] = np.add(p[:9], p[9:18], out=p[:9])
 
 
 def _matrix(w, x, y, z, s, op, o, t):
@@ -291,6 +292,16 @@ def _matrix(w, x, y, z, s, op, o, t):
         o[i] = op.sub(a, b, o[i])
         o[j] = op.add(a, b, o[j])
     return o
+
+
+@functools.lru_cache(maxsize=16)
+def _scale_rows(scale, dtype, n):
+    """`scale` (a plan's k factors) repeated along rows of n, read-only: the scaling is
+    then one contiguous loop rather than a broadcast one (a third of its cost at n = 10),
+    for the few batch sizes a program uses again and again."""
+    rows = np.repeat(np.array(scale, dtype)[:, None], n, axis=1)
+    rows.flags.writeable = False
+    return rows
 
 
 def _program(entries):
@@ -395,16 +406,13 @@ def as_matrix(q, unit=False):
         return _ops.to_array(_unit_matrix(*one), q.shape[:-1] + (3, 3))
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     flat = q.reshape(-1, 4)
-    if unit and 0 < len(flat) <= _MATRIX_FEW:   # a few: the plan's six calls, no block engine
+    if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:
+        # a few (up to where the block engine's copies start to pay, at about the same
+        # size as for its other kernels): the plan's calls on the storage, read in place
         _unit_rows(flat.T, out.reshape(-1, 9).T)
         return out
     _blockwise(_k_as_matrix, [flat], [out.reshape(-1, 9)], unit=unit)
     return out
-
-
-_MATRIX_FEW = 512
-"""Unit batches up to this many rotations run `_unit_rows` on their storage's transposed
-view at once; longer ones go through the block engine."""
 
 
 def _shepperd_k(mat, op, k):

@@ -14,6 +14,7 @@ from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation as R
 
 from quatarray import Rotation
+from quatarray import _blocks
 from quatarray import _convert as C
 from quatarray import _euler as E
 from quatarray import _kernels as K
@@ -86,6 +87,65 @@ def test_as_matrix_matches_scipy(rng, dtype, shape):
     got = C.as_matrix(q)
     assert got.dtype == dtype and got.shape == shape + (3, 3)
     np.testing.assert_allclose(got, sp(q).as_matrix(), rtol=0, atol=tol(dtype))
+
+
+@pytest.mark.parametrize("shape", [(), (1,), (7,), (3, 5), (_blocks.VIEWS_MAX + 3,)])
+@pytest.mark.parametrize("layout", ["contiguous", "read-only", "strided"])
+def test_unit_as_matrix_matches_scipy_and_the_general_path(rng, dtype, shape, layout):
+    """`unit=True` (a Rotation's storage): its stacked plan for a few rotations and its
+    traced program for blocks agree with scipy and with the general formula, on any layout."""
+    q = unit(rng, shape, dtype)
+    if layout == "read-only":
+        q.flags.writeable = False
+    elif layout == "strided":
+        q = np.repeat(q, 2, axis=-1)[..., ::2]
+    got = C.as_matrix(q, unit=True)
+    assert got.dtype == dtype and got.shape == shape + (3, 3) and got.flags.c_contiguous and got.flags.writeable
+    np.testing.assert_allclose(got, sp(q).as_matrix(), rtol=0, atol=tol(dtype))
+    np.testing.assert_allclose(got, C.as_matrix(q), rtol=0, atol=tol(dtype))
+
+
+@pytest.mark.parametrize("shape", [(0, 4), (2, 0, 4)])
+def test_unit_as_matrix_of_empty_batches(dtype, shape):
+    got = C.as_matrix(np.zeros(shape, dtype), unit=True)
+    assert got.shape == shape[:-1] + (3, 3) and got.dtype == dtype
+
+
+def _bits(a):
+    return a.view(np.uint64 if a.dtype == np.float64 else np.uint32)
+
+
+def test_unit_matrix_formula_gives_the_same_bits_on_every_path(dtype):
+    """`_unit_matrix` run on floats, its stacked plan (`_unit_rows`) and its straight-line
+    program (`_traced_rows`, the blocks) give the same bits, signed zeros included, on
+    rows where signs, cancellations and products below the normal range decide them."""
+    tiny = np.finfo(dtype).tiny
+    rows = np.array([[1, 0, 0, 0], [-1, -0.0, 0, -0.0], [0.5, -0.5, 0.5, -0.5], [0, 1, 0, 0], [-0.0, 0, -1, 0],
+                     [np.sqrt(0.5), 0, 0, -np.sqrt(0.5)], [0, np.sqrt(0.5), -np.sqrt(0.5), 0],
+                     [1, np.sqrt(tiny), -np.sqrt(tiny), 0], [1, np.sqrt(tiny) / 8, np.sqrt(tiny) * 3, -np.sqrt(tiny)],
+                     [1, 2 * tiny, 0, -tiny], [-1, 0, -1e-30, 1e-30]], np.float64)
+    rows /= np.linalg.norm(rows, axis=1, keepdims=True)
+    rng = np.random.default_rng(7)
+    q = np.concatenate([rows, random_quats(rng, (40,))]).astype(dtype)
+    qT = np.ascontiguousarray(q.T)
+    stacked, program = np.empty((9, len(q)), dtype), np.empty((9, len(q)), dtype)
+    C._unit_rows(qT, stacked)
+    C._traced_rows(C._UNIT_PROGRAM, qT, program)
+    np.testing.assert_array_equal(_bits(stacked), _bits(program))
+    np.testing.assert_array_equal(_bits(C.as_matrix(q, unit=True).reshape(-1, 9)), _bits(program.T))
+    if dtype == np.float64:
+        floats = np.array([C._unit_matrix(*row) for row in q.tolist()])
+        np.testing.assert_array_equal(_bits(floats), _bits(program.T))
+    for k in range(len(q)):   # alone and as a batch of one (the float path in float64)
+        np.testing.assert_array_equal(_bits(C.as_matrix(q[k], unit=True).reshape(9)), _bits(program[:, k]))
+        np.testing.assert_array_equal(_bits(C.as_matrix(q[k:k + 1], unit=True).reshape(9)), _bits(program[:, k]))
+
+
+def test_matrix_plan_needs_two_term_and_four_term_entries():
+    with pytest.raises(ValueError, match="sums of products"):
+        C._plan(lambda w, x, y, z: [w * x * y] * 9)
+    with pytest.raises(ValueError, match="two-term off-diagonal and four-term diagonal"):
+        C._plan(lambda w, x, y, z: [w * x + y * z] * 9)
 
 
 def test_as_matrix_of_non_unit_quaternion_is_the_rotation_by_q_over_norm(rng, dtype):
