@@ -296,9 +296,10 @@ def test_one_rotation_at_the_kernels_branches(s):
 def test_batches_at_the_engines_size_thresholds(dtype, n):
     """At either side of the size thresholds of the small-batch paths (Python-float range
     checks up to 32 norms or vectors; `_blocks.VIEWS_MAX`: strided views of a Rotation's
-    storage or copies; `_blocks.FEW`: rotations and products on stacked rows;
-    `_blocks.SMALL_ROWS`: fresh scratch rows or the kept buffer, at 1024 float64 / 2048 float32
-    rows of four; squares of 4096 elements stacked), the first, middle and last rows of the
+    storage or copies, and as_matrix's stacked plan or its block program; `_blocks.FEW`:
+    rotations and products on stacked rows; `_blocks.SMALL_ROWS`: fresh scratch rows or the
+    kept buffer, at 1024 float64 / 2048 float32 rows of four; squares of 4096 elements
+    stacked), the first, middle and last rows of the
     batch, alone and as a batch of one, give the batch's bits."""
     kinds = [KINDS[k % len(KINDS)] for k in range(n)]
     q = _rows(n, kinds, dtype, False)
