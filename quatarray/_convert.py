@@ -179,8 +179,8 @@ def _unit_matrix(w, x, y, z):
     """The nine entries of the rotation matrix of a unit q, row-major, in plain arithmetic:
     scipy's diagonal (w² ∓ z²) ± (x² ∓ y²) (exact zeros where two components are equal in
     magnitude) and the off-diagonal pairs p ∓ r.  Runs as it is on the Python floats of
-    one rotation; arrays run `_UNIT_PLAN`, this function's operations traced once and
-    stacked (`_plan`)."""
+    one rotation; traced once, it becomes `_UNIT_PLAN` (its operations stacked, for a few
+    rotations) and `_UNIT_PROGRAM` (one ufunc call per operation, for blocks)."""
     xs, ys, zs = x + x, y + y, z + z
     ww, xx, yy, zz = w * w, x * x, y * y, z * z
     a, b = ww - zz, xx - yy
@@ -267,11 +267,10 @@ def _unit_rows(q, o):
     """The matrix entries of the unit quaternions whose components are the rows of `q`
     (4, n), as `_unit_matrix` computes them, into `o` (9, n) (any strides), by `_UNIT_PLAN`:
     four ufunc calls on contiguous rows, one sum on strided rows and one copy, whatever n."""
-    gather, scale = _UNIT_PLAN
     n = q.shape[1]
-    g = q.take(gather, axis=0)   # (60, n): the products' factors
+    g = q.take(_UNIT_PLAN[0], axis=0)   # (60, n): the products' factors
     f, d = g[:30], g[30:]
-    np.multiply(d, _scale_rows(scale, g.dtype, n), out=d)
+    np.multiply(d, _unit_scale_rows(g.dtype, n), out=d)
     p = np.multiply(f, d, out=f)
     p[:18].reshape(2, 9, n)[:, ::4] = np.add(p[18:24], p[24:30], out=p[18:24]).reshape(2, 3, n)
     o[...] = np.add(p[:9], p[9:18], out=p[:9])
@@ -295,11 +294,11 @@ def _matrix(w, x, y, z, s, op, o, t):
 
 
 @functools.lru_cache(maxsize=16)
-def _scale_rows(scale, dtype, n):
-    """`scale` (a plan's k factors) repeated along rows of n, read-only: the scaling is
+def _unit_scale_rows(dtype, n):
+    """`_UNIT_PLAN`'s scale factors repeated along rows of n, read-only: the scaling is
     then one contiguous loop rather than a broadcast one (a third of its cost at n = 10),
     for the few batch sizes a program uses again and again."""
-    rows = np.repeat(np.array(scale, dtype)[:, None], n, axis=1)
+    rows = np.repeat(np.array(_UNIT_PLAN[1], dtype)[:, None], n, axis=1)
     rows.flags.writeable = False
     return rows
 
