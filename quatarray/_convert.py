@@ -293,11 +293,11 @@ def _matrix(w, x, y, z, s, op, o, t):
     return o
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=8)
 def _unit_scale_rows(dtype, n):
     """`_UNIT_PLAN`'s scale factors repeated along rows of n, read-only: the scaling is
     then one contiguous loop rather than a broadcast one (a third of its cost at n = 10),
-    for the few batch sizes a program uses again and again."""
+    for the few batch sizes a program uses again and again (at most 8 kept, 1 MiB)."""
     rows = np.repeat(np.array(_UNIT_PLAN[1], dtype)[:, None], n, axis=1)
     rows.flags.writeable = False
     return rows
