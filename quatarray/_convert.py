@@ -399,10 +399,10 @@ def as_matrix(q, unit=False):
            [ 1.,  0.,  0.],
            [ 0.,  0.,  1.]])
     """
-    q = quat_array(q, "quat")
-    one = _ops.floats64(q) if unit else None
-    if one is not None:   # one float64 rotation: the same formula on its floats
+    one = _ops.floats64(q) if unit and type(q) is np.ndarray else None
+    if one is not None:   # one float64 rotation (a valid array, then): the same formula on its floats
         return _ops.to_array(_unit_matrix(*one), q.shape[:-1] + (3, 3))
+    q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     flat = q.reshape(-1, 4)
     if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:
