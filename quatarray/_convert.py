@@ -23,8 +23,9 @@ Half-angle sines and cosines come from `_kernels.cos_sin`: in float64 one
 tangent, ``t = tan(a / 4)``, gives ``cos(a / 2) = (1 - t)(1 + t) / (1 + t²)`` and
 ``sin(a / 2) = 2 t / (1 + t²)`` (one transcendental call instead of two, and
 `_trig.tan`'s rational one where NumPy's float64 tangent is not a SIMD loop);
-float32 uses its SIMD sin and cos.  Angles come back through `_kernels.arctan2` (one
-arctan of a ratio, accurate at 0 and at π), never ``arccos``.  The measured
+float32 uses its SIMD sin and cos.  Angles come back as one arctan of a ratio (the
+rotation angle: 2 atan(sqrt(|v|² / w²)), `_half_turn`), accurate at 0 and at π, never
+``arccos``.  The measured
 costs behind these choices are in benchmarks/README.md.
 """
 
@@ -34,7 +35,7 @@ import math
 import numpy as np
 
 from . import _blocks, _kernels, _ops, _scale, _trig
-from ._kernels import ANGLE_FLOOR, arctan2
+from ._kernels import ANGLE_FLOOR
 from ._kernels import cos_sin as _cos_sin
 from ._validate import finite, float_array, quat_array
 
@@ -674,54 +675,108 @@ def _flip_mask(w, x, y, z):
     return flip
 
 
-def _vector_norm(q, unit=False):
-    """|v| of a block's scratch copy `q`, rescaled in place first where |q|² would
-    over- or underflow (|v|² + w² is checked: two more ufuncs than |v| alone).  With
-    `unit` (finite unit quaternions, `Rotation`'s storage: |q|² always fits) the check
-    is skipped and `q` is never written."""
-    work = _blocks.scratch()
-    v2, n2 = work.rows(2, q.shape[1:], q.dtype)
-    _scale.sum_squares(q, v2, 1)
-    if unit:
-        return _scale.small_norms(q[1:], v2)
-    np.multiply(q[0], q[0], out=n2)
-    n2 += v2
-    if not _scale.fits(n2):
-        _scale.guard(q, n2, zero=True)
-        _scale.sum_squares(q, v2, 1)
-    return _scale.small_norms(q[1:], v2)   # |v| also where |v|² underflows (angles down to subnormal)
+def _half_turn(q, unit=False):
+    """(t, exact) for the rotation angle θ of quaternions `q` (four component rows (4, *s):
+    views of `Rotation` storage, only read, with `unit`; else a block's scratch copy, rescaled
+    in place first where |q|² would over- or underflow): ``t[0] = tan(θ/2)² = |v|² / w²``
+    (w² floored at the dtype's smallest normal number: a unit q with w = 0 gives a huge
+    finite ratio, no division by zero) and ``t[1] = |v|²``, two contiguous rows.  `exact`:
+    some row has w² or |v|² below `_scale.LOW` (w = 0, or |v|² lost to underflow), which
+    `_exact_rows` then handles; the common path pays one range test of the two rows.
+
+    One multiply squares the four components (their layout kept: contiguous for a block,
+    one flat pass for a Rotation's (n, 4) storage)."""
+    s = q.shape[1:]
+    big = q[0].size > _blocks.FEW
+    sq = np.multiply(q, q, out=_blocks.scratch().rows(4, s, q.dtype) if big else None)
+    t = _blocks.scratch().rows(2, s, q.dtype) if big else np.empty((2,) + s, q.dtype)
+    np.add(sq[1], sq[2], out=t[1])
+    np.add(t[1], sq[3], out=t[1])                  # |v|² = (x² + y²) + z²
+    if not unit:   # the range guard on |q|² = w² + |v|²: extreme magnitudes are rescaled
+        n2 = np.add(sq[0], t[1], out=sq[1])
+        if not _scale.fits(n2):
+            _scale.guard(q, n2, zero=True)
+            np.multiply(q, q, out=sq)
+            np.add(sq[1], sq[2], out=t[1])
+            np.add(t[1], sq[3], out=t[1])
+    np.maximum(sq[0], _TINY[q.dtype], out=t[0])
+    exact = _least(t) < _scale.LOW[q.dtype]
+    np.divide(t[1], t[0], out=t[0])
+    return t, exact
 
 
-def _norm_floats(q):
-    """(w, x, y, z, |v|) of one float64 quaternion as Python floats, by `_vector_norm`'s
-    formula, where that kernel would neither rescale nor take the underflow path and w ≠ 0;
-    else None (the block kernel's case)."""
+_TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
+
+
+def _least(a):
+    """The least element of `a` (no NaN in it), as a Python float: up to 32 elements by
+    Python's min (a NumPy reduction costs several times more there)."""
+    if a.size <= 32:
+        return min(a.ravel().tolist())
+    return float(np.minimum.reduce(a, axis=None))
+
+
+def _tangent_rows(q, t, exact):
+    """`_half_turn`'s t as ``[tan(θ/2), |v|]`` (both square roots in one call), where no row
+    is `exact`; else also correcting the rows whose |v|² underflowed: their |v| from the
+    vector scaled by a power of two (`_scale.small_norms`), tan(θ/2) = |v| / |w| (w ≠ 0
+    there: |q|² is in range)."""
+    if not exact:
+        return np.sqrt(t, out=t)
+    small = t[1] < _scale.LOW[t.dtype]
+    np.sqrt(t, out=t)
+    if small.any():
+        v = q[1:, small]
+        t[1, small] = _scale.small_norms(v, _scale.sum_squares(v, np.empty(v.shape[1:], v.dtype)))
+        t[0, small] = t[1, small] / np.abs(q[0, small])
+    return t
+
+
+def _half_turn_floats(q):
+    """`_half_turn` and `_tangent_rows` on the floats of one float64 quaternion:
+    (w, x, y, z, tan(θ/2), |v|), or None where the block kernel would rescale or find a row
+    `exact` (its own path)."""
     c = _ops.floats64(q)
     if c is None:
         return None
-    w = c[0]
-    v2 = _scale.squares(c[1:], _ops.FLOATS, None, None)
-    n2 = w * w + v2
-    lo, hi = _scale.LOW[q.dtype], _scale.HIGH[q.dtype]
-    if w == 0 or not (lo <= n2 <= hi) or (v2 < lo and any(c[1:])):   # |v|² underflowed
+    w, x, y, z = c
+    w2, v2 = w * w, (x * x + y * y) + z * z
+    lo, hi = _scale.LOW[_F64], _scale.HIGH[_F64]
+    if not (lo <= w2 and lo <= v2 and w2 + v2 <= hi):
         return None
-    return (*c, math.sqrt(v2))
+    return w, x, y, z, math.sqrt(v2 / w2), math.sqrt(v2)
 
 
-def _rotvec(w, x, y, z, nv, flip, factor, op, o):
-    """The rotation vector of q with |v| = `nv` and `flip` (not canonical) in `op`'s
-    arithmetic (`_ops`), into ``o`` (three rows); returned as a list."""
-    half = arctan2(nv, abs(w), x_nonneg=True)
-    # (angle / |v|) with the limit 2 / |w| at |v| = 0 (where the vector is 0 anyway)
-    scale = op.div(half, op.where(nv > 0, nv, 1.0), None)
-    scale = op.where(flip, -scale, scale)   # not a masked negative: cheaper
+_F64 = np.dtype(np.float64)
+
+
+def _rotvec(w, x, y, z, tan_half, nv, factor, op, o, rows):
+    """The rotation vector ``v · factor · atan(tan(θ/2)) / |v|``, signed as w (canonical: -v
+    for w < 0), of q with |v| = `nv` > 0 and w ≠ 0, in `op`'s arithmetic (`_ops`), into
+    ``o`` (three rows) with the work row `rows[0]`; returned as a list."""
+    half = _kernels.arctan(tan_half, rows[0])
+    scale = op.div(half, nv, half)
+    scale = op.copysign(scale, w, scale)
     scale = op.mul(scale, factor, scale)
     return [op.mul(c, scale, r) for c, r in zip((x, y, z), o[:3])]
 
 
 def _k_as_rotvec(q, o, factor, unit=False):
-    nv = _vector_norm(q, unit)
-    _rotvec(*q, nv, _flip_mask(*q), factor, _ops.ARRAYS, o)
+    t, exact = _half_turn(q, unit)
+    _tangent_rows(q, t, exact)
+    if not exact:
+        _rotvec(*q, t[0], t[1], factor, _ops.ARRAYS, o, t)
+        return
+    # w = 0 (the canonical sign from x, y, z) or |v| = 0 (limit: the zero vector)
+    np.arctan(t[0], out=t[0])
+    np.divide(t[0], np.maximum(t[1], _DENORM_MIN[t.dtype], out=t[1]), out=t[0])
+    np.copyto(t[0], np.where(_flip_mask(*q), -t[0], t[0]))
+    t[0] *= factor
+    for c, r in zip(q[1:], o):
+        np.multiply(c, t[0], out=r)
+
+
+_DENORM_MIN = {d: np.finfo(d).smallest_subnormal for d in _TINY}
 
 
 def _blockwise_unit(kernel, q, out, unit, **params):
@@ -730,6 +785,8 @@ def _blockwise_unit(kernel, q, out, unit, **params):
     which cannot overflow, divide by zero or give NaN: no errstate, and views for small
     batches (`_blocks.blockwise`'s ``read_only``)."""
     if unit:
+        if 0 < len(q) <= _blocks.VIEWS_MAX:   # a few: the kernel at once on views of them (the
+            return kernel(q.T, out.T, unit=True, **params)   # engine's setup costs a ufunc call's)
         return _blocks.blockwise(kernel, [q], [out], read_only=True, unit=True, **params)
     return _blockwise(kernel, [q], [out], **params)
 
@@ -763,9 +820,9 @@ def as_rotvec(q, degrees=False, unit=False):
     array([ 0.,  0., 90.])
     """
     q = quat_array(q, "quat")
-    one = _norm_floats(q)
+    one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: the same formula on its floats
-        rotvec = _rotvec(*one, one[0] < 0, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE)
+        rotvec = _rotvec(*one, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE, _ops.NONE)
         return _ops.to_array(rotvec, q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise_unit(_k_as_rotvec, q.reshape(-1, 4), out.reshape(-1, 3), unit, factor=_ROTVEC_FACTOR[degrees])
@@ -907,8 +964,15 @@ def from_rotvec(rotvec, degrees=False):
 
 
 def _k_magnitude(q, o, unit=False):
-    arctan2(_vector_norm(q, unit), np.abs(q[0]), out=o[0], x_nonneg=True, defined=unit)
-    o[0] *= 2.0
+    t, exact = _half_turn(q, unit)
+    _tangent_rows(q, t[:1] if not exact else t, exact)
+    _angle(t[0], o[0])
+
+
+def _angle(tan_half, o):
+    """θ = 2 atan(tan(θ/2)), into `o` (a row, or None on a Python float)."""
+    half = _kernels.arctan(tan_half, o)
+    return half + half if o is None else np.add(half, half, out=o)
 
 
 def magnitude(q, unit=False):
@@ -933,9 +997,9 @@ def magnitude(q, unit=False):
     array([0.        , 3.14159265, 1.57079633])
     """
     q = quat_array(q, "quat")
-    one = _norm_floats(q)
+    one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
-        angle = np.array(arctan2(one[4], abs(one[0]), x_nonneg=True) * 2.0)   # not np.full: 5x its cost
+        angle = np.array(_angle(one[4], None))   # not np.full: 5x its cost
         return angle if q.ndim == 1 else angle.reshape(q.shape[:-1])
     out = np.empty(q.shape[:-1], q.dtype)
     _blockwise_unit(_k_magnitude, q.reshape(-1, 4), out.reshape(-1, 1), unit)
