@@ -175,103 +175,138 @@ def from_euler(seq, angles, degrees=False):
     return out
 
 
-def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
-    """Bernardes & Viollet's step 2-3 on rows a, b, c, d (`abcd`, (4, m), scratch that may
-    be rescaled in place): writes o (3, m).
+def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
+    """Bernardes & Viollet's step 2-3 from a, b, c, d (`abcd`: four rows (4, m), a buffer that
+    may be rescaled in place; or one rotation's four floats) into o (three rows), in the
+    arithmetic `op` (`_ops.ARRAYS` / `_ops.FLOATS`).  Returns whether any element is in gimbal
+    lock (arrays), or on floats the three angles, or None where the array kernel would rescale
+    or find gimbal lock (its own path, with the warning).
 
-    The first and third angles are half_sum ∓ half_diff with half_sum =
-    arg(a + ib) and half_diff = arg(c + id); each is read as one argument,
-    of (a + ib)(c ∓ id), which lands in [-π, π] without the wrap scipy
-    applies to the sum: two arctangents for the outer angles, as before, but
-    no wrap and no strided passes over `o` but the last.  Returns True if
-    any element is in gimbal lock (middle angle within 1e-7 of 0 or π); its
-    third angle is then set to 0, as in scipy.  `unit`: a, b, c, d come from finite unit
-    quaternions (`Rotation`'s storage), whose squared norms always fit: no range check.
-    """
+    The middle angle is 2 atan2(|(c, d)|, |(a, b)|); the first and third angles are
+    half_sum ∓ half_diff with half_sum = arg(a + ib) and half_diff = arg(c + id), each read as
+    one argument, of (a + ib)(c ∓ id) = Re + i Im, which lands in [-π, π] without the wrap
+    scipy applies to the sum.  The three arctangents (`_kernels.arctan2`) are one call on
+    arrays, numerators and denominators stacked in the rows' order of `o`, written into it.
+    In gimbal lock (middle angle within 1e-7 of 0 or π) the third angle is set to 0 and the
+    first takes the whole turn, as in scipy.  `unit`: a, b, c, d come from finite unit
+    quaternions (`Rotation`'s storage), whose squared norms always fit: no range check."""
     first, third = (0, 2) if extrinsic else (2, 0)
+    floats = op is _ops.FLOATS
+    if floats:
+        yx = _ops.NONE
+        s01, s23, x0, x1 = _ops.NONE[:4]
+    else:
+        shape, dtype = abcd.shape[1:], abcd.dtype
+        rows = (_blocks.scratch().rows(12, shape, dtype) if abcd[0].size > _blocks.FEW
+                else np.empty((12,) + shape, dtype))
+        S, P, ys, xs = rows[0:4], rows[4:6], rows[6:9], rows[9:12]   # ys, xs: arctan2's stacks
+        yx = (*ys, *xs)
+        s01, s23 = P   # work rows
+        x0, x1 = S[2:4]
     a, b, c, d = abcd
-    with _blocks.scratch().frame() as work:
-        mid, r, u, v, f, g = work.rows(6, a.shape, o.dtype)
-        for attempt in (0, 1):
-            r = _scale.squares([c, d], _ops.ARRAYS, r, v)   # |(c, d)|²
-            u = _scale.squares([a, b], _ops.ARRAYS, u, v)   # |(a, b)|²
-            # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²), which the
-            # two sums give for one more pass: blocks of extreme magnitude are rescaled
-            if unit or attempt or _scale.fits(np.add(r, u, out=mid)):
-                if attempt and not np.add(r, u, out=mid).all():
-                    raise ValueError(_scale.ZERO)
-                break
+    # arctan2's stacks, in the rows' order of o: Im₁ (row `first`), |(c, d)|, Im₂ (row `third`)
+    # over Re₁, |(a, b)|, Re₂
+    if floats:
+        sq = [v * v for v in abcd]
+    else:
+        sq = np.multiply(abcd, abcd, out=S)
+    u2 = op.add(sq[0], sq[1], s01)                                # |(a, b)|²
+    r2 = op.add(sq[2], sq[3], s23)                                # |(c, d)|²
+    if floats:
+        if not _scale.LOW[_F64] <= u2 + r2 <= _scale.HIGH[_F64]:
+            return None
+    elif not unit:   # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²)
+        n2 = np.add(u2, r2, out=xs[0])
+        if not _scale.fits(n2):
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)
-            _scale.rescale(abcd, _scale.outside(mid))   # by powers of two: the angles are unchanged
-        mid, rows = _outer_angles(a, b, c, d, r, u, first, third, _ops.ARRAYS, (mid, v, f, g))
-        gimbal = bool(mid.min() <= _GIMBAL_EPS or mid.max() >= np.pi - _GIMBAL_EPS)
+            _scale.rescale(abcd, _scale.outside(n2))   # by powers of two: the angles are unchanged
+            np.multiply(abcd, abcd, out=S)
+            np.add(sq[0], sq[1], out=u2)
+            np.add(sq[2], sq[3], out=r2)
+            if not np.add(u2, r2, out=xs[0]).all():
+                raise ValueError(_scale.ZERO)
+    r = op.sqrt(r2, yx[1])
+    u = op.sqrt(u2, yx[4])
+    ac = op.mul(a, c, x0)
+    bd = op.mul(b, d, x1)
+    re1 = op.add(ac, bd, yx[3 + first])
+    re2 = op.sub(ac, bd, yx[3 + third])
+    bc = op.mul(b, c, x0)
+    ad = op.mul(a, d, x1)
+    im1 = op.sub(bc, ad, yx[first])
+    im2 = op.add(bc, ad, yx[third])
+    if floats:
+        angles = [None] * 3
+        angles[first], angles[1], angles[third] = (arctan2(im1, re1), arctan2(r, u) * 2.0, arctan2(im2, re2))
+        mid = angles[1]
+        if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
+            return None
+    else:
+        arctan2(ys, xs, out=o, defined=unit)
+        mid = op.mul(o[1], 2.0, o[1])                                  # the middle angle, in [0, π]
+        lo, hi = _extremes(mid)
+        gimbal = lo <= _GIMBAL_EPS or hi >= np.pi - _GIMBAL_EPS
         if gimbal:
-            case1 = mid <= _GIMBAL_EPS
-            locked = case1 | (np.abs(mid - np.pi) <= _GIMBAL_EPS)
-            at = np.nonzero(locked)
-            lock_angle = np.where(case1[at], 2 * np.arctan2(b[at], a[at]),
-                                  (-2 if extrinsic else 2) * np.arctan2(d[at], c[at]))
-            lock_angle = np.where(lock_angle < -np.pi, lock_angle + 2 * np.pi,
-                                  np.where(lock_angle > np.pi, lock_angle - 2 * np.pi, lock_angle))
-            rows[2][at] = 0
-            rows[0][at] = lock_angle
-        _euler_rows(mid, rows, first, third, symmetric, sign, lamb, _ops.ARRAYS, o)
+            mid = mid.copy()
+        angles = list(o)
+    if not symmetric:
+        if sign < 0:
+            angles[third] = op.mul(angles[third], -1.0, angles[third])
+        angles[1] = op.sub(angles[1], lamb, angles[1])
+    if floats:
+        return angles
+    if gimbal:
+        _lock(abcd, mid, o, extrinsic, third, -1.0 if not symmetric and sign < 0 else 1.0)
     return gimbal
 
 
-def _outer_angles(a, b, c, d, r, u, first, third, op, rows):
-    """The middle angle and the rows {first, third} of the other two, from a, b, c, d and the
-    squared norms r = |(c, d)|², u = |(a, b)|², in `op`'s arithmetic (`_ops`) with four work
-    rows `rows` (r and u are overwritten).
-
-    The first and third angles are half_sum ∓ half_diff with half_sum = arg(a + ib) and
-    half_diff = arg(c + id); each is read as one argument, of (a + ib)(c ∓ id)."""
-    mid, v, f, g = rows[:4]
-    r = op.sqrt(r, r)                    # |(c, d)|
-    u = op.sqrt(u, u)                    # |(a, b)|
-    mid = arctan2(r, u, out=mid, x_nonneg=True)
-    mid = op.mul(mid, 2.0, mid)          # the middle angle, in [0, π]
-    f = op.mul(a, c, f)
-    g = op.mul(b, d, g)
-    u = op.add(f, g, u)                  # Re (a + ib)(c - id)
-    f = op.sub(f, g, f)                  # Re (a + ib)(c + id)
-    g = op.mul(b, c, g)
-    v = op.mul(a, d, v)
-    r = op.sub(g, v, r)                  # Im (a + ib)(c - id)
-    g = op.add(g, v, g)                  # Im (a + ib)(c + id)
-    angles = {first: arctan2(r, u, out=v)}          # (out may not alias an argument)
-    angles[third] = arctan2(g, f, out=r)
-    return mid, angles
+def _lock(A, mid, o, extrinsic, third, third_sign):
+    """Gimbal lock, as scipy: where the middle angle is within 1e-7 of 0 (or π), the third
+    angle is 0 and the first is 2 arg(a + ib) (or ±2 arg(c + id)), wrapped into [-π, π];
+    the sign the third angle gets (`third_sign`) applies as it does to the others."""
+    case1 = mid <= _GIMBAL_EPS
+    at = np.nonzero(case1 | (np.abs(mid - np.pi) <= _GIMBAL_EPS))
+    a, b, c, d = A
+    lock_angle = np.where(case1[at], 2 * np.arctan2(b[at], a[at]),
+                          (-2 if extrinsic else 2) * np.arctan2(d[at], c[at]))
+    lock_angle = np.where(lock_angle < -np.pi, lock_angle + 2 * np.pi,
+                          np.where(lock_angle > np.pi, lock_angle - 2 * np.pi, lock_angle))
+    raw = {0: lock_angle, 2: np.zeros_like(lock_angle)}
+    raw[third] = raw[third] * third_sign
+    o[0][at] = raw[0]
+    o[2][at] = raw[2]
 
 
-def _euler_rows(mid, angles, first, third, symmetric, sign, lamb, op, o):
-    """The three Euler angles from `_outer_angles`, into ``o`` (three rows); returned."""
-    o = list(o[:3])
-    o[1] = op.copy(mid, o[1]) if symmetric else op.sub(mid, lamb, o[1])
-    o[first] = op.copy(angles[first], o[first])
-    if not symmetric and sign < 0:
-        o[third] = op.mul(angles[third], -1, o[third])
-    else:
-        o[third] = op.copy(angles[third], o[third])
-    return o
+def _extremes(a):
+    """(min, max) of `a` (no NaN in it) as Python floats: up to 32 elements by Python's min
+    and max (cheaper than two NumPy reductions there)."""
+    if a.size <= 32:
+        x = a.ravel().tolist()
+        return min(x), max(x)
+    return float(np.minimum.reduce(a, axis=None)), float(np.maximum.reduce(a, axis=None))
+
+
+_TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
+_TINY64 = _TINY[np.dtype(np.float64)]
 
 
 def _abcd(w, qi, qj, qk, symmetric, op, rows):
-    """Bernardes & Viollet's a, b, c, d from the components a sequence reads."""
+    """Bernardes & Viollet's a, b, c, d from the components a sequence reads (qk already
+    signed), in `op`'s arithmetic (`_ops`), into the four `rows`."""
     if symmetric:
         return [op.copy(src, row) for row, src in zip(rows, (w, qi, qj, qk))]
     return [op.sub(w, qj, rows[0]), op.add(qi, qk, rows[1]), op.add(qj, w, rows[2]), op.sub(qk, qi, rows[3])]
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
+    s = q.shape[1:]
+    abcd = _blocks.scratch().rows(5, s, q.dtype) if q[0].size > _blocks.FEW else np.empty((5,) + s, q.dtype)
     w, qi, qj, qk = q[0], q[i + 1], q[j + 1], q[k + 1]
     if sign < 0:
-        _negate(qk)                          # q is the block's scratch copy
-    with _blocks.scratch().frame() as work:
-        abcd = work.rows(4, q.shape[1:], q.dtype)
-        _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
-        return _angles(abcd, o, extrinsic, symmetric, sign, np.pi / 2, unit)
+        qk = np.multiply(qk, -1.0, out=abcd[4])   # q is only read (views of a Rotation's storage)
+    _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
+    return _angles(abcd[:4], o, extrinsic, symmetric, sign, np.pi / 2, _ops.ARRAYS, unit)
 
 
 def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
@@ -282,25 +317,9 @@ def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
         return None
     w, qi, qj, qk = comps[0], comps[i + 1], comps[j + 1], comps[k + 1]
     if sign < 0:
-        qk = qk * -1
+        qk = qk * -1.0
     abcd = _abcd(w, qi, qj, qk, symmetric, _ops.FLOATS, _ops.NONE)
-    return _angles_floats(abcd, extrinsic, symmetric, sign, np.pi / 2)
-
-
-def _angles_floats(abcd, extrinsic, symmetric, sign, lamb):
-    """`_angles` on the Python floats a, b, c, d of one float64 rotation (the same formula),
-    or None where that kernel would rescale or find gimbal lock (its own path, with the
-    warning)."""
-    a, b, c, d = abcd
-    r = _scale.squares([c, d], _ops.FLOATS, None, None)
-    u = _scale.squares([a, b], _ops.FLOATS, None, None)
-    if not _scale.LOW[_F64] <= r + u <= _scale.HIGH[_F64]:
-        return None
-    first, third = (0, 2) if extrinsic else (2, 0)
-    mid, angles = _outer_angles(a, b, c, d, r, u, first, third, _ops.FLOATS, _ops.NONE)
-    if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
-        return None
-    return _euler_rows(mid, angles, first, third, symmetric, sign, lamb, _ops.FLOATS, _ops.NONE)
+    return _angles(abcd, None, extrinsic, symmetric, sign, np.pi / 2, _ops.FLOATS)
 
 
 _F64 = np.dtype(np.float64)
@@ -366,9 +385,13 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
         out = _ops.to_array(one, q.shape[:-1] + (3,))
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
-        gimbal = (_blocks.blockwise if unit else _blockwise)(
-            _k_as_euler, [q.reshape(-1, 4)], [out.reshape(-1, 3)], i=i, j=j, k=k,
-            symmetric=symmetric, sign=sign, extrinsic=extrinsic, unit=unit)
+        flat, oflat = q.reshape(-1, 4), out.reshape(-1, 3)
+        if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:   # a Rotation's few: the kernel at once on
+            gimbal = _k_as_euler(flat.T, oflat.T, i, j, k, symmetric, sign, extrinsic, True)   # views
+        else:
+            gimbal = (_blocks.blockwise if unit else _blockwise)(
+                _k_as_euler, [flat], [oflat], read_only=True, i=i, j=j, k=k,
+                symmetric=symmetric, sign=sign, extrinsic=extrinsic, unit=unit)
         _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 
@@ -477,7 +500,8 @@ def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    o = _angles_floats(_davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None), extrinsic, False, 1, lamb)
+    o = _angles(_davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None), None, extrinsic, False, 1, lamb,
+                _ops.FLOATS)
     if o is not None and flip:
         o[1] = -o[1]
     return o
@@ -498,9 +522,9 @@ def _davenport_abcd(q, lmat, op, rows, t):
 
 def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
     with _blocks.scratch().frame() as work:
-        abcd = work.rows(4, q.shape[1:], q.dtype)
-        _davenport_abcd(q, lmat, _ops.ARRAYS, abcd, work.rows(1, q.shape[1:], q.dtype)[0])
-        gimbal = _angles(abcd, o, extrinsic, False, 1, lamb)
+        A = work.rows(4, q.shape[1:], q.dtype)
+        _davenport_abcd(q, lmat, _ops.ARRAYS, A, work.rows(1, q.shape[1:], q.dtype)[0])
+        gimbal = _angles(A, o, extrinsic, False, 1, lamb, _ops.ARRAYS)
     if flip:
         _negate(o[1])
     return gimbal

@@ -120,7 +120,8 @@ def arctan(x, out=None):
 
 
 def arctan2(y, x, out=None, x_nonneg=False, defined=False):
-    """``np.arctan2(y, x)`` from one ``arctan`` of the ratio: arctan(y / x), plus
+    """``np.arctan2(y, x)`` where that is a SIMD loop (AVX-512, `_trig.SIMD_TAN`: one call,
+    no errstate); elsewhere from one ``arctan`` of the ratio: arctan(y / x), plus
     ±π (the sign of y) where x is negative or -0.0.
 
     The ratio is rounded once and arctan is well conditioned, so the angle
@@ -144,6 +145,8 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     >>> bool(arctan2(1.0, -2.0) == arctan2(np.array([1.0]), np.array([-2.0]))[0])
     True
     """
+    if _trig.SIMD_TAN:   # on Python floats too: NumPy's loop, the arrays' bits
+        return float(np.arctan2(y, x)) if type(y) is float else np.arctan2(y, x, out=out)
     if type(y) is float:
         if x > 0:
             return float(np.arctan(y / x))
