@@ -197,9 +197,9 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
         s01, s23, x0, x1 = _ops.NONE[:4]
     else:
         shape, dtype = abcd.shape[1:], abcd.dtype
-        rows = (_blocks.scratch().rows(12, shape, dtype) if abcd[0].size > _blocks.FEW
-                else np.empty((12,) + shape, dtype))
-        S, P, ys, xs = rows[0:4], rows[4:6], rows[6:9], rows[9:12]   # ys, xs: arctan2's stacks
+        rows = (_blocks.scratch().rows(15, shape, dtype) if abcd[0].size > _blocks.FEW
+                else np.empty((15,) + shape, dtype))
+        S, P, ys, xs, T = rows[0:4], rows[4:6], rows[6:9], rows[9:12], rows[12:15]   # arctan2's stacks
         yx = (*ys, *xs)
         s01, s23 = P   # work rows
         x0, x1 = S[2:4]
@@ -243,16 +243,22 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
         if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
             return None
     else:
-        arctan2(ys, xs, out=o, defined=unit)
-        mid = op.mul(o[1], 2.0, o[1])                                  # the middle angle, in [0, π]
+        # into contiguous rows, then copied: a transcendental loop's bits may depend on the
+        # layout (SIMD for contiguous rows), and o is strided
+        arctan2(ys, xs, out=T, defined=unit)
+        o0, o1, o2 = o
+        mid = op.mul(T[1], 2.0, o1)                                    # the middle angle, in [0, π]
         lo, hi = _extremes(mid)
         gimbal = lo <= _GIMBAL_EPS or hi >= np.pi - _GIMBAL_EPS
         if gimbal:
             mid = mid.copy()
-        angles = list(o)
+        angles = [T[0], o1, T[2]]
+        angles[first] = op.copy(angles[first], o0 if first == 0 else o2)
+        if symmetric or sign > 0:
+            angles[third] = op.copy(angles[third], o2 if third == 2 else o0)
     if not symmetric:
         if sign < 0:
-            angles[third] = op.mul(angles[third], -1.0, angles[third])
+            angles[third] = op.mul(angles[third], -1.0, None if floats else (o2 if third == 2 else o0))
         angles[1] = op.sub(angles[1], lamb, angles[1])
     if floats:
         return angles
