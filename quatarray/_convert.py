@@ -686,23 +686,28 @@ def _half_turn(q, unit=False):
 
     One multiply squares the four components (their layout kept: contiguous for a block,
     one flat pass for a Rotation's (n, 4) storage)."""
-    s = q.shape[1:]
-    big = q[0].size > _blocks.FEW
-    sq = np.multiply(q, q, out=_blocks.scratch().rows(4, s, q.dtype) if big else None)
-    t = _blocks.scratch().rows(2, s, q.dtype) if big else np.empty((2,) + s, q.dtype)
-    np.add(sq[1], sq[2], out=t[1])
-    np.add(t[1], sq[3], out=t[1])                  # |v|² = (x² + y²) + z²
+    s, dtype = q.shape[1:], q.dtype
+    big = q.size > 4 * _blocks.FEW
+    sq = np.multiply(q, q, out=_blocks.scratch().rows(4, s, dtype) if big else None)
+    t = _blocks.scratch().rows(2, s, dtype) if big else np.empty((2,) + s, dtype)
+    w2, x2, y2, z2 = sq   # rows, made once
+    t0, v2 = t
+    np.add(x2, y2, out=v2)
+    np.add(v2, z2, out=v2)                         # |v|² = (x² + y²) + z²
     if not unit:   # the range guard on |q|² = w² + |v|²: extreme magnitudes are rescaled
-        n2 = np.add(sq[0], t[1], out=sq[1])
+        n2 = np.add(w2, v2, out=x2)
         if not _scale.fits(n2):
             _scale.guard(q, n2, zero=True)
             np.multiply(q, q, out=sq)
-            np.add(sq[1], sq[2], out=t[1])
-            np.add(t[1], sq[3], out=t[1])
-    np.maximum(sq[0], _TINY[q.dtype], out=t[0])
-    exact = _least(t) < _scale.LOW[q.dtype]
-    np.divide(t[1], t[0], out=t[0])
+            np.add(x2, y2, out=v2)
+            np.add(v2, z2, out=v2)
+    np.maximum(w2, _TINY[dtype], out=t0)
+    exact = _least(t) < _LOW[dtype]
+    np.divide(v2, t0, out=t0)
     return t, exact
+
+
+_LOW = _scale.LOW
 
 
 _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
