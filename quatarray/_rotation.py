@@ -349,9 +349,8 @@ class Rotation:
         >>> np.round(r.as_euler("ZXY", degrees=True), 9)
         array([30., 20., 10.])
         """
-        _euler.check_seq(seq, 3)
         return _euler.as_euler(self._q, seq, degrees=degrees, suppress_warnings=suppress_warnings,
-                               unit=self._unit)
+                               unit=self._unit)   # which checks seq
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
