@@ -714,9 +714,10 @@ _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.
 
 
 def _least(a):
-    """The least element of `a` (no NaN in it), as a Python float: up to 32 elements by
-    Python's min (a NumPy reduction costs several times more there)."""
-    if a.size <= 32:
+    """The least element of `a` (no NaN in it), as a Python float: up to 64 elements (the two
+    rows of `_half_turn` for up to 32 rotations) by Python's min (a NumPy reduction costs
+    more there)."""
+    if a.size <= 64:
         return min(a.ravel().tolist())
     return float(np.minimum.reduce(a, axis=None))
 

@@ -328,6 +328,34 @@ def test_magnitude_matches_scipy_and_range(rng, dtype, batch_shape):
     assert ((got >= 0) & (got <= np.float32(np.pi))).all()
 
 
+def test_rotvec_and_magnitude_rows_needing_the_exact_path_keep_their_bits_in_any_batch(rng):
+    """w = ±0 (the canonical sign from x, y, z; a floored w² that stays finite), w² below the
+    range test, |v|² lost to underflow and the exact identity take `_half_turn`'s exact path;
+    the ordinary rows of such a batch keep their bits, and each row is accurate against an
+    independent formula (hypot for |v|, np.arctan2)."""
+    special = np.array([[0.0, 0.0, -1.0, 0.0], [-0.0, -0.6, 0.8, 0.0], [0.0, 0.0, 0.0, -1.0],
+                        [1e-170, 0.6, -0.8, 0.0], [1.0, 1e-200, 0.0, 0.0], [-1.0, 0.0, 3e-170, 0.0],
+                        [1.0, 0.0, 0.0, 0.0], [-1.0, -0.0, 0.0, 0.0]])
+    plain = random_quats(rng, (6,), np.float64)
+    batch = np.concatenate([plain[:3], special, plain[3:]])
+    for name, f in (("as_rotvec", lambda q: Rotation.from_quat(q, scalar_first=True).as_rotvec()),
+                    ("magnitude", lambda q: Rotation.from_quat(q, scalar_first=True).magnitude()),
+                    ("raw as_rotvec", C.as_rotvec), ("raw magnitude", C.magnitude)):
+        whole = f(batch)
+        for i in range(len(batch)):
+            np.testing.assert_array_equal(f(batch[i]), whole[i], err_msg=f"{name} row {i} alone")
+            np.testing.assert_array_equal(f(batch[i:i + 1])[0], whole[i], err_msg=f"{name} row {i} of one")
+        np.testing.assert_array_equal(f(plain), whole[np.r_[0:3, 11:14]], err_msg=name)
+    w, v = batch[:, 0], batch[:, 1:]
+    nv = np.hypot(np.hypot(v[:, 0], v[:, 1]), v[:, 2])
+    angle = 2 * np.arctan2(nv, np.abs(w))
+    np.testing.assert_allclose(C.magnitude(batch), angle, rtol=4 * np.finfo(float).eps, atol=0)
+    flip = np.where(C._flip_mask(*batch.T), -1.0, 1.0)[:, None]   # scipy's canonical sign
+    expected = v * (flip * angle[:, None] / np.where(nv > 0, nv, 1)[:, None])
+    np.testing.assert_allclose(C.as_rotvec(batch), expected, rtol=8 * np.finfo(float).eps, atol=0)
+    np.testing.assert_allclose(C.as_rotvec(special[:3]), sp(special[:3]).as_rotvec(), rtol=0, atol=4e-16)
+
+
 @pytest.mark.parametrize("shape", SHAPES)
 def test_mrp_both_ways_match_scipy(rng, dtype, shape):
     q = unit(rng, shape, dtype)

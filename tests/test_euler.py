@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation as R
 
+from quatarray import Rotation
 from quatarray import _euler as E
 
 from .conftest import tol
@@ -211,3 +212,25 @@ def test_negate_works_where_numpys_inplace_negative_does_not():
     numpy_is_right = np.array_equal(numpy_row, want)
     E._negate(row)
     np.testing.assert_array_equal(row, want, err_msg=f"numpy's in-place negative right: {numpy_is_right}")
+
+
+@pytest.mark.parametrize("seq", ["xyz", "ZYX", "zxz", "YXY", "xzy"])
+def test_euler_of_quarter_turns_and_signed_zeros_like_scipy_in_any_batch(rng, seq):
+    """Quarter and half turns make the arctangents' denominators exactly ±0 (their angles are
+    ±π/2 or ±π, signed as scipy's); with signed zero components and random rows, every row
+    alone, as a batch of one and in the batch gives the same bits, and scipy's angles."""
+    turns = R.from_euler("xyz", [[90, 0, 0], [0, 0, 90], [180, 0, 0], [0, 0, -90], [90, 0, 90],
+                                 [-90, 0, 180], [0, 30, 0]], degrees=True).as_quat(scalar_first=True)
+    signed = np.array([[0.5, -0.5, 0.5, -0.5], [-0.0, 1.0, -0.0, 0.0], [0.0, -0.0, -1.0, 0.0],
+                       [0.5, 0.5, -0.0, np.sqrt(0.5)]])
+    signed /= np.linalg.norm(signed, axis=1, keepdims=True)
+    batch = np.concatenate([unit(rng, (3,), np.float64), turns, signed])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # the half turns of symmetric sequences are gimbal locks
+        want = sp(batch).as_euler(seq)
+        for f in (lambda q: E.as_euler(q, seq), lambda q: Rotation.from_quat(q, scalar_first=True).as_euler(seq)):
+            whole = f(batch)
+            for i in range(len(batch)):
+                np.testing.assert_array_equal(f(batch[i]), whole[i])
+                np.testing.assert_array_equal(f(batch[i:i + 1])[0], whole[i])
+            assert angle_diff(whole, want).max() <= tol(np.float64)
