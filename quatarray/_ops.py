@@ -108,6 +108,28 @@ NONE = (None,) * 16
 """Rows for `FLOATS` (any number up to 16): the results are returned, not written."""
 
 
+def const(value, dtype):
+    """`value` as a 0-d array of `dtype`, made once: a ufunc call with a Python or NumPy
+    scalar operand pays about 0.4 µs to convert it (NumPy 2.4), the cost of the whole call
+    on a small array; a 0-d array of the operand's dtype computes the same (a weak Python
+    scalar takes the array's dtype too) without that cost.
+
+    >>> import numpy as np
+    >>> from quatarray._ops import const
+    >>> const(0.5, np.float32)
+    array(0.5, dtype=float32)
+    """
+    key = (value, dtype)
+    c = _CONSTS.get(key)
+    if c is None:
+        c = _CONSTS[key] = np.array(value, dtype)
+        c.flags.writeable = False
+    return c
+
+
+_CONSTS = {}
+
+
 def floats64(q, k=4):
     """The `k` components of one float64 quaternion (or vector), shape (k,) or (1, k), as
     Python floats (so that a formula runs on `FLOATS`), or None for any other input (the
