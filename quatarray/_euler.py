@@ -197,13 +197,16 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
         s01, s23, x0, x1 = _ops.NONE[:4]
     else:
         shape, dtype = abcd.shape[1:], abcd.dtype
-        rows = (_blocks.scratch().rows(15, shape, dtype) if abcd[0].size > _blocks.FEW
+        rows = (_blocks.scratch().rows(15, shape, dtype) if abcd.size > 4 * _blocks.FEW
                 else np.empty((15,) + shape, dtype))
-        S, P, ys, xs, T = rows[0:4], rows[4:6], rows[6:9], rows[9:12], rows[12:15]   # arctan2's stacks
-        yx = (*ys, *xs)
-        s01, s23 = P   # work rows
-        x0, x1 = S[2:4]
-    a, b, c, d = abcd
+        S, ys, xs, T = rows[0:4], rows[6:9], rows[9:12], rows[12:15]   # arctan2's stacks
+        # rows by indexing (a fifth of the cost of unpacking an array)
+        yx = (rows[6], rows[7], rows[8], rows[9], rows[10], rows[11])
+        s01, s23, x0, x1 = rows[4], rows[5], rows[2], rows[3]
+        two, minus_one, lamb = _ops.const(2.0, dtype), _ops.const(-1.0, dtype), _ops.const(lamb, dtype)
+    if floats:
+        two, minus_one = 2.0, -1.0
+    a, b, c, d = abcd[0], abcd[1], abcd[2], abcd[3]
     # arctan2's stacks, in the rows' order of o: Im₁ (row `first`), |(c, d)|, Im₂ (row `third`)
     # over Re₁, |(a, b)|, Re₂
     if floats:
@@ -238,7 +241,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
     im2 = op.add(bc, ad, yx[third])
     if floats:
         angles = [None] * 3
-        angles[first], angles[1], angles[third] = (arctan2(im1, re1), arctan2(r, u) * 2.0, arctan2(im2, re2))
+        angles[first], angles[1], angles[third] = (arctan2(im1, re1), arctan2(r, u) * two, arctan2(im2, re2))
         mid = angles[1]
         if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
             return None
@@ -246,8 +249,8 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
         # into contiguous rows, then copied: a transcendental loop's bits may depend on the
         # layout (SIMD for contiguous rows), and o is strided
         arctan2(ys, xs, out=T, defined=unit)
-        o0, o1, o2 = o
-        mid = op.mul(T[1], 2.0, o1)                                    # the middle angle, in [0, π]
+        o0, o1, o2 = o[0], o[1], o[2]
+        mid = op.mul(T[1], two, o1)                                    # the middle angle, in [0, π]
         lo, hi = _extremes(mid)
         gimbal = lo <= _GIMBAL_EPS or hi >= np.pi - _GIMBAL_EPS
         if gimbal:
@@ -258,7 +261,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
             angles[third] = op.copy(angles[third], o2 if third == 2 else o0)
     if not symmetric:
         if sign < 0:
-            angles[third] = op.mul(angles[third], -1.0, None if floats else (o2 if third == 2 else o0))
+            angles[third] = op.mul(angles[third], minus_one, None if floats else (o2 if third == 2 else o0))
         angles[1] = op.sub(angles[1], lamb, angles[1])
     if floats:
         return angles
@@ -301,16 +304,16 @@ def _abcd(w, qi, qj, qk, symmetric, op, rows):
     """Bernardes & Viollet's a, b, c, d from the components a sequence reads (qk already
     signed), in `op`'s arithmetic (`_ops`), into the four `rows`."""
     if symmetric:
-        return [op.copy(src, row) for row, src in zip(rows, (w, qi, qj, qk))]
+        return [op.copy(w, rows[0]), op.copy(qi, rows[1]), op.copy(qj, rows[2]), op.copy(qk, rows[3])]
     return [op.sub(w, qj, rows[0]), op.add(qi, qk, rows[1]), op.add(qj, w, rows[2]), op.sub(qk, qi, rows[3])]
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
     s = q.shape[1:]
-    abcd = _blocks.scratch().rows(5, s, q.dtype) if q[0].size > _blocks.FEW else np.empty((5,) + s, q.dtype)
+    abcd = _blocks.scratch().rows(5, s, q.dtype) if q.size > 4 * _blocks.FEW else np.empty((5,) + s, q.dtype)
     w, qi, qj, qk = q[0], q[i + 1], q[j + 1], q[k + 1]
-    if sign < 0:
-        qk = np.multiply(qk, -1.0, out=abcd[4])   # q is only read (views of a Rotation's storage)
+    if sign < 0:   # q is only read (views of a Rotation's storage)
+        qk = np.multiply(qk, _ops.const(-1.0, q.dtype), out=abcd[4])
     _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
     return _angles(abcd[:4], o, extrinsic, symmetric, sign, np.pi / 2, _ops.ARRAYS, unit)
 
