@@ -216,7 +216,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
     u2 = op.add(sq[0], sq[1], s01)                                # |(a, b)|²
     r2 = op.add(sq[2], sq[3], s23)                                # |(c, d)|²
     if floats:
-        if not _scale.LOW[_F64] <= u2 + r2 <= _scale.HIGH[_F64]:
+        if not _LOW64 <= u2 + r2 <= _HIGH64:
             return None
     elif not unit:   # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²)
         n2 = np.add(u2, r2, out=xs[0])
@@ -241,8 +241,8 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
     im2 = op.add(bc, ad, yx[third])
     if floats:
         angles = [None] * 3
-        angles[first], angles[1], angles[third] = (arctan2(im1, re1), arctan2(r, u) * two, arctan2(im2, re2))
-        mid = angles[1]
+        angles[first], mid, angles[third] = arctan2([im1, r, im2], [re1, u, re2])
+        angles[1] = mid = mid * two
         if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
             return None
     else:
@@ -332,6 +332,7 @@ def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
 
 
 _F64 = np.dtype(np.float64)
+_LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
