@@ -746,13 +746,13 @@ def _half_turn_floats(q):
         return None
     w, x, y, z = c
     w2, v2 = w * w, (x * x + y * y) + z * z
-    lo, hi = _scale.LOW[_F64], _scale.HIGH[_F64]
-    if not (lo <= w2 and lo <= v2 and w2 + v2 <= hi):
+    if not (_LOW64 <= w2 and _LOW64 <= v2 and w2 + v2 <= _HIGH64):
         return None
     return w, x, y, z, math.sqrt(v2 / w2), math.sqrt(v2)
 
 
 _F64 = np.dtype(np.float64)
+_LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
 
 
 def _rotvec(w, x, y, z, tan_half, nv, factor, op, o, rows):
