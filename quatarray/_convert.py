@@ -824,13 +824,15 @@ def as_rotvec(q, degrees=False, unit=False):
     >>> as_rotvec(q, degrees=True)
     array([ 0.,  0., 90.])
     """
-    q = quat_array(q, "quat")
+    if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
+        q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: the same formula on its floats
         rotvec = _rotvec(*one, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE, _ops.NONE)
         return _ops.to_array(rotvec, q.shape[:-1] + (3,))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    _blockwise_unit(_k_as_rotvec, q.reshape(-1, 4), out.reshape(-1, 3), unit, factor=_ROTVEC_FACTOR[degrees])
+    _blockwise_unit(_k_as_rotvec, q if q.ndim == 2 else q.reshape(-1, 4), out if q.ndim == 2 else out.reshape(-1, 3),
+                    unit, factor=_ROTVEC_FACTOR[degrees])
     return out
 
 
@@ -1001,11 +1003,16 @@ def magnitude(q, unit=False):
     >>> magnitude(np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [-1, 1, 0, 0]]))
     array([0.        , 3.14159265, 1.57079633])
     """
-    q = quat_array(q, "quat")
+    if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
+        q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
         angle = np.array(_angle(one[4], None))   # not np.full: 5x its cost
         return angle if q.ndim == 1 else angle.reshape(q.shape[:-1])
+    if q.ndim == 2:   # (N, 4): its rows as they are, the output (N, 1) read as (N,)
+        out = np.empty((len(q), 1), q.dtype)
+        _blockwise_unit(_k_magnitude, q, out, unit)
+        return out[:, 0]
     out = np.empty(q.shape[:-1], q.dtype)
     _blockwise_unit(_k_magnitude, q.reshape(-1, 4), out.reshape(-1, 1), unit)
     return out
