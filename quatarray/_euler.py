@@ -388,7 +388,8 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     array([90., 30., 10.])
     """
     check_seq(seq, 3)
-    q = quat_array(q, "quat")
+    if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
+        q = quat_array(q, "quat")
     i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
     one = _euler_floats(q, i, j, k, symmetric, sign, extrinsic)
     if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
