@@ -595,3 +595,90 @@ def test_from_rotvec_refuses_non_finite_vectors_naming_the_first(rng, n, bad):
         C.from_rotvec(v)
     with pytest.raises(ValueError, match="expected finite values in rotvec"):
         Rotation.from_rotvec(v)
+
+
+# --- powers of rotations (`rotation_power`, Rotation ** n) ------------------------------------
+
+POWER_EXPONENTS = [0.0, 1.0, -1.0, 0.5, -0.5, 2.5, -3.0, 1e-9, 1e9]
+
+
+def _power_cases(rng, dtype):
+    """Unit quaternions (n, 4): random, both signs of w, near the identity (tiny |v|), near and at
+    the half turn (tiny w, w = ±0 with the canonical sign from x, y, z), the identity itself."""
+    eps = float(np.finfo(dtype).eps)
+    rnd = random_quats(rng, (12,))
+    near_id = np.concatenate([np.ones((4, 1)), rng.standard_normal((4, 3)) * eps * 10.0 ** rng.uniform(-3, 2, (4, 1))], 1)
+    near_pi = np.concatenate([rng.standard_normal((4, 1)) * eps * 10.0 ** rng.uniform(-3, 2, (4, 1)),
+                              rng.standard_normal((4, 3))], 1)
+    half = np.array([[0.0, 0, -1, 1], [-0.0, 0, 1, -1], [0.0, -1, 2, 0], [0.0, 0, 0, -1]])
+    ident = np.array([[1.0, 0, 0, 0], [-1.0, 0, 0, 0]])
+    q = np.concatenate([rnd, -rnd[:3], near_id, near_pi, half, ident])
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    return q.astype(dtype)
+
+
+def _power_reference(q, n):
+    """``r ** n`` by an independent route: the canonical quaternion (w > 0; at w = 0 the first
+    non-zero of x, y, z positive: scipy's rotation vector) raised by `_kernels.power`
+    (exp(n log q), its own log and exp) in float64."""
+    c = C.canonical(np.asarray(q, np.float64))
+    return K.power(c, n)
+
+
+@pytest.mark.parametrize("n", POWER_EXPONENTS)
+def test_rotation_power_against_an_independent_formula(rng, dtype, n):
+    q = _power_cases(rng, dtype)
+    got = C.rotation_power(q, n, unit=True)
+    assert got.dtype == dtype and got.shape == q.shape and np.isfinite(got).all()
+    eps = float(np.finfo(dtype).eps)
+    # the angle n θ/2 carries n times the rounding of θ/2 (and of q itself): the bound grows with |n|
+    atol = 8 * eps * max(1.0, abs(n))
+    if atol < 0.1:
+        np.testing.assert_allclose(got, _power_reference(q, n), rtol=0, atol=atol)
+    np.testing.assert_allclose(np.linalg.norm(got.astype(np.float64), axis=1), 1, rtol=0, atol=4 * eps)
+
+
+@pytest.mark.parametrize("n", [0.3, -2.0, 2.5, 1e-9])
+def test_rotation_power_matches_scipy_signs_included(rng, n):
+    q = _power_cases(rng, np.float64)
+    want = (sp(q) ** n).as_quat(scalar_first=True)
+    for i in range(len(q)):   # scipy's sign of w (cos(n θ/2) may be negative) and its half-turn branch
+        np.testing.assert_allclose(Rotation.from_quat(q[i], scalar_first=True).__pow__(n).as_quat(scalar_first=True),
+                                   want[i], rtol=0, atol=16 * np.finfo(float).eps * max(1, abs(n)))
+    np.testing.assert_allclose(C.rotation_power(q, n), want, rtol=0, atol=16 * np.finfo(float).eps * max(1, abs(n)))
+
+
+@pytest.mark.parametrize("n", [0.3, -3.0])
+def test_rotation_power_same_bits_at_every_size_and_layout(rng, dtype, n):
+    """A row alone (one float64 rotation: the float path), within a few (views), within blocks,
+    read-only or strided, not unit (the range-guarded path): the same bits."""
+    q = _power_cases(rng, dtype)
+    big = np.concatenate([q, random_quats(rng, (CHUNK + 7,), dtype)])
+    want = C.rotation_power(big, n, unit=True)
+    for i in range(len(q)):
+        np.testing.assert_array_equal(C.rotation_power(q[i], n, unit=True), want[i])
+        np.testing.assert_array_equal(C.rotation_power(q[i:i + 1], n), want[i:i + 1])
+    np.testing.assert_array_equal(C.rotation_power(q, n, unit=True), want[:len(q)])
+    strided = np.zeros((len(q), 8), dtype)
+    strided[:, ::2] = q
+    view = strided[:, ::2]
+    view.flags.writeable = False
+    before = view.copy()
+    np.testing.assert_array_equal(C.rotation_power(view, n, unit=True), want[:len(q)])
+    np.testing.assert_array_equal(C.rotation_power(view, n), want[:len(q)])
+    np.testing.assert_array_equal(view, before)
+    each = C.rotation_power(big, np.full(len(big), n, dtype), unit=True)   # one exponent per rotation
+    np.testing.assert_array_equal(each, want)
+
+
+@pytest.mark.parametrize("scale", [2.0 ** -600, 2.0 ** 600])
+def test_rotation_power_of_quaternions_of_extreme_norm(rng, scale):
+    q = _power_cases(rng, np.float64)
+    np.testing.assert_array_equal(C.rotation_power(q * scale, 0.3), C.rotation_power(q, 0.3, unit=True))
+
+
+@given(unit_quat, st.floats(-20, 20, allow_nan=False))
+def test_rotation_power_is_the_scaled_rotation_vector(q, n):
+    """scipy's definition, from_rotvec(n as_rotvec(q)), up to the sign of the quaternion."""
+    assert_same_rotation(C.rotation_power(q, n), C.from_rotvec(n * C.as_rotvec(q)), 2e-14 * max(1, abs(n)))
+
