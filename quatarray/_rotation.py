@@ -490,8 +490,12 @@ class Rotation:
                                      f"scipy's) broadcast with the rotations' shape "
                                      f"{q.shape[:-1]}: got shape {t.shape}")
                 t = finite(t.astype(np.result_type(t.dtype, q.dtype), copy=False), "the exponent n")
-                return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q, unit=self._unit) * t[..., None]),
-                                        unit=True)
+                if t.size and np.abs(t).max() > _convert.POWER_MAX[t.dtype]:
+                    raise ValueError(f"expected exponents n of magnitude at most "
+                                     f"{_convert.POWER_MAX[t.dtype]:.3g}, got {np.abs(t).max():.3g}")
+                if t.dtype != q.dtype:
+                    q = q.astype(t.dtype)
+                return type(self)._wrap(_convert.rotation_power(q, t, unit=self._unit), unit=True)
             n = float(t)
         try:
             finite_n = math.isfinite(n)
@@ -505,7 +509,10 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
-        return type(self)._wrap(_convert.from_rotvec(_convert.as_rotvec(q, unit=self._unit) * n), unit=True)
+        if abs(n) > _convert.POWER_MAX[q.dtype]:   # n θ/2 would overflow: no angle to reduce
+            raise ValueError(f"expected an exponent n of magnitude at most "
+                             f"{_convert.POWER_MAX[q.dtype]:.3g}, got {n}")
+        return type(self)._wrap(_convert.rotation_power(q, n, unit=self._unit), unit=True)
 
     def inv(self):
         """The inverse rotations.

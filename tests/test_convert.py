@@ -682,3 +682,13 @@ def test_rotation_power_is_the_scaled_rotation_vector(q, n):
     """scipy's definition, from_rotvec(n as_rotvec(q)), up to the sign of the quaternion."""
     assert_same_rotation(C.rotation_power(q, n), C.from_rotvec(n * C.as_rotvec(q)), 2e-14 * max(1, abs(n)))
 
+
+def test_rotation_power_rejects_an_exponent_whose_angle_overflows():
+    r = Rotation.from_rotvec([0, 0, 1.0])
+    assert np.isfinite((r ** 1e308).as_quat()).all()   # n θ/2 still finite
+    with pytest.raises(ValueError, match="exponent n of magnitude at most"):
+        r ** 1.5e308
+    with pytest.raises(ValueError, match="exponents n of magnitude at most"):
+        Rotation.from_rotvec(np.ones((2, 3))) ** np.array([1.0, -1.5e308])
+    with pytest.raises(ValueError, match="exponent n of magnitude at most"):
+        Rotation.from_rotvec(np.ones(3, np.float32)) ** 3e38
