@@ -471,6 +471,10 @@ class Rotation:
         that broadcasts with the batch shape gives one exponent per rotation.
         The angle of ``r ** n`` is ``n · r.magnitude()`` taken modulo 2π
         into [0, π] (so ``(r ** 0.5) ** 2 == r``, but not the other way round).
+        Computed in one step as ``(cos(n θ/2), sin(n θ/2) v/|v|)`` with θ/2 the
+        canonical half angle (scipy's ``from_rotvec(n * r.as_rotvec())``, without
+        the rotation vectors in between); ``|n|`` up to the float maximum over π/2
+        (a larger exponent is a ValueError: no angle is left to reduce).
 
         >>> from quatarray import Rotation
         >>> r = Rotation.from_rotvec([0, 0, 1])
