@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from quatarray import Rotation, Track
+from quatarray import Track
 from quatarray.cli import main
 from quatarray.formats import (FormatError, example_path, keyframes_to_gltf, read_bvh, read_csv, read_npz,
                                resample_file)

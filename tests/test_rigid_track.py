@@ -7,7 +7,6 @@ import pytest
 from quatarray import RigidTransform, Rotation, Track
 from quatarray import _dualquat as D
 from quatarray import _kernels as Kn
-from quatarray.interpolate import slerp
 from quatarray.rigid import RigidTrack
 
 from .conftest import random_quats, tol

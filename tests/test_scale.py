@@ -8,7 +8,6 @@ import pytest
 
 from quatarray import QuatArray, Rotation, RotationSpline, Track
 from quatarray import _convert as C
-from quatarray import _euler as E
 from quatarray import _kernels as K
 from quatarray import _scale
 

@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation as SR
 from scipy.spatial.transform import RotationSpline as SRS
 
-from quatarray import QuatArray, Rotation, RotationSpline
+from quatarray import Rotation, RotationSpline
 from quatarray import Track
 from quatarray import _interp_spline as S
 from quatarray._kernels import rotate
