@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from . import _blocks, _kernels, _ops, _scale, _trig
+from . import _blocks, _kernels, _ops, _scale
 from ._kernels import ANGLE_FLOOR
 from ._kernels import cos_sin as _cos_sin
 from ._validate import finite, float_array, quat_array
@@ -1051,7 +1051,7 @@ def from_rotvec(rotvec, degrees=False):
     """
     v = _vec3(rotvec, "rotvec")   # finiteness: found by the norms' range check (the kernel's, or n2 here)
     factor = np.pi / 180.0 if degrees else 1.0
-    one = _ops.floats64(v, 3) if _trig.SIMD_TAN else None   # else the tangent is `_trig`'s rational
+    one = _ops.floats64(v, 3)
     n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
     if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one float64 vector that `true_norm` keeps
         q = _rotvec_quat(one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)

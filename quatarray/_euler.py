@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from . import _blocks, _ops, _scale, _trig
+from . import _blocks, _ops, _scale
 from ._convert import _blockwise, from_rotvec
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
@@ -165,7 +165,7 @@ def from_euler(seq, angles, degrees=False):
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
-    one = _ops.floats64(a, len(axes)) if _trig.SIMD_TAN else None   # else `_trig`'s rational tangent
+    one = _ops.floats64(a, len(axes))
     if one is not None:   # one float64 rotation: the same formula on its floats
         p = _euler_quat(one, axes, intrinsic, scale, _ops.FLOATS, _ops.NONE)
         return _ops.to_array([0.0 if v is None else v for v in p], a.shape[:-1] + (4,))
@@ -450,7 +450,7 @@ def _unit_axes(axes, n=None):
 def _k_from_davenport(angles, q, axes, extrinsic, scale):
     """One elementary quaternion (cos, sin · axis) per axis, all half angles in one call,
     composed in order with `_kernels.multiply` on (m, 4) rows."""
-    if angles.shape[1] == 1 and angles.dtype == np.float64 and _trig.SIMD_TAN:
+    if angles.shape[1] == 1 and angles.dtype == np.float64:
         # one float64 rotation: each half angle's `cos_sin` on its float (the same formula)
         cs = [_cos_sin(a * (2 * scale)) for a in angles[:, 0].tolist()]
         turns = np.array([[[c, s * x, s * y, s * z]] for (c, s), (x, y, z) in zip(cs, axes)])

@@ -570,10 +570,6 @@ def _renorm_floats(Q, e):
     return Q
 
 
-def _tan_float(x, out=None, rows=None):
-    return float(np.tan(x))   # `tan` is NumPy's where the float path runs (SIMD_TAN)
-
-
 def _rotation_rows(G, s, O, check=True):
     """O (4, m, b) = q exp(r(s)/2) from gathered table rows G (25, m, b) and s (m, 1).
 
@@ -626,13 +622,13 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
     found = index.find_sorted(t) if M > _blocks.BLOCK else None
     if order == 0 and cmax is None:
         cmax = coefficient_size(tab)
-    if order == 0 and M * B == 1 and dtype == np.float64 and _trig.SIMD_TAN:
-        # one query of one track: the same formula on Python floats (the tangent is NumPy's)
+    if order == 0 and M * B == 1 and dtype == np.float64:
+        # one query of one track: the same formula on Python floats
         i = min(max(int(index.find(t)[0]), 0), K1 - 1)
         t0 = float(times[i])
         s = (float(t[0]) - t0) / (float(times[i + 1]) - t0)
         check = _needs_check(cmax, abs(s))
-        out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _tan_float,
+        out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _trig.tan_float,
                               _TINY[dtype], check, _renorm_floats, _ops.NONE)
         return out.reshape(t.shape + tuple(batch) + (width,))
 

@@ -62,8 +62,8 @@ def cos_sin(angle, c=None, s=None, rows=None):
     >>> [round(float(x), 12) for x in cos_sin(np.array(np.pi / 4))]
     [0.707106781187, 0.707106781187]
     """
-    if type(angle) is float and _trig.SIMD_TAN:   # one rotation's float64 angle: the same formula
-        return _cos_sin_tan(angle, _ops.FLOATS, _tan_float, None, None, _ops.NONE)
+    if type(angle) is float:   # one rotation's float64 angle: the same formula
+        return _cos_sin_tan(angle, _ops.FLOATS, _trig.tan_float, None, None, _ops.NONE)
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)
@@ -71,11 +71,6 @@ def cos_sin(angle, c=None, s=None, rows=None):
         c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
         rows = (np.empty_like(c), np.empty_like(c))
     return _cos_sin_tan(angle, _ops.ARRAYS, _trig.tan, c, s, rows)
-
-
-def _tan_float(x, out=None, rows=None):
-    """`_trig.tan` on a Python float, where that is NumPy's (SIMD) loop; the caller checks."""
-    return float(np.tan(x))
 
 
 def _cos_sin_tan(angle, op, tan, c, s, rows):

@@ -17,7 +17,7 @@ import numpy as np
 
 ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
                          where=np.where, max=lambda a, b, out: np.maximum(a, b, out=out),
-                         abs=np.absolute, copysign=np.copysign,
+                         abs=np.absolute, copysign=np.copysign, rint=np.rint,
                          copy=lambda a, out: np.copyto(out, a) or out)
 """Each operation writes into its last argument (a row of the block) and returns it;
 ``where(c, a, b)`` picks by a condition."""
@@ -26,7 +26,8 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
                          mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
                          sqrt=lambda a, out: math.sqrt(a), where=lambda c, a, b: a if c else b,
                          max=lambda a, b, out: max(a, b), abs=lambda a, out: abs(a),
-                         copysign=lambda a, b, out: math.copysign(a, b), copy=lambda a, out: a)
+                         copysign=lambda a, b, out: math.copysign(a, b), copy=lambda a, out: a,
+                         rint=lambda a, out: float(round(a)))   # round: half to even, as np.rint
 """The same operations on Python floats; the row argument is ignored."""
 
 STACKS = SimpleNamespace(

@@ -26,7 +26,9 @@ import math
 
 import numpy as np
 
-__all__ = ["SIMD_TAN", "QUARTER_PI", "TAN_QUARTER_PI", "REDUCE_LIMIT", "tan", "rational", "reduced",
+from . import _ops
+
+__all__ = ["SIMD_TAN", "QUARTER_PI", "TAN_QUARTER_PI", "REDUCE_LIMIT", "tan", "tan_float", "rational", "reduced",
            "atan_unit32"]
 
 # Cephes, tan.c: P with the highest degree first; Q monic (leading 1 implied)
@@ -70,8 +72,10 @@ def _numpy_tan_is_simd():
 SIMD_TAN = _numpy_tan_is_simd()
 
 
-def rational(x, out, z, p, q):
-    """out = tan x for |x| <= π/4 (out may be x; z, p, q scratch rows overlapping neither).
+def rational(x, out, z, p, q, op=_ops.ARRAYS):
+    """out = tan x for |x| <= π/4 (out may be x; z, p, q scratch rows overlapping neither),
+    in `op`'s arithmetic (`_ops`: rows, or one Python float with the rows ignored; the
+    same operations in the same order, so the same bits).
 
     >>> import numpy as np
     >>> from quatarray._trig import rational
@@ -79,29 +83,29 @@ def rational(x, out, z, p, q):
     >>> bool(np.allclose(rational(x, np.empty(2), *np.empty((3, 2))), np.tan(x), rtol=2e-16, atol=0))
     True
     """
-    np.multiply(x, x, out=z)
-    np.multiply(z, _P0, out=p)
-    p += _P1
-    p *= z
-    p += _P2
-    np.add(z, _Q0, out=q)
-    q *= z
-    q += _Q1
-    q *= z
-    q += _Q2
-    q *= z
-    q += _Q3
-    p *= z
-    np.divide(p, q, out=p)
-    p *= x
-    return np.add(x, p, out=out)
+    z = op.mul(x, x, z)
+    p = op.mul(z, _P0, p)
+    p = op.add(p, _P1, p)
+    p = op.mul(p, z, p)
+    p = op.add(p, _P2, p)
+    q = op.add(z, _Q0, q)
+    q = op.mul(q, z, q)
+    q = op.add(q, _Q1, q)
+    q = op.mul(q, z, q)
+    q = op.add(q, _Q2, q)
+    q = op.mul(q, z, q)
+    q = op.add(q, _Q3, q)
+    p = op.mul(p, z, p)
+    p = op.div(p, q, p)
+    p = op.mul(p, x, p)
+    return op.add(x, p, out)
 
 
-def reduced(x, out, rows):
+def reduced(x, out, rows, op=_ops.ARRAYS):
     """out = tan x for |x| <= `REDUCE_LIMIT`: x = z + k π/2 with |z| <= π/4 (π/2 in three
     parts, as in Cephes), tan x = tan z for even k and -1 / tan z for odd k, blended as
     ``(t e - o) / (t o + e)`` (o = 1 - e = k mod 2) without a mask.  For k = 0 every
-    step is exact: the bits of `rational`.
+    step is exact: the bits of `rational`.  In `op`'s arithmetic, as `rational`.
 
     >>> import numpy as np
     >>> from quatarray._trig import reduced
@@ -110,28 +114,48 @@ def reduced(x, out, rows):
     True
     """
     k, y, z = rows
-    o, p = np.empty_like(x), np.empty_like(x)
-    np.multiply(x, _TWO_OVER_PI, out=k)
-    np.rint(k, out=k)
-    np.add(k, k, out=y)                          # multiples of π/4: y·DP1, y·DP2 are exact
-    np.multiply(y, _DP1, out=z)
-    np.subtract(x, z, out=z)
-    np.multiply(y, _DP2, out=p)
-    z -= p
-    np.multiply(y, _DP3, out=p)
-    z -= p
-    np.multiply(k, 0.5, out=y)                   # o = |k - 2 rint(k / 2)|: 1 for odd k
-    np.rint(y, out=y)
-    y += y
-    np.subtract(k, y, out=o)
-    np.abs(o, out=o)
-    t = rational(z, k, y, p, out)               # x is not read again: out may be x
-    np.subtract(1.0, o, out=p)                   # e
-    np.multiply(t, o, out=y)
-    y += p                                       # t o + e
-    np.multiply(t, p, out=z)
-    z -= o                                       # t e - o
-    return np.divide(z, y, out=out)
+    o, p = (np.empty_like(x), np.empty_like(x)) if op is _ops.ARRAYS else (None, None)
+    k = op.mul(x, _TWO_OVER_PI, k)
+    k = op.rint(k, k)
+    k = op.add(k, 0.0, k)                        # -0 -> +0: then x - 0 keeps x = -0 (the bits of `rational`)
+    y = op.add(k, k, y)                          # multiples of π/4: y·DP1, y·DP2 are exact
+    z = op.mul(y, _DP1, z)
+    z = op.sub(x, z, z)
+    p = op.mul(y, _DP2, p)
+    z = op.sub(z, p, z)
+    p = op.mul(y, _DP3, p)
+    z = op.sub(z, p, z)
+    y = op.mul(k, 0.5, y)                        # o = |k - 2 rint(k / 2)|: 1 for odd k
+    y = op.rint(y, y)
+    y = op.add(y, y, y)
+    o = op.sub(k, y, o)
+    o = op.abs(o, o)
+    t = rational(z, k, y, p, out, op)            # x is not read again: out may be x
+    p = op.sub(1.0, o, p)                        # e
+    y = op.mul(t, o, y)
+    y = op.add(y, p, y)                          # t o + e
+    z = op.mul(t, p, z)
+    z = op.sub(z, o, z)                          # t e - o
+    return op.div(z, y, out)
+
+
+def tan_float(x, out=None, rows=None):
+    """`tan` of one Python float with the bits of `tan` on an array holding it: NumPy's
+    loop where `tan` is `np.tan`, else `rational` or `reduced` on the float (`out`, `rows`:
+    ignored, for kernels written for either).
+
+    >>> import numpy as np
+    >>> from quatarray._trig import tan, tan_float
+    >>> all(tan_float(x) == tan(np.array([x]))[0] for x in (0.3, -0.7853981633974483, 2.0, 1e300))
+    True
+    """
+    if SIMD_TAN or not abs(x) <= REDUCE_LIMIT:   # NaN and huge: NumPy's loop, as `tan` does
+        return float(np.tan(x))
+    if -QUARTER_PI < x < QUARTER_PI:
+        return rational(x, None, None, None, None, _ops.FLOATS)
+    if abs(x) == QUARTER_PI:
+        return math.copysign(TAN_QUARTER_PI, x)
+    return reduced(x, None, _ops.NONE[:3], _ops.FLOATS)
 
 
 def tan(x, out=None, rows=None):

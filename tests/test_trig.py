@@ -46,6 +46,27 @@ def test_signed_zeros_and_tiny_arguments_are_kept(rational_path):
     np.testing.assert_array_equal(np.signbit(got), np.signbit(x))
 
 
+def test_signed_zero_beside_reduced_arguments(rational_path):
+    """-0 in a block that takes the reduction keeps its sign, as on its own."""
+    x = np.array([-0.0, 0.0, 2.0, -5.0])
+    got = _trig.tan(x)
+    np.testing.assert_array_equal(np.signbit(got[:2]), [True, False])
+
+
+@pytest.mark.parametrize("simd", [False, True], ids=["rational", "numpy"])
+def test_one_float_has_the_bits_of_the_array_path(monkeypatch, rng, simd):
+    """`tan_float` (one rotation's float paths) is `tan` on an array holding the float,
+    bit for bit, signed zeros and NumPy's cases included."""
+    monkeypatch.setattr(_trig, "SIMD_TAN", simd)
+    x = np.concatenate([rng.uniform(-0.8, 0.8, 500), rng.uniform(-30, 30, 500), rng.uniform(-2e6, 2e6, 50),
+                        [0.0, -0.0, np.pi / 4, -np.pi / 4, 5e-324, -1e-310, 2.0 ** 20, 1e300, np.inf, np.nan]])
+    with np.errstate(invalid="ignore"):
+        whole = _trig.tan(x)
+        one = np.array([_trig.tan_float(float(v)) for v in x])
+    np.testing.assert_array_equal(one.view(np.int64)[:-2], whole.view(np.int64)[:-2])
+    assert np.isnan(one[-2:]).all() and np.isnan(whole[-2:]).all()
+
+
 def test_each_element_is_computed_alone(rational_path, rng):
     """A block holding huge, infinite or NaN arguments (np.tan's) or reduced ones gives every
     other element the bits it gets on its own."""
