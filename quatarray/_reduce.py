@@ -132,6 +132,17 @@ def _controls(Q, times, p, s, c, n, b, first, last):
     return qs, qc, a_s.astype(Q.dtype, copy=False), a_c.astype(Q.dtype, copy=False)
 
 
+def _back_controls(Q, p, ctl, rows, a_p, b):
+    """The keys and control points of the segments [p, s] (`_controls` with neighbours
+    p's predecessor and c) from those of the segments [s, c] `ctl` (their `rows`) and
+    the control points a_p at p: s's control point depends on p, s and c only; taken on
+    the side of p's key, its neighbours flip with it, which negates it exactly."""
+    qp, qs = _take(Q, p, b), ctl[0][rows]
+    a_s = ctl[2][rows]
+    a_s[_interp_kernels.vdot(qp, qs) < 0] *= -1
+    return qp, qs, a_p, a_s
+
+
 def _take(Q, k, b):
     """Samples k of tracks b (m, 1, 4) from track-major Q (B, T, 4), or of all tracks
     (m, B, 4) from Q (T, B, 4) when b is None."""
@@ -174,26 +185,30 @@ def _table_errors(method, G, u, X):
         return err[:, 0].copy() if b == 1 else err.max(axis=1)
 
 
-def segment_errors(method, times, Q, s, c, p=None, n=None, b=None, locate=True):
+def segment_errors(method, times, Q, s, c, p=None, n=None, b=None, locate=True, controls=None):
     """Largest angular error, shape (m,), of the segments [s, c] (m,) at the samples
     strictly inside them, of track b (m,) or of all tracks (b None: max over tracks),
     and the sample where it occurs (s where there is none, or everywhere if not
     `locate`: the search needs the errors only).  p, n (m,) are the keys before s
-    and after c (-1: not known) for 'squad'."""
+    and after c (-1: not known) for 'squad'; or `controls`, the keys and control
+    points (qs, qc, a_s, a_c) of `_controls` already at hand."""
     m = len(s)
     if m > SEGMENTS:   # in groups: each segment's error is its own, whatever the group
         def part(x, i):
             return None if x is None else x[i:i + SEGMENTS]
 
         parts = [segment_errors(method, times, Q, s[i:i + SEGMENTS], c[i:i + SEGMENTS], part(p, i), part(n, i),
-                                part(b, i), locate) for i in range(0, m, SEGMENTS)]
+                                part(b, i), locate, None if controls is None else [part(x, i) for x in controls])
+                 for i in range(0, m, SEGMENTS)]
         return np.concatenate([e for e, _ in parts]), np.concatenate([w for _, w in parts])
     inner = c - s - 1
     out = np.zeros(m)
     where = s.copy()
     if m == 0 or inner.sum() == 0:
         return out, where
-    if method == "squad":
+    if controls is not None:
+        qs, qc, a_s, a_c = controls
+    elif method == "squad":
         first, last = 0, len(times) - 1
         unknown = np.full(m, -1)
         qs, qc, a_s, a_c = _controls(Q, times, unknown if p is None else p, s, c, unknown if n is None else n,
@@ -264,6 +279,13 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
     order = 4 if method == "squad" else 2
     found = [a, e]
     active = s < e
+    if method == "squad":
+        # per lane, the control point at `prev` of the segment [prev, s] (fixed while the lane
+        # searches for s's successor: its back tests need no control points of their own), and
+        # that at s of the last passing candidate (the former once that candidate is committed)
+        a_prev = np.zeros((len(s), 1 if not shared else Q.shape[1], 4), Q.dtype)
+        a_lo = np.zeros_like(a_prev)
+        have_lo = np.zeros(len(s), bool)
     while True:
         # the lanes' state is updated with masks over all lanes (elementwise: most lanes
         # take part in every step, where fancy indexing per array costs several times more)
@@ -280,6 +302,15 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             bisect &= ~commit
             np.copyto(tests, 0, where=commit)
             active &= s < e
+            if method == "squad":
+                kept_a = np.flatnonzero(commit & have_lo)
+                a_prev[kept_a] = a_lo[kept_a]
+                # (a reach of one sample, committed untested: its control point computed here)
+                miss = np.flatnonzero(commit & ~have_lo & active & (prev >= 0))
+                if miss.size:
+                    a_prev[miss] = _controls(Q, times, pprev[miss], prev[miss], s[miss], np.full(miss.size, -1),
+                                             None if shared else lane_b[miss], 0, T - 1)[2]
+                have_lo &= ~commit
         if not active.any():
             break
         # next candidate end: the error of the last test predicts the length where it
@@ -307,11 +338,20 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
             # squad: the candidate also sets the previous segment's end control point, so
             # that segment is tested again with it (and its own previous key) where the
             # candidate's own segment passes (where it fails, the candidate does anyway)
-            err, _ = segment_errors(method, times, Q, s[test], c, prev[test], None, tb, False)
-            back = np.flatnonzero((prev[test] >= 0) & (err <= tol))
+            P, S = prev[test], s[test]
+            ctl = _controls(Q, times, P, S, c, np.full(c.size, -1), tb, 0, T - 1)
+            err, _ = segment_errors(method, times, Q, S, c, b=tb, locate=False, controls=ctl)
+            ok = err <= tol
+            a_lo[test[ok]] = ctl[2][ok]
+            have_lo[test[ok]] = True
+            back = np.flatnonzero((P >= 0) & ok)
             if back.size:
-                e_back, _ = segment_errors(method, times, Q, prev[test][back], s[test][back], pprev[test][back],
-                                           c[back], None if shared else tb[back], False)
+                # [prev, s]'s control points: the lane's a_prev, and the candidate's at s, on the
+                # side of prev's key as `_controls` puts it there (its neighbours flipped with
+                # it: the same control point negated, exactly)
+                tbb = None if shared else tb[back]
+                e_back, _ = segment_errors(method, times, Q, P[back], S[back], b=tbb, locate=False,
+                                           controls=_back_controls(Q, P[back], ctl, back, a_prev[test[back]], tbb))
                 err[back] = np.maximum(err[back], e_back)
         passed = np.zeros(len(s), bool)
         passed[test] = err <= tol

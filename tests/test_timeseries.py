@@ -270,6 +270,45 @@ def test_segment_errors_in_groups(method, rng, monkeypatch):
     np.testing.assert_array_equal(where, s)
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shared", [False, True])
+def test_back_controls_are_those_of_the_segment(dtype, shared, rng):
+    """squad's search tests [p, s] again with a candidate c's control point at s, taken from
+    the candidate's own controls and the lane's control point at p: bit for bit those
+    `_controls` computes for [p, s] with neighbours pp and c, also where keys lie in
+    opposite hemispheres (the control point negated) and at the track's first key."""
+    from quatarray import _reduce
+    B, T, m = 3, 400, 300
+    Q = _walk(rng, B, T, 0.4, dtype)
+    times = np.cumsum(rng.uniform(0.5, 1.5, T))
+    p = rng.integers(0, T - 60, m)
+    p[:20] = 0
+    s = p + rng.integers(1, 20, m)
+    c = s + rng.integers(1, 20, m)
+    pp = np.where(rng.random(m) < 0.3, -1, np.maximum(p - rng.integers(1, 20, m), 0))
+    pp[p == 0] = -1
+    b = None if shared else rng.integers(0, B, m)
+    if shared:
+        Q = np.ascontiguousarray(Q.transpose(1, 0, 2))
+    unknown = np.full(m, -1)
+    ctl = _reduce._controls(Q, times, p, s, c, unknown, b, 0, T - 1)
+    a_p = _reduce._controls(Q, times, pp, p, s, unknown, b, 0, T - 1)[2]
+    rows = np.arange(m)
+    got = _reduce._back_controls(Q, p, ctl, rows, a_p, b)
+    want = _reduce._controls(Q, times, pp, p, s, c, b, 0, T - 1)
+    assert (np.sum(got[0] * got[1], -1) < 0).sum() > 5   # keys in opposite hemispheres occur
+    for g, w in zip(got, want):
+        assert g.dtype == w.dtype
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(_reduce._hemisphere(got[0], got[1]), want[1])
+    np.testing.assert_array_equal(got[2], want[2])
+    np.testing.assert_array_equal(got[3], want[3])
+    # and the segments' errors through either
+    e_got = _reduce.segment_errors("squad", times, Q, p, s, b=b, locate=False, controls=got)[0]
+    e_want = _reduce.segment_errors("squad", times, Q, p, s, pp, c, b, locate=False)[0]
+    np.testing.assert_array_equal(e_got, e_want)
+
+
 @pytest.mark.parametrize("method", ["linear", "slerp"])
 @pytest.mark.parametrize("tol", [1e-3, 1e-2])
 def test_search_reaches_farthest(method, tol, rng):
