@@ -21,8 +21,8 @@ by `Track`'s own table rows and kernel (`_track.frame_rows`,
 formula.  For 'linear' and
 'slerp' a segment depends on its two keys only, so that test is exact.
 squad's control points also depend on the neighbouring keys: the test takes
-the previous key and guesses the next one (a segment of the same length), and
-the final check repairs what the guess got wrong.
+the previous key and guesses the next one (the sample after the candidate), and
+the final check (on the returned tracks) repairs what the guess got wrong.
 
 To run without a Python loop over samples, every track is cut into chunks of
 `CHUNK` samples, and all (track, chunk) lanes advance in lock step: one
@@ -368,7 +368,9 @@ def greedy(method, times, Q, tol, shared, chunk=CHUNK):
         flat = _unique(np.concatenate(first + found[2:]))
         kept = np.split(flat % T, np.searchsorted(flat, np.arange(1, B) * T))
     kept = [_merge(method, times, Q, k, tol, None if shared else j, bounds[1:-1]) for j, k in enumerate(kept)]
-    return _repair(method, times, Q, kept, tol, shared) if method == "squad" else kept
+    # (squad's segments, searched with guessed neighbours, are checked with their actual ones by
+    # `refine`, on the returned tracks: a check here first added the same keys, one more pass)
+    return kept
 
 
 def _merge(method, times, Q, kept, tol, b, forced):
@@ -395,32 +397,6 @@ def _merge(method, times, Q, kept, tol, b, forced):
         if not changed:
             break
     return kept
-
-
-def _repair(method, times, Q, kept, tol, shared):
-    """Segments checked with their actual neighbouring keys; the worst sample of each
-    one over `tol` becomes a key, until none is.  Only the segments next to new keys
-    (whose control points changed) are checked again, all tracks in one batch."""
-    T = len(times)
-    G = np.concatenate([j * T + k for j, k in enumerate(kept)])   # one sorted array for every track
-    dirty = np.arange(len(G) - 1)
-    while dirty.size:
-        j = dirty[G[dirty] // T == G[dirty + 1] // T]
-        track = G[j] // T
-        s, c = G[j] % T, G[j + 1] % T
-        before = np.maximum(j - 1, 0)
-        after = np.minimum(j + 2, len(G) - 1)
-        p = np.where((j > 0) & (G[before] // T == track), G[before] % T, -1)
-        n = np.where((j + 2 < len(G)) & (G[after] // T == track), G[after] % T, -1)
-        err, worst = segment_errors(method, times, Q, s, c, p, n, None if shared else track)
-        bad = err > tol
-        if not bad.any():
-            break
-        new = track[bad] * T + worst[bad]
-        G = _unique(np.concatenate([G, new]))
-        pos = np.searchsorted(G, new)
-        dirty = _unique(np.clip((pos[:, None] + np.arange(-2, 2)).ravel(), 0, len(G) - 2))
-    return [G[(G >= j * T) & (G < (j + 1) * T)] - j * T for j in range(len(kept))]
 
 
 def _chord_to_angle(c2):
