@@ -97,8 +97,9 @@ def _slerp_noflip(p, q, h):
 # control points
 # --------------------------------------------------------------------------
 
-def squad_controls(keys, times=None):
-    """Squad control points s_i, one per key: shape of `keys`, dtype of `keys`.
+def squad_controls(keys, times=None, ends=True):
+    """Squad control points s_i, one per key: shape of `keys`, dtype of `keys`
+    (``ends=False``: those of the inner keys 1..K-2 only, the same bits).
 
     s_i = q_i exp(-(w_in L₊ + w_out L₋) / 2) with L± = log(q_i⁻¹ q_{i±1}):
     Shoemake's q_i exp(-(L₊ + L₋)/4) for equal spacing.  With squad's
@@ -111,8 +112,11 @@ def squad_controls(keys, times=None):
     q = keys.astype(np.float64)
     K = q.shape[0]
     L = _log_vec(_qmul(_conj(q[:-1]), q[1:]))           # log(q_j⁻¹ q_{j+1}), j = 0..K-2
-    L = np.concatenate([L[:1], L, L[-1:]])               # reflected ends repeat the end rotations
     w_in, w_out = _interval_weights(times, K, q.ndim - 2)
+    if ends:
+        L = np.concatenate([L[:1], L, L[-1:]])           # reflected ends repeat the end rotations
+    else:
+        q, w_in, w_out = q[1:-1], w_in[1:-1], w_out[1:-1]
     # L₊ = L[i+1], L₋ = -L[i]
     x = (w_out * L[:-1] - w_in * L[1:]) / 2
     return _qmul(q, _exp_vec(x)).astype(keys.dtype, copy=False)

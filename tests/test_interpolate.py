@@ -579,6 +579,23 @@ def test_pairwise_bad_input(f, path):
 # control points and segment evaluation vs the reference implementation
 # ---------------------------------------------------------------------------
 
+@pytest.mark.parametrize("times_kind", [None, "shared", "per_track"])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_squad_controls_inner_only(rng, times_kind, dtype):
+    """squad_controls(..., ends=False) gives the inner keys' control points bit for bit as
+    the whole call does (the keyframe search asks for two of four)."""
+    from quatarray import _interp_curves
+    K, n = 6, 5
+    keys = rng.standard_normal((K, n, 3, 4))
+    keys = (keys / np.linalg.norm(keys, axis=-1, keepdims=True)).astype(dtype)
+    steps = rng.uniform(0.2, 2.0, (K, n))
+    times = {None: None, "shared": np.cumsum(steps[:, 0]), "per_track": np.cumsum(steps, axis=0)}[times_kind]
+    whole = _interp_curves.squad_controls(keys, times)
+    inner = _interp_curves.squad_controls(keys, times, ends=False)
+    assert inner.dtype == dtype
+    np.testing.assert_array_equal(inner, whole[1:-1])
+
+
 @pytest.mark.parametrize("unequal", [False, True], ids=["equal", "unequal"])
 def test_control_points_match_reference(rng, unequal):
     times, keys = random_track(rng, 7, (2,), unequal=unequal)
