@@ -125,7 +125,7 @@ def _controls(Q, times, p, s, c, n, b, first, last):
     tn = np.where(n == c, times[c] + (times[c] - times[s]), times[n])
     ts, tc = times[s], times[c]
     # one call for both: a key's control point depends on its two neighbours only
-    _, a_s, a_c, _ = _interp_curves.squad_controls(np.stack([qp, qs, qc, qn]), np.stack([tp, ts, tc, tn]))
+    a_s, a_c = _interp_curves.squad_controls(np.stack([qp, qs, qc, qn]), np.stack([tp, ts, tc, tn]), ends=False)
     # the track's ends: the control point is the key itself (squad_controls' reflection)
     a_s[s == first] = qs[s == first]
     a_c[c == last] = qc[c == last]
