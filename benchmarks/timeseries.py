@@ -2,7 +2,7 @@
 
 asv classes time them at sizes asv can repeat; run as a script for the issue's size::
 
-    python -m benchmarks.timeseries [T] [tracks]     # default 10^6 samples x 50 tracks
+    python -m benchmarks.timeseries [T] [tracks] [methods]   # default 10^6 x 50, linear,slerp,squad
 
 which prints, per method, the seconds `quatarray.reduce_keys` takes (wall and CPU), the keys kept, the
 largest error reached (the tolerance is 0.1 degrees) and, on Linux, the peak resident memory during the
@@ -95,10 +95,11 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     T = int(float(argv[0])) if argv else 1_000_000
     tracks = int(argv[1]) if len(argv) > 1 else 50
+    methods = argv[2].split(",") if len(argv) > 2 else ["linear", "slerp", "squad"]
     from quatarray import reduce_keys
     t, q = capture(T, tracks)
     print(f"reduce_keys, {T:,} samples x {tracks} tracks, tolerance 0.1 deg")
-    for method in ("linear", "slerp", "squad"):
+    for method in methods:
         # peak resident memory during the call (the input counts: it is resident throughout)
         peak = _reset_peak()
         start, cpu = time.perf_counter(), time.process_time()
