@@ -342,9 +342,12 @@ def _rows(full):
             rows.append(Row(op, RigidTransforms, RIGID_OPS[op], (n, "float64"), size=n, libs=(qa, sp)))
     if full:
         from .timeseries import ReduceKeys
-        for method in ("slerp", "squad"):   # 10⁶ x 50: python -m benchmarks.timeseries
+        for method in ("slerp", "squad"):
             rows.append(Row(f"reduce_keys {method}, 10000 x 10", ReduceKeys, "time_reduce",
                             (10_000, 10, method, "float64"), libs=(qa,), n=100_000))
+        for method in ("slerp", "squad"):   # the size: one call each (its warm-up is its sample)
+            rows.append(Row(f"reduce_keys {method}, 1e6 x 50", ReduceKeys, "time_reduce",
+                            (1_000_000, 50, method, "float64"), libs=(qa,), n=50_000_000, one_thread=False))
         for case in ("npz", "bvh"):
             rows.append(Row(f"resample {case}", Resample, "time_resample", (case,), libs=Resample.params[-1],
                             one_thread=True))
