@@ -58,6 +58,8 @@ def _same(got, want, name):
     assert got.dtype == want.dtype, name
     assert got.shape == want.shape, name
     np.testing.assert_array_equal(got, want, err_msg=name, strict=True)
+    if got.dtype.kind == "f":   # the bits: signed zeros too (NaN payloads aside)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want), err_msg=f"{name}: sign of zero")
 
 
 def _split(f):
