@@ -278,10 +278,11 @@ def _unit_rows(q, o):
     o[...] = np.add(p[:9], p[9:18], out=p[:9])
 
 
-def _matrix(w, x, y, z, s, op, o, t):
+def _matrix(w, x, y, z, s, o, t):
     """The nine entries of the rotation matrix of q, row-major, into ``o`` (nine rows) with
-    ``s = 2 / |q|²`` (a row) and `t` (three work rows), for any q; each entry is one `op`
-    call (`_ops.ARRAYS`) on intermediates written with operators."""
+    ``s = 2 / |q|²`` (a row) and `t` (three work rows), for any q; each entry is one ufunc
+    call into its row on intermediates written with operators."""
+    op = _ops.ARRAYS
     o = list(o[:9])
     xs, ys, zs = [op.mul(c, s, r) for c, r in zip((x, y, z), t[:3])]
     xx, yy, zz = x * xs, y * ys, z * zs
@@ -313,18 +314,16 @@ def _program(entries):
     order, number = [], {}
 
     def visit(v):
-        if id(v) not in number and v.op:
-            for u in v.args:
-                visit(u)
-            number[id(v)] = 4 + len(order)
-            order.append(v)
+        if id(v) in number:
+            return
+        if v.op is None:   # a component: its index
+            number[id(v)] = v.args[0]
+            return
+        for u in v.args:
+            visit(u)
+        number[id(v)] = 4 + len(order)
+        order.append(v)
 
-    leaves = {}
-    for e in entries:
-        for v in _walk([e]):
-            if v.op is None:
-                leaves[id(v)] = v.args[0]
-    number.update(leaves)
     for e in entries:
         visit(e)
     last = {}
@@ -348,17 +347,6 @@ def _traced_rows(program, q, o):
             values[i] = None
 
 
-def _walk(entries):
-    """Every distinct traced value behind `entries`, each once."""
-    seen, stack = {}, list(entries)
-    while stack:
-        v = stack.pop()
-        if id(v) not in seen:
-            seen[id(v)] = v
-            stack.extend(v.args if v.op else ())
-    return seen.values()
-
-
 _UFUNCS = {"+": np.add, "-": np.subtract, "*": np.multiply}
 _UNIT_PROGRAM = _program(_UNIT_ENTRIES)
 
@@ -369,7 +357,7 @@ def _k_as_matrix(q, o, unit=False):
         return
     with _blocks.scratch().frame() as work:
         s = np.divide(2.0, _scale.guarded_sqnorm(q, zero=True))
-        _matrix(*q, s, _ops.ARRAYS, o, work.rows(3, q.shape[1:], o.dtype))
+        _matrix(*q, s, o, work.rows(3, q.shape[1:], o.dtype))
 
 
 def as_matrix(q, unit=False):
