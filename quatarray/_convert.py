@@ -655,10 +655,11 @@ def from_matrix(matrix, assume_valid=False):
 # --- rotation vectors, angles, MRPs -----------------------------------------------------
 
 def _flip_mask(w, x, y, z):
-    """True where q is not canonical: w < 0, or w == 0 and the first non-zero of x, y, z < 0."""
+    """True where q is not canonical: w < 0, or w == 0 and the first non-zero of x, y, z < 0
+    (arrays, or the floats of one quaternion: a bool)."""
     flip = w < 0
     zero = w == 0
-    if zero.any():
+    if zero if isinstance(zero, bool) else zero.any():
         later = (x < 0) | ((x == 0) & ((y < 0) | ((y == 0) & (z < 0))))
         flip |= zero & later
     return flip
@@ -1291,5 +1292,7 @@ def canonical(q):
            [-0., -0.,  1., -1.]])
     """
     q = quat_array(q, "quat")
+    if q.ndim == 1:   # one quaternion: the same test on its floats, then one call
+        return -q if _flip_mask(*q.tolist()) else q.copy()
     flip = _flip_mask(q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     return np.where(flip[..., None], -q, q)

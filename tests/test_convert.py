@@ -383,6 +383,19 @@ def test_canonical_matches_scipy_including_zero_w():
                                   r.as_quat(canonical=True, scalar_first=True))
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_canonical_of_one_quaternion_is_the_batch_row(dtype):
+    """One quaternion takes a float path (the same `_flip_mask`); its bits, signed zeros
+    included, are the batch's row, for every sign pattern of w = ±0, x, y, z in {-1, ±0, 1}."""
+    vals = np.array([-1.0, -0.0, 0.0, 1.0], dtype)
+    q = np.stack(np.meshgrid(vals[1:3], vals, vals, vals, indexing="ij"), -1).reshape(-1, 4)
+    batch = C.canonical(q)
+    for i, row in enumerate(q):
+        one = C.canonical(row)
+        assert one.dtype == dtype and one.shape == (4,)
+        np.testing.assert_array_equal(one.view(np.uint8), batch[i].view(np.uint8))
+
+
 # --- layouts, chunking, empties, dtype rules ---------------------------------------------------------
 
 FUNCS = {
