@@ -76,17 +76,21 @@ def cos_sin(angle, c=None, s=None, rows=None):
 def _cos_sin_tan(angle, op, tan, c, s, rows):
     """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`."""
     u, v = rows[:2]
-    s = op.mul(angle, 0.5, s)
+    half, one, two = _COS_SIN[op is _ops.FLOATS]
+    s = op.mul(angle, half, s)
     t = tan(s, out=s, rows=(c, u, v))
     c = op.mul(t, t, c)
-    c = op.add(c, 1.0, c)
-    d = op.div(2.0, c, c)                   # 2 / (1 + t²)
-    u = op.sub(1.0, t, u)
-    v = op.add(t, 1.0, v)
+    c = op.add(c, one, c)
+    d = op.div(two, c, c)                   # 2 / (1 + t²)
+    u = op.sub(one, t, u)
+    v = op.add(t, one, v)
     u = op.mul(u, v, u)
     u = op.mul(u, d, u)
     s = op.mul(t, d, t)                     # sin a = t · 2 / (1 + t²)
-    return op.mul(u, 0.5, c), s             # cos a (halving is exact)
+    return op.mul(u, half, c), s            # cos a (halving is exact)
+
+
+_COS_SIN = _ops.operands(0.5, 1.0, 2.0)
 
 
 def half_angle(angle, scale):

@@ -131,6 +131,18 @@ def const(value, dtype):
 _CONSTS = {}
 
 
+def operands(*values):
+    """The float64 constants `values` as operands of `ARRAYS` (0-d arrays, `const`) and of
+    `FLOATS` (the floats themselves), indexed by ``op is FLOATS``: a formula written for
+    both picks its constants with its namespace.
+
+    >>> from quatarray._ops import FLOATS, operands
+    >>> operands(0.5)[FLOATS is FLOATS]
+    (0.5,)
+    """
+    return tuple(const(v, np.float64) for v in values), values
+
+
 def floats64(q, k=4):
     """The `k` components of one float64 quaternion (or vector), shape (k,) or (1, k), as
     Python floats (so that a formula runs on `FLOATS`), or None for any other input (the

@@ -54,6 +54,9 @@ _TWO_OVER_PI = 2 / math.pi
 # with the even multipliers used here are exact
 _DP1, _DP2, _DP3 = 7.853981554508209228515625e-1, 7.94662735614792836714e-9, 3.06161699786838294307e-17
 
+_RATIONAL = _ops.operands(_P0, _P1, _P2, _Q0, _Q1, _Q2, _Q3)
+_REDUCTION = _ops.operands(_TWO_OVER_PI, _DP1, _DP2, _DP3, 0.0, 0.5, 1.0)
+
 
 def _numpy_tan_is_simd():
     """True when NumPy runs its float64 tangent as a SIMD loop (AVX-512 builds with SVML).
@@ -83,18 +86,19 @@ def rational(x, out, z, p, q, op=_ops.ARRAYS):
     >>> bool(np.allclose(rational(x, np.empty(2), *np.empty((3, 2))), np.tan(x), rtol=2e-16, atol=0))
     True
     """
+    p0, p1, p2, q0, q1, q2, q3 = _RATIONAL[op is _ops.FLOATS]
     z = op.mul(x, x, z)
-    p = op.mul(z, _P0, p)
-    p = op.add(p, _P1, p)
+    p = op.mul(z, p0, p)
+    p = op.add(p, p1, p)
     p = op.mul(p, z, p)
-    p = op.add(p, _P2, p)
-    q = op.add(z, _Q0, q)
+    p = op.add(p, p2, p)
+    q = op.add(z, q0, q)
     q = op.mul(q, z, q)
-    q = op.add(q, _Q1, q)
+    q = op.add(q, q1, q)
     q = op.mul(q, z, q)
-    q = op.add(q, _Q2, q)
+    q = op.add(q, q2, q)
     q = op.mul(q, z, q)
-    q = op.add(q, _Q3, q)
+    q = op.add(q, q3, q)
     p = op.mul(p, z, p)
     p = op.div(p, q, p)
     p = op.mul(p, x, p)
@@ -115,23 +119,24 @@ def reduced(x, out, rows, op=_ops.ARRAYS):
     """
     k, y, z = rows
     o, p = (np.empty_like(x), np.empty_like(x)) if op is _ops.ARRAYS else (None, None)
-    k = op.mul(x, _TWO_OVER_PI, k)
+    two_over_pi, dp1, dp2, dp3, zero, half, one = _REDUCTION[op is _ops.FLOATS]
+    k = op.mul(x, two_over_pi, k)
     k = op.rint(k, k)
-    k = op.add(k, 0.0, k)                        # -0 -> +0: then x - 0 keeps x = -0 (the bits of `rational`)
+    k = op.add(k, zero, k)                       # -0 -> +0: then x - 0 keeps x = -0 (the bits of `rational`)
     y = op.add(k, k, y)                          # multiples of π/4: y·DP1, y·DP2 are exact
-    z = op.mul(y, _DP1, z)
+    z = op.mul(y, dp1, z)
     z = op.sub(x, z, z)
-    p = op.mul(y, _DP2, p)
+    p = op.mul(y, dp2, p)
     z = op.sub(z, p, z)
-    p = op.mul(y, _DP3, p)
+    p = op.mul(y, dp3, p)
     z = op.sub(z, p, z)
-    y = op.mul(k, 0.5, y)                        # o = |k - 2 rint(k / 2)|: 1 for odd k
+    y = op.mul(k, half, y)                       # o = |k - 2 rint(k / 2)|: 1 for odd k
     y = op.rint(y, y)
     y = op.add(y, y, y)
     o = op.sub(k, y, o)
     o = op.abs(o, o)
     t = rational(z, k, y, p, out, op)            # x is not read again: out may be x
-    p = op.sub(1.0, o, p)                        # e
+    p = op.sub(one, o, p)                        # e
     y = op.mul(t, o, y)
     y = op.add(y, p, y)                          # t o + e
     z = op.mul(t, p, z)
