@@ -1119,13 +1119,14 @@ def _k_as_mrp(q, o):
         np.multiply(z, k, out=o[2])
 
 
-def _mrp_denominator(w, op, s, d):
+def _mrp_denominator(w, op, s, d, zero=0.0, one=1.0):
     """``|q| + |w|`` for a unit q, signed as w (w = -0 counts as positive, as in scipy), in
     `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it (scipy's
     ``v / copysign(1 + |w|, w)``).  ``s ± 1`` (s = w + 0: w with -0 made +0) is exactly
-    ``±(1 + |w|)`` (rounding is symmetric), one call fewer."""
-    s = op.add(w, 0.0, s)            # -0 -> +0: only w < 0 flips the sign (and a contiguous row)
-    d = op.copysign(1.0, s, d)
+    ``±(1 + |w|)`` (rounding is symmetric), one call fewer.  `zero`, `one`: 0 and 1 (as
+    `_ops.const` arrays on rows)."""
+    s = op.add(w, zero, s)            # -0 -> +0: only w < 0 flips the sign (and a contiguous row)
+    d = op.copysign(one, s, d)
     return op.add(s, d, d)
 
 
@@ -1135,13 +1136,17 @@ def _unit_mrp(q):
     w = _ops.first64(q)
     if w is not None:   # one float64 rotation: the denominator on its float, v over it in one call
         return np.divide(q[..., 1:], _mrp_denominator(w, _ops.FLOATS, None, None))
-    if q.ndim == 2 and len(q) <= _MRP_NEW_ROWS:   # a few rows as stored: into a new array
-        return _k_unit_mrp(q, None, _ops.NONE)
+    if q.ndim == 2:
+        n = len(q)
+        if n <= _MRP_NEW_ROWS:   # a few rows as stored: into a new array
+            return _k_unit_mrp(q, None, _ops.NONE)
+        if n <= _blocks.BLOCK:
+            # up to a block, the rows as stored and work rows made by the ufuncs: the block
+            # engine's setup (split, pool check, scratch) costs more than it saves there,
+            # and its threads start at several blocks only
+            return _k_unit_mrp(q, np.empty((n, 3), q.dtype), _ops.NONE)
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
-    if q.ndim == 2 and len(q) <= _blocks.FEW:   # a few rows as stored: work rows made by the ufuncs
-        _k_unit_mrp(q, out, _ops.NONE)
-    else:
-        _rowwise(_k_unit_mrp, _rows(q, 4), _rows(out, 3), 2)
+    _rowwise(_k_unit_mrp, _rows(q, 4), _rows(out, 3), 2)
     return out
 
 
@@ -1150,10 +1155,15 @@ _MRP_NEW_ROWS = 32
 of three (about 9 ns a row) cost less than allocating the output first (0.2-0.3 µs)."""
 
 
+_ZERO_ONE = {}   # dtype -> `_ops.const` 0 and 1: one lookup by dtype, a third of two `const` calls
+
+
 def _k_unit_mrp(q, o, rows):
     """`_unit_mrp` of the rows `q` (n, 4) into `o` (n, 3) (None: into a new array, returned)
     with two work rows (2, n), or `_ops.NONE` (new ones)."""
-    d = _mrp_denominator(q[:, 0], _ops.ARRAYS, rows[0], rows[1])
+    zero, one = _ZERO_ONE.get(q.dtype) or _ZERO_ONE.setdefault(q.dtype, (_ops.const(0.0, q.dtype),
+                                                                         _ops.const(1.0, q.dtype)))
+    d = _mrp_denominator(q[:, 0], _ops.ARRAYS, rows[0], rows[1], zero, one)
     if o is None:
         return np.divide(q[:, 1:], d[:, None])
     # x, y, z in one call, iterated in C order over the component-major views: each
