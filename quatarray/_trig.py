@@ -19,7 +19,9 @@ On CPUs where NumPy's tangent is a SIMD loop, `tan` is `np.tan`.
 
 `atan_unit32` is float32's arctangent on [0, 1] (SLERP's half angles): NumPy's
 float32 ``arctan`` and ``arcsin`` are scalar loops on AVX2 too (8-14 ns per
-element), Cephes' polynomial after one reduction by π/4 costs 2.4 ns.
+element), Cephes' polynomial after one reduction by π/4 costs 2.4 ns.  Where
+NumPy's tangent is a SIMD loop, so is its float32 arctangent (the same SVML
+build), and `atan_unit32` is `np.arctan`.
 """
 
 import math
@@ -230,6 +232,8 @@ def atan_unit32(x, out, b, u, z):
     >>> bool(np.allclose(got, np.arctan(x), rtol=3e-7, atol=0))
     True
     """
+    if SIMD_TAN:   # the AVX-512 builds' SVML loops: NumPy's float32 arctan is SIMD too (0.4 ns, not 1.9)
+        return np.arctan(x, out=out)
     np.greater(x, _TAN_EIGHTH_PI, out=b)         # s: 0 or 1
     np.subtract(x, b, out=u)
     np.multiply(b, x, out=z)

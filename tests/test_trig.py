@@ -129,7 +129,9 @@ def test_the_quarter_angle_of_a_half_turn_is_correctly_rounded(rational_path, rn
     assert _trig.tan(one[0])[0] == _trig.TAN_QUARTER_PI == -_trig.tan(one[1])[()]
 
 
-def test_float32_arctangent_on_the_unit_interval(rng):
+@pytest.mark.parametrize("simd", [False, True])
+def test_float32_arctangent_on_the_unit_interval(rng, monkeypatch, simd):
+    monkeypatch.setattr(_trig, "SIMD_TAN", simd)   # Cephes' polynomial, or NumPy's arctan (SVML on AVX-512)
     edges = np.array([0.0, 1e-38, 1e-30, 1e-8, 0.41421354, 0.41421357, 0.4142136, 0.99999994, 1.0], np.float32)
     x = np.concatenate([rng.uniform(0, 1, 5000).astype(np.float32), edges])
     got = _trig.atan_unit32(x, *np.empty((4,) + x.shape, np.float32))
