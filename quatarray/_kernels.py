@@ -724,7 +724,7 @@ def power(q, t):
     return res
 
 
-def rotate(q, v, inverse=False, unit=False):
+def rotate(q, v, inverse=False, unit=False, add=None):
     """Rotate vectors `v` (..., 3) by q/|q|: the vector part of q v q⁻¹.
 
     Uses the expanded form u' = u + w t + vec × t with t = 2 vec × u / |q|²,
@@ -734,7 +734,9 @@ def rotate(q, v, inverse=False, unit=False):
     `inverse`, rotate by conj(q).  Zero quaternions give nan.  `unit`: the caller knows
     that q holds finite unit quaternions (`Rotation.apply`): |q|² is not range-checked,
     and where the vectors are finite and far from the float maximum no floating-point
-    warning can arise and none is silenced (the same bits).
+    warning can arise and none is silenced (the same bits).  `add`: an array of the
+    result's shape and dtype added to the rotated vectors (a rigid motion's translation),
+    block by block while each is in cache; the same bits as adding it afterwards.
 
     >>> import numpy as np
     >>> from quatarray._kernels import rotate
@@ -745,9 +747,14 @@ def rotate(q, v, inverse=False, unit=False):
     True
     """
     batch = q.shape[:-1] if q.shape[:-1] == v.shape[:-1] else np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+    if add is not None:
+        dtype = result_dtype(q, v)
+        if add.shape != batch + (3,) or add.dtype != dtype:
+            raise ValueError(f"expected add of shape {batch + (3,)} and dtype {dtype}, got {add.shape} {add.dtype}")
     one = _rotate_floats(q, v, inverse) if len(batch) <= 1 and v.size == 3 else None
     if one is not None:
-        return np.array(one).reshape(batch + (3,))
+        res = np.array(one).reshape(batch + (3,))
+        return res if add is None else np.add(res, add, out=res)
     dtype = q.dtype if q.dtype == v.dtype and q.dtype in _COMPLEX else result_dtype(q, v)
     res = np.empty(batch + (3,), dtype)
     wsign = -1.0 if inverse else 1.0
@@ -760,9 +767,11 @@ def rotate(q, v, inverse=False, unit=False):
             for a, dst in ((soa(q), rows[:4]), (soa(v), rows[6:9])):   # batches right-aligned
                 dst[...] = a.reshape(a.shape[:1] + (1,) * (rows.ndim - a.ndim) + a.shape[1:])
         _rotate_few(rows, soa(res.reshape(rows.shape[1:] + (3,))), wsign, unit)
-        return res
+        return res if add is None else np.add(res, add, out=res)
+    # `add` rides along as a second output the kernel only reads: its blocks are the result's
+    outs = [res] if add is None else [res, add]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        _blocks.blockwise(rotate_block, [q, v], [res], batch, dtype=dtype, wsign=wsign)
+        _blocks.blockwise(rotate_block, [q, v], outs, batch, dtype=dtype, wsign=wsign, unit=unit)
     return res
 
 
@@ -800,11 +809,16 @@ def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
     return op.add(r, op.sub(op.mul(v1, t2, m), op.mul(v2, t1, m2), m), o)         # + vec × t
 
 
-def rotate_block(q, u, o, wsign):
+def rotate_block(q, u, o, add=None, *, wsign, unit=False):
     """`rotate`'s block kernel: components-first scratch copies q (4, *s) and u (3, *s), which
-    it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q).  Evaluated one component
-    row at a time (`_ops.ARRAY_ROWS`: a row's shifts are views, nothing is copied)."""
-    w, s, e = _rotate_setup(q, u, wsign)
+    it overwrites, into o (3, *s); `wsign` -1 rotates by conj(q); `unit` as `rotate`'s (the
+    checks `_rotate_few` skips); `add` (3, *s), components-first view like o, is added to
+    the result.  Evaluated one component row at a time (`_ops.ARRAY_ROWS`: a row's shifts
+    are views, nothing is copied)."""
+    if unit and _scale.inside(u, _HALF_BIG[u.dtype]):   # as `_rotate_few`: nothing to rescale
+        w, s, e = _rotate_setup(q, u, wsign, unit, checked=True)
+    else:
+        w, s, e = _rotate_setup(q, u, wsign, unit)
     x, y, z = q[1:]
     ux, uy, uz = u
     with _blocks.scratch().frame() as work:
@@ -812,6 +826,8 @@ def rotate_block(q, u, o, wsign):
         _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux], [uz, ux, uy], s, _ops.ARRAY_ROWS,
                  list(o), t[:3], t[3:6], t[6:9])
     _scale.unscale(o, e)
+    if add is not None:   # the (s, 3) blocks themselves: one contiguous add, not three strided
+        np.add(o.T, add.T, out=o.T)
 
 
 def _rotate_few(rows, o, wsign, unit=False):
@@ -844,7 +860,8 @@ def _rotate_setup(q, u, wsign, unit=False, checked=False, work=None):
     the caller has found every vector below half `_scale.BIG_VECTOR`, so none is rescaled
     either; `work`: four free rows for the squares (`_scale.sum_squares`)."""
     if unit:
-        n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype), rows=work)
+        n2 = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype) if q[0].size <= _blocks.FEW
+                                else _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0], rows=work)
     else:
         n2 = _scale.guarded_sqnorm(q)
     w = q[0]

@@ -401,6 +401,35 @@ def test_rotate_unit_skips_only_checks_whose_outcome_is_known(dtype):
         np.testing.assert_array_equal(K.rotate(q, v, inverse, unit=True), K.rotate(q, v, inverse), strict=True)
 
 
+def test_rotate_unit_blocks_skip_only_checks_whose_outcome_is_known(dtype, monkeypatch):
+    """The block path's `unit` too: blocks of ordinary vectors skip the checks, a block holding a
+    vector near the bound takes them; the same bits as the checked path either way."""
+    from quatarray import _scale
+    monkeypatch.setattr(_blocks, "BLOCK", 700)   # several blocks, the float32 ones too
+    rng = np.random.default_rng(12)
+    n = 3 * _blocks.FEW
+    q = random_quats(rng, (n,), dtype)
+    v = rng.standard_normal((n, 3)).astype(dtype)
+    v[-5:] *= dtype(_scale.BIG_VECTOR[np.dtype(dtype)])   # only the last block is near the bound
+    for inverse in (False, True):
+        np.testing.assert_array_equal(K.rotate(q, v, inverse, unit=True), K.rotate(q, v, inverse), strict=True)
+
+
+@pytest.mark.parametrize("n", [1, 5, 3 * 1024 + 17])   # one pair, a few, blocks
+def test_rotate_add_is_the_sum_after_rotation(dtype, n, monkeypatch):
+    """`add` (a rigid motion's translation, added block by block) gives the bits of adding it after."""
+    monkeypatch.setattr(_blocks, "BLOCK", 1000)
+    rng = np.random.default_rng(13)
+    q = random_quats(rng, (n,), dtype)
+    v, t = rng.standard_normal((2, n, 3)).astype(dtype)
+    for unit in (False, True):
+        want = K.rotate(q, v, unit=unit) + t
+        np.testing.assert_array_equal(K.rotate(q, v, unit=unit, add=t), want, strict=True)
+        assert np.array_equal(np.signbit(K.rotate(q, v, unit=unit, add=t)), np.signbit(want))
+    with pytest.raises(ValueError, match="expected add of shape"):
+        K.rotate(q, v, add=t[:, :2])
+
+
 def test_rotate_mixed_dtypes_promote(rng):
     q = unit(rng, (4,), np.float32)
     v = rng.standard_normal((4, 3))
