@@ -99,7 +99,10 @@ def all_finite(a):
 
     A few elements (up to 96): a sum of Python floats; small arrays: `np.isfinite`;
     large ones: one sum (a finite sum means finite elements; a sum that is
-    not finite is then checked element by element).
+    not finite is then checked element by element).  A long float32 array is
+    summed as rows of `_SUM_ROW` added to each other (NumPy's SIMD add; its
+    float32 ``add.reduce`` over the whole array costs about as much per
+    element as float64's, twice as much per byte).
 
     >>> import numpy as np
     >>> from quatarray._validate import all_finite
@@ -114,8 +117,17 @@ def all_finite(a):
     if size <= 4096:
         return bool(np.isfinite(a).all())
     with np.errstate(over="ignore", invalid="ignore"):
-        total = np.add.reduce(a, axis=None)
+        if a.dtype == np.float32 and a.flags.c_contiguous:
+            flat = a.reshape(-1)
+            whole = size - size % _SUM_ROW
+            total = np.add.reduce(flat[:whole].reshape(-1, _SUM_ROW), axis=0).sum() + flat[whole:].sum()
+        else:
+            total = np.add.reduce(a, axis=None)
     return bool(np.isfinite(total)) or bool(np.isfinite(a).all())
+
+
+#: Row length of `all_finite`'s float32 sum (a row's partial sums stay in L1).
+_SUM_ROW = 1024
 
 
 def finite(a, name):

@@ -267,3 +267,22 @@ def test_docstring_examples_import_what_they_use(module):
         test.globs = {}
         Runner(optionflags=doctest.ELLIPSIS).run(test, out=lambda s: None)
     assert not missing, missing
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("size", [5, 96, 97, 4096, 4097, 3 * 1024 + 5, 70_000])
+def test_all_finite_finds_one_bad_element_anywhere(dtype, size):
+    """`_validate.all_finite` at each of its sizes (Python sum, isfinite, the sums of long
+    arrays, float32's row sums with their tail): one nan or ±inf anywhere, a sum that
+    overflows from finite elements, and a strided array."""
+    from quatarray._validate import all_finite
+    a = np.random.default_rng(size).standard_normal(size).astype(dtype)
+    assert all_finite(a) and all_finite(a[::2])
+    big = a.copy()
+    big[:] = np.finfo(dtype).max   # the sum overflows; every element is finite
+    assert all_finite(big)
+    for bad in (np.nan, np.inf, -np.inf):
+        for at in (0, size // 2, size - 1):
+            b = a.copy()
+            b[at] = bad
+            assert not all_finite(b), (bad, at)
