@@ -267,9 +267,13 @@ def multiply(p, q, out=None, check=False):
         Scalar-first quaternions (float32 or float64).
     out : ndarray, shape (broadcast batch, 4), optional
     check : bool, default False
-        Also return whether every element of the product is finite, judged
-        block by block while the block is in cache (no second pass over the
-        result).
+        Also return False when p or q holds a nan or ±inf, judged on the
+        product's w components block by block while the block is in cache (no
+        second pass over the result): each component of p and q enters
+        ``w = pw qw - px qx - py qy - pz qz`` through one product, so a nan or
+        ±inf anywhere makes w nan or infinite.  (A finite input may still
+        overflow in some component; callers then check the inputs, as for any
+        False.)
 
     Examples
     --------
@@ -321,16 +325,16 @@ def _checked(res, check):
 
 def _mul_flat(p, q, o, check=True):
     """Blocked product of C-contiguous (N, 4) arrays of one shape (complex views made once).
-    Returns whether every element of the product is finite (with `check`; else True)."""
+    Returns whether every w of the product is finite (with `check`, see `multiply`; else True)."""
     ct = _COMPLEX[o.dtype]
     P, Q, O = p.view(ct), q.view(ct), o.view(ct)
     if len(o) <= _STACK_MAX:   # a few: no splitting, no pool, no scratch
         _hamilton_stacked(P, Q, O)
-        return not check or all_finite(o)
+        return not check or all_finite(o[:, 0])
 
     def block(idx):
         _mul_views(P[idx], Q[idx], O[idx])
-        return not check or all_finite(o[idx])   # the block is still in cache
+        return not check or all_finite(o[idx][:, 0])   # the block is still in cache; its w's (see `multiply`)
 
     return all(_blocks.run(block, _blocks.split((len(o),), _blocks.block_size(o.dtype)), len(o)))
 

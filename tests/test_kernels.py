@@ -430,6 +430,24 @@ def test_rotate_add_is_the_sum_after_rotation(dtype, n, monkeypatch):
         K.rotate(q, v, add=t[:, :2])
 
 
+@pytest.mark.parametrize("n", [1, 7, 1500])   # the stacked path and blocks
+def test_multiply_check_finds_a_bad_component_anywhere(dtype, n, monkeypatch):
+    """`multiply(check=True)` judges the product's w only: a nan or ±inf in any component of
+    either operand reaches it, also against zeros (inf · 0 is nan), and finite input passes."""
+    monkeypatch.setattr(_blocks, "BLOCK", 512)
+    rng = np.random.default_rng(14)
+    p, q = random_quats(rng, (2, n), dtype)
+    assert K.multiply(p, q, check=True)[1]
+    for bad in (np.nan, np.inf, -np.inf):
+        for k in range(8):
+            a, b = p.copy(), q.copy()
+            if n > 1:
+                a[n // 2] = b[n // 2] = 0   # the other operand's factor is 0 there
+            (a if k < 4 else b)[n // 2, k % 4] = bad
+            with np.errstate(invalid="ignore"):
+                assert not K.multiply(a, b, check=True)[1], (bad, k)
+
+
 def test_rotate_mixed_dtypes_promote(rng):
     q = unit(rng, (4,), np.float32)
     v = rng.standard_normal((4, 3))
