@@ -490,9 +490,10 @@ def _pairwise(kernel, quats, t, dtype, flagged=False, **params):
 def slerp(q0, q1, t, shortest=True, check=False):
     """Pairwise SLERP of raw arrays (see `quatarray.interpolate.slerp`).
 
-    With `check`, returns ``(result, all finite)``, judged block by block while
-    each block is in cache: non-finite input always gives non-finite output
-    (it reaches |B ∓ A|² or the angle), so callers check the inputs only then.
+    With `check`, returns ``(result, w all finite)``, judged block by block while
+    each block is in cache: non-finite input always gives a non-finite w
+    (it reaches |B ∓ A|² or the angle, so both weights), so callers check the
+    inputs only then.
     """
     dtype = result_dtype(q0, q1)
     if not check:
@@ -502,9 +503,10 @@ def slerp(q0, q1, t, shortest=True, check=False):
 
 
 def _slerp_checked(A, B, h, O, shortest):
-    """`slerp_core`, returning True when the block's output is not all finite."""
+    """`slerp_core`, returning True when the block's w row is not all finite: a nan or ±inf
+    in A, B or h reaches |B ∓ A|² or the angle, hence both weights and every component."""
     slerp_core(A, B, h, O, shortest)
-    return not all_finite(O)
+    return not all_finite(O[0])
 
 
 def lerp(q0, q1, t):

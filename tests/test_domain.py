@@ -286,3 +286,25 @@ def test_all_finite_finds_one_bad_element_anywhere(dtype, size):
             b = a.copy()
             b[at] = bad
             assert not all_finite(b), (bad, at)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shortest", [True, False])
+def test_slerp_names_a_bad_component_anywhere_in_a_long_batch(dtype, shortest, monkeypatch):
+    """slerp judges each block on its w row only: a nan or ±inf in any component of q0 or q1,
+    or in t, still reaches it (through |q1 ∓ q0|² or the angle) on the block path."""
+    from quatarray import _blocks
+    monkeypatch.setattr(_blocks, "BLOCK", 1000)
+    rng = np.random.default_rng(15)
+    n = 3000
+    q0, q1 = random_quats(rng, (2, n), dtype)
+    t = rng.uniform(0, 1, n).astype(dtype)
+    for bad in (np.nan, np.inf, -np.inf):
+        for name, k in [("q0", c) for c in range(4)] + [("q1", c) for c in range(4)] + [("t", None)]:
+            a, b, h = q0.copy(), q1.copy(), t.copy()
+            if name == "t":
+                h[2500] = bad
+            else:
+                (a if name == "q0" else b)[2500, k] = bad
+            with pytest.raises(ValueError, match=name):
+                slerp(a, b, h, shortest=shortest)
