@@ -806,10 +806,12 @@ def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
     three: `u` and its cyclic shifts ``u1 = (uy, uz, ux)``, ``u2 = (uz, ux, uy)``, and
     likewise ``v1``, ``v2`` of the vector part (so that a cross product is two products
     and a difference of rows); into `o` (three rows) with the work rows `t` (five: t and
-    its two shifts), `m` and `m2` (three each); returned."""
+    its two shifts), `m` and `m2` (three each); returned.  `u`'s rows are overwritten (its
+    last use holds u + w t: in a block they are contiguous scratch, where `o` is a strided
+    view of the output, written once)."""
     t0 = op.mul(op.sub(op.mul(v1, u2, t[:3]), op.mul(v2, u1, m), t[:3]), s, t[:3])   # s vec × u
     t1, t2 = op.shifts(t0, t)
-    r = op.add(op.mul(w, t0, o), u, o)                                            # u + w t
+    r = op.add(op.mul(w, t0, m), u, u)                                            # u + w t
     return op.add(r, op.sub(op.mul(v1, t2, m), op.mul(v2, t1, m2), m), o)         # + vec × t
 
 
