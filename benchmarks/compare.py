@@ -51,12 +51,15 @@ class Row:
     """One operation at one size: an asv class, a benchmark method, its params (without lib).
 
     `size` is the number of quaternions whose np.add is the reference (None:
-    no reference row); `libs` limits the libraries compared.
+    no reference row); `libs` limits the libraries compared; `twin` (a dtype)
+    also times quatarray on the same row's data in that dtype, interleaved with
+    the others (the float32 targets' float64 time: two rows timed minutes apart
+    on a shared machine compare two different loads).
     """
 
-    def __init__(self, op, cls, method, params, size=None, libs=LIBS, n=None, one_thread=None):
+    def __init__(self, op, cls, method, params, size=None, libs=LIBS, n=None, one_thread=None, twin=None):
         self.op, self.cls, self.method, self.params = op, cls, method, tuple(params)
-        self.size, self.libs, self._n = size, libs, n
+        self.size, self.libs, self._n, self.twin = size, libs, n, twin
         # one-thread timings where threads can matter (batches past the engine's threshold)
         self.one_thread = one_thread if one_thread is not None else (self.n or 0) >= 100_000
 
@@ -171,6 +174,11 @@ def measure(calls, repeat, min_time, warm=None, budget=3.0):
 ONE = "quatarray 1T"
 
 
+def _twin(dtype):
+    """The key of a row's quatarray time in its `twin` dtype."""
+    return f"quatarray {dtype}"
+
+
 def _one_thread(call):
     import quatarray
 
@@ -205,6 +213,11 @@ def run_rows(rows, repeat, min_time, log=None, budget=3.0):
             continue
         if row.one_thread:
             calls[ONE], warm[ONE] = _one_thread(calls["quatarray"]), warm["quatarray"]
+        if row.twin:
+            twin = Row(row.op, row.cls, row.method, [row.twin if p == row.dtype else p for p in row.params])
+            got = _callable(twin, "quatarray")
+            if got is not None:
+                calls[_twin(row.twin)], warm[_twin(row.twin)] = got
         if row.size:
             calls["np.add"] = _add_reference(row.size, row.dtype)
         best = measure(calls, repeat, min_time, warm, budget)
@@ -279,6 +292,8 @@ RIGID_OPS = {"rigid apply": "time_apply", "rigid compose": "time_compose", "rigi
 PEER_OPS = ("product", "conjugate", "normalize", "exp", "log", "power", "rotate",
             "as_matrix", "from_matrix", "as_rotvec", "from_rotvec", "slerp")
 MEMORY_BOUND = ("product", "conjugate", "inv", "normalize")
+#: Operations with a float32 target (float64 time / float32 time), timed interleaved in one row.
+FLOAT32_OPS = ("product", "slerp")
 #: Rotation methods timed on one rotation (shape ()) against scipy's (benchmarks.sweep, size 'single')
 SINGLE_METHODS = ("from_quat", "as_quat", "from_matrix", "as_matrix", "from_rotvec", "as_rotvec",
                   "from_mrp", "as_mrp", "from_euler", "as_euler", "from_davenport", "as_davenport",
@@ -307,7 +322,8 @@ def _rows(full):
                     use, one = [qa], False
                 else:
                     one = None
-                rows.append(Row(op, cls, method, (n, dt), size=n, libs=use, one_thread=one))
+                twin = "float64" if dt == "float32" and op in FLOAT32_OPS else None
+                rows.append(Row(op, cls, method, (n, dt), size=n, libs=use, one_thread=one, twin=twin))
 
     sizes = _common.SIZES if full else [BIG]
     f64 = ["float64"]
@@ -377,6 +393,8 @@ def _format_row(res):
             cells.append(f"{_fmt(t[lib]):>10} {t[lib] / qa:>7.2f}")
         else:
             cells.append(f"{'-':>10} {'':>7}")
+    for key in [k for k in t if k.startswith("quatarray float")]:   # a twin dtype's time (`Row`)
+        cells.append(f"  {key.split()[1]} {_fmt(t[key])} = {t[key] / qa:.2f}x")
     return " ".join(cells)
 
 
@@ -436,9 +454,12 @@ def targets(results, memory, imports):
     check("pairwise slerp: numpy-quaternion / quatarray >= 3", ratio("slerp", "numpy-quaternion"), lambda v: v >= 3)
     check("squad track 1e4 keys -> 1e6 queries: numpy-quaternion / quatarray >= 8",
           ratio("track squad, 10000 keys", "numpy-quaternion"), lambda v: v >= 8)
-    for op in ("product", "slerp"):
+    for op in FLOAT32_OPS:
         t32, t64 = _find(results, op, BIG, "float32"), _find(results, op, BIG, "float64")
-        v = t64["quatarray"] / t32["quatarray"] if t32 and t64 else None
+        if t32 and _twin("float64") in t32:   # timed interleaved in the float32 row
+            v = t32[_twin("float64")] / t32["quatarray"]
+        else:
+            v = t64["quatarray"] / t32["quatarray"] if t32 and t64 else None
         check(f"float32 {op}: float64 / float32 time >= 1.5", v, lambda v: v >= 1.5)
     for op, (peak, size) in memory.items():
         check(f"memory {op} N=1e6: (peak extra + scratch kept) / output <= 1.5", peak / size if size else None,

@@ -114,3 +114,20 @@ def test_size_sweep_reports_a_ratio_per_operation_and_size():
     for row in table.values():
         assert set(row) == {None, 3} and all(r is None or r > 0 for r in row.values())
     assert set(sweep.TRANSCENDENTAL + sweep.COPIES) <= set(sweep.OPS)
+
+
+def test_float32_targets_time_float64_in_the_same_row():
+    """The float32 rows of the float32 targets time quatarray in float64 too, interleaved in
+    the row, and the target is their ratio (not that of two rows timed apart)."""
+    from benchmarks import compare
+    from benchmarks.algebra import Algebra
+    rows = [r for r in compare._rows(False) if r.op in compare.FLOAT32_OPS and r.dtype == "float32"]
+    assert rows and all(r.twin == "float64" for r in rows)
+    row = compare.Row("product", Algebra, "time_product", (10, "float32"), libs=["quatarray"], twin="float64")
+    (res,) = compare.run_rows([row], repeat=1, min_time=1e-4)
+    assert res["times"]["quatarray float64"] > 0
+    times = {"quatarray": 2.0, "quatarray float64": 5.0, "np.add": 1.0}
+    results = [dict(op="product", n=compare.BIG, dtype="float32", times=times),
+               dict(op="product", n=compare.BIG, dtype="float64", times={"quatarray": 1.0})]
+    got = dict((d, v) for d, v, _ in compare.targets(results, {}, None))
+    assert got["float32 product: float64 / float32 time >= 1.5"] == "2.50x"
