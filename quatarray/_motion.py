@@ -22,7 +22,7 @@ def apply(q, t, v, inverse=False, unit=False):
         batch = np.broadcast_shapes(q.shape[:-1], t.shape[:-1], v.shape[:-1])
     if inverse:
         return _kernels.rotate(q, np.subtract(v, t, dtype=dtype), inverse=True, unit=unit).reshape(batch + (3,))
-    if t.shape == batch + (3,) and t.dtype == dtype and q.shape[:-1] == v.shape[:-1] == batch:
+    if t.shape == batch + (3,) and q.shape[:-1] == v.shape[:-1] == batch and q.dtype == v.dtype == t.dtype:
         return _kernels.rotate(q, v, unit=unit, add=t)   # t added to each block while it is in cache
     out = np.asarray(_kernels.rotate(q, v, unit=unit))
     if out.shape != batch + (3,) or out.dtype != dtype or not out.flags.writeable:

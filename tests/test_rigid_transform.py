@@ -212,3 +212,22 @@ def test_rotations_not_known_unit_are_not_taken_as_unit():
     v = np.array([[1.0, 2.0, 3.0], [-1.0, 0.5, 2.0]])
     np.testing.assert_allclose(tf.apply(v), ref.apply(v), atol=1e-14)
     assert RigidTransform.from_rotation(Rotation.from_quat(q))._unit
+
+
+@pytest.mark.parametrize("n", [1, 5, 5000])   # one, a few, the block path
+@pytest.mark.parametrize("dtypes", [("float32", "float64", "float32"), ("float64", "float32", "float64"),
+                                    ("float32", "float32", "float64")])
+def test_raw_apply_promotes_mixed_dtypes(n, dtypes):
+    """`_motion.apply` (q, t, v of different dtypes): the promoted dtype, and the bits of rotating
+    in the vectors' own promotion then adding t (the translation is added per block only when
+    the three share one dtype)."""
+    from quatarray import _kernels, _motion
+    rng = np.random.default_rng(16)
+    q = rng.standard_normal((n, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q, t, v = q.astype(dtypes[0]), rng.standard_normal((n, 3)).astype(dtypes[1]), \
+        rng.standard_normal((n, 3)).astype(dtypes[2])
+    got = _motion.apply(q, t, v, unit=True)
+    assert got.dtype == np.float64
+    want = _kernels.rotate(q, v, unit=True).astype(np.float64) + t
+    np.testing.assert_array_equal(got, want, strict=True)
