@@ -745,22 +745,23 @@ _F64 = np.dtype(np.float64)
 _LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
 
 
-def _rotvec(w, x, y, z, tan_half, nv, factor, op, o, rows):
+def _rotvec(w, vec, tan_half, nv, factor, op, stack, o, rows):
     """The rotation vector ``v · factor · atan(tan(θ/2)) / |v|``, signed as w (canonical: -v
-    for w < 0), of q with |v| = `nv` > 0 and w ≠ 0, in `op`'s arithmetic (`_ops`), into
-    ``o`` (three rows) with the work row `rows[0]`; returned as a list."""
-    half = _kernels.arctan(tan_half, rows[0])
+    for w < 0), of q with vector part `vec` (x, y, z), |v| = `nv` > 0 and w ≠ 0, in `op`'s
+    arithmetic (`_ops`, `stack` its stacked form: the three products are one call), into
+    ``o`` (three rows) with the work row `rows[0]`; returned as a list (floats) or `o`."""
+    half = op.arctan(tan_half, rows[0])
     scale = op.div(half, nv, half)
     scale = op.copysign(scale, w, scale)
     scale = op.mul(scale, factor, scale)
-    return [op.mul(x, scale, o[0]), op.mul(y, scale, o[1]), op.mul(z, scale, o[2])]
+    return stack.scale(vec, scale, o)
 
 
 def _k_as_rotvec(q, o, factor, unit=False):
     t, exact = _half_turn(q, unit)
     _tangent_rows(q, t, exact)
     if not exact:
-        _rotvec(q[0], q[1], q[2], q[3], t[0], t[1], _ops.const(factor, t.dtype), _ops.ARRAYS, (o[0], o[1], o[2]), t)
+        _rotvec(q[0], q[1:4], t[0], t[1], _ops.const(factor, t.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
         return
     # w = 0 (the canonical sign from x, y, z) or |v| = 0 (limit: the zero vector)
     np.arctan(t[0], out=t[0])
@@ -818,8 +819,7 @@ def as_rotvec(q, degrees=False, unit=False):
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: the same formula on its floats
-        rotvec = _rotvec(*one, _ROTVEC_FACTOR[degrees], _ops.FLOATS, _ops.NONE, _ops.NONE)
-        return _ops.to_array(rotvec, q.shape[:-1] + (3,))
+        return _ops.to_array(_rotvec_floats(*one, _ROTVEC_FACTOR[degrees]), (3,) if q.ndim == 1 else (1, 3))
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise_unit(_k_as_rotvec, q if q.ndim == 2 else q.reshape(-1, 4), out if q.ndim == 2 else out.reshape(-1, 3),
                     unit, factor=_ROTVEC_FACTOR[degrees])
@@ -828,6 +828,11 @@ def as_rotvec(q, degrees=False, unit=False):
 
 _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 """Rotation vector over half-angle times unit axis, radians and degrees."""
+
+_rotvec_floats = _ops.compiled(
+    lambda op, stack, w, x, y, z, tan_half, nv, factor: _rotvec(w, [x, y, z], tan_half, nv, factor, op, stack,
+                                                                 None, _ops.NONE), 7)
+"""`_rotvec` on one rotation's floats ``(w, x, y, z, tan_half, nv, factor)`` (`_ops.compiled`)."""
 
 
 # --- powers of rotations ------------------------------------------------------------------
@@ -1102,8 +1107,8 @@ def magnitude(q, unit=False):
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
-        angle = np.array(_angle(one[4], None))   # not np.full: 5x its cost
-        return angle if q.ndim == 1 else angle.reshape(q.shape[:-1])
+        angle = _angle(one[4], None)   # np.array, not np.full (5x its cost) nor a reshape (2x)
+        return np.array(angle) if q.ndim == 1 else np.array([angle])   # (4,) or (1, 4) here
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N, 1) read as (N,)
         out = np.empty((len(q), 1), q.dtype)
         _blockwise_unit(_k_magnitude, q, out, unit)
