@@ -175,12 +175,50 @@ def from_euler(seq, angles, degrees=False):
     return out
 
 
-def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
+def _norms(abcd, op, stack, sq, n):
+    """``|(a, b)|², |(c, d)|²`` of Bernardes & Viollet's a, b, c, d (`abcd`: four rows, or
+    one rotation's four floats) in `op`'s arithmetic (`_ops`, `stack` its stacked form: the
+    four squares are one call, into `sq`, four rows), into the two rows `n`."""
+    sq = stack.mul(abcd, abcd, sq)
+    return op.add(sq[0], sq[1], n[0]), op.add(sq[2], sq[3], n[1])
+
+
+def _arguments(abcd, u2, r2, op, first, third, yx, work):
+    """arctan2's numerators ``[im₁, r, im₂]`` and denominators ``[re₁, u, re₂]``, in the rows'
+    order of the angles (`first`, `third`), from a, b, c, d (`abcd`) and `_norms`' ``u2``,
+    ``r2``, in `op`'s arithmetic (`_ops`): ``(a + ib)(c ∓ id) = re + i im`` (re₁ = ac + bd,
+    re₂ = ac - bd, im₁ = bc - ad, im₂ = bc + ad), ``r = |(c, d)|``, ``u = |(a, b)|``; into the
+    six rows `yx` (numerators, then denominators) with the two work rows `work`."""
+    a, b, c, d = abcd[0], abcd[1], abcd[2], abcd[3]
+    ys, xs = [None] * 3, [None] * 3
+    ys[1] = op.sqrt(r2, yx[1])
+    xs[1] = op.sqrt(u2, yx[4])
+    ac = op.mul(a, c, work[0])
+    bd = op.mul(b, d, work[1])
+    xs[first] = op.add(ac, bd, yx[3 + first])
+    xs[third] = op.sub(ac, bd, yx[3 + third])
+    bc = op.mul(b, c, work[0])
+    ad = op.mul(a, d, work[1])
+    ys[first] = op.sub(bc, ad, yx[first])
+    ys[third] = op.add(bc, ad, yx[third])
+    return ys, xs
+
+
+def _operands(abcd, op, stack, first, third):
+    """`_norms` and `_arguments` on floats: arctan2's three numerators and three
+    denominators, and |(a, b, c, d)|² (for the range check), seven floats."""
+    u2, r2 = _norms(abcd, op, stack, None, _ops.NONE)
+    ys, xs = _arguments(abcd, u2, r2, op, first, third, _ops.NONE, _ops.NONE)
+    return ys + xs + [op.add(u2, r2, None)]
+
+
+def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False, operands=None):
     """Bernardes & Viollet's step 2-3 from a, b, c, d (`abcd`: four rows (4, m), a buffer that
     may be rescaled in place; or one rotation's four floats) into o (three rows), in the
     arithmetic `op` (`_ops.ARRAYS` / `_ops.FLOATS`).  Returns whether any element is in gimbal
-    lock (arrays), or on floats the three angles, or None where the array kernel would rescale
-    or find gimbal lock (its own path, with the warning).
+    lock (arrays), or on floats the three angles (a new float64 array (3,)), or None where the
+    array kernel would rescale or find gimbal lock (its own path, with the warning).  On floats `operands` may give
+    `_operands`' seven floats already (a compiled formula's).
 
     The middle angle is 2 atan2(|(c, d)|, |(a, b)|); the first and third angles are
     half_sum ∓ half_diff with half_sum = arg(a + ib) and half_diff = arg(c + id), each read as
@@ -191,83 +229,62 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False):
     first takes the whole turn, as in scipy.  `unit`: a, b, c, d come from finite unit
     quaternions (`Rotation`'s storage), whose squared norms always fit: no range check."""
     first, third = (0, 2) if extrinsic else (2, 0)
-    floats = op is _ops.FLOATS
-    if floats:
-        yx = _ops.NONE
-        s01, s23, x0, x1 = _ops.NONE[:4]
-    else:
-        shape, dtype = abcd.shape[1:], abcd.dtype
-        rows = (_blocks.scratch().rows(15, shape, dtype) if abcd.size > 4 * _blocks.FEW
-                else np.empty((15,) + shape, dtype))
-        S, ys, xs, T = rows[0:4], rows[6:9], rows[9:12], rows[12:15]   # arctan2's stacks
-        # rows by indexing (a fifth of the cost of unpacking an array)
-        yx = (rows[6], rows[7], rows[8], rows[9], rows[10], rows[11])
-        s01, s23, x0, x1 = rows[4], rows[5], rows[2], rows[3]
-        two, minus_one, lamb = _ops.const(2.0, dtype), _ops.const(-1.0, dtype), _ops.const(lamb, dtype)
-    if floats:
-        two, minus_one = 2.0, -1.0
-    a, b, c, d = abcd[0], abcd[1], abcd[2], abcd[3]
-    # arctan2's stacks, in the rows' order of o: Im₁ (row `first`), |(c, d)|, Im₂ (row `third`)
-    # over Re₁, |(a, b)|, Re₂
-    if floats:
-        sq = [v * v for v in abcd]
-    else:
-        sq = np.multiply(abcd, abcd, out=S)
-    u2 = op.add(sq[0], sq[1], s01)                                # |(a, b)|²
-    r2 = op.add(sq[2], sq[3], s23)                                # |(c, d)|²
-    if floats:
-        if not _LOW64 <= u2 + r2 <= _HIGH64:
+    if op is _ops.FLOATS:
+        v = operands or _operands(abcd, op, _ops.FLOAT_STACKS, first, third)
+        if not _LOW64 <= v[6] <= _HIGH64:
             return None
-    elif not unit:   # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²)
-        n2 = np.add(u2, r2, out=xs[0])
+        angles = arctan2(v[0:3], v[3:6])   # a new array (3,): the result, as the floats give it
+        mid = angles.item(1) * 2.0
+        if mid <= _GIMBAL_EPS or mid >= _PI_LOCK:
+            return None
+        if not symmetric:
+            if sign < 0:
+                angles[third] = op.mul(angles.item(third), -1.0, None)
+            mid = op.sub(mid, lamb, None)
+        angles[1] = mid
+        return angles
+    shape, dtype = abcd.shape[1:], abcd.dtype
+    rows = (_blocks.scratch().rows(15, shape, dtype) if abcd.size > 4 * _blocks.FEW
+            else np.empty((15,) + shape, dtype))
+    # rows 0-3: squares, then products; 4-5: the norms; 6-8 and 9-11: arctan2's numerators
+    # and denominators in the rows' order of o; 12-14: the arctangents
+    n = (rows[4], rows[5])   # rows by indexing (a fifth of the cost of unpacking an array)
+    u2, r2 = _norms(abcd, _ops.ARRAYS, _ops.STACKS, rows[0:4], n)
+    if not unit:   # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²)
+        n2 = np.add(u2, r2, out=rows[9])
         if not _scale.fits(n2):
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)
             _scale.rescale(abcd, _scale.outside(n2))   # by powers of two: the angles are unchanged
-            np.multiply(abcd, abcd, out=S)
-            np.add(sq[0], sq[1], out=u2)
-            np.add(sq[2], sq[3], out=r2)
-            if not np.add(u2, r2, out=xs[0]).all():
+            u2, r2 = _norms(abcd, _ops.ARRAYS, _ops.STACKS, rows[0:4], n)
+            if not np.add(u2, r2, out=rows[9]).all():
                 raise ValueError(_scale.ZERO)
-    r = op.sqrt(r2, yx[1])
-    u = op.sqrt(u2, yx[4])
-    ac = op.mul(a, c, x0)
-    bd = op.mul(b, d, x1)
-    re1 = op.add(ac, bd, yx[3 + first])
-    re2 = op.sub(ac, bd, yx[3 + third])
-    bc = op.mul(b, c, x0)
-    ad = op.mul(a, d, x1)
-    im1 = op.sub(bc, ad, yx[first])
-    im2 = op.add(bc, ad, yx[third])
-    if floats:
-        angles = [None] * 3
-        angles[first], mid, angles[third] = arctan2([im1, r, im2], [re1, u, re2])
-        angles[1] = mid = mid * two
-        if mid <= _GIMBAL_EPS or mid >= np.pi - _GIMBAL_EPS:
-            return None
-    else:
-        # into contiguous rows, then copied: a transcendental loop's bits may depend on the
-        # layout (SIMD for contiguous rows), and o is strided
-        arctan2(ys, xs, out=T, defined=unit)
-        o0, o1, o2 = o[0], o[1], o[2]
-        mid = op.mul(T[1], two, o1)                                    # the middle angle, in [0, π]
-        lo, hi = _extremes(mid)
-        gimbal = lo <= _GIMBAL_EPS or hi >= np.pi - _GIMBAL_EPS
-        if gimbal:
-            mid = mid.copy()
-        angles = [T[0], o1, T[2]]
-        angles[first] = op.copy(angles[first], o0 if first == 0 else o2)
-        if symmetric or sign > 0:
-            angles[third] = op.copy(angles[third], o2 if third == 2 else o0)
+    _arguments(abcd, u2, r2, _ops.ARRAYS, first, third, (rows[6], rows[7], rows[8], rows[9], rows[10], rows[11]),
+               (rows[2], rows[3]))
+    T = rows[12:15]
+    # into contiguous rows, then copied: a transcendental loop's bits may depend on the
+    # layout (SIMD for contiguous rows), and o is strided
+    arctan2(rows[6:9], rows[9:12], out=T, defined=unit)
+    o0, o1, o2 = o[0], o[1], o[2]
+    mid = np.multiply(T[1], _ops.const(2.0, dtype), out=o1)          # the middle angle, in [0, π]
+    lo, hi = _extremes(mid)
+    gimbal = lo <= _GIMBAL_EPS or hi >= _PI_LOCK
+    if gimbal:
+        mid = mid.copy()
+    angles = [T[0], o1, T[2]]
+    angles[first] = op.copy(angles[first], o0 if first == 0 else o2)
+    if symmetric or sign > 0:
+        angles[third] = op.copy(angles[third], o2 if third == 2 else o0)
     if not symmetric:
         if sign < 0:
-            angles[third] = op.mul(angles[third], minus_one, None if floats else (o2 if third == 2 else o0))
-        angles[1] = op.sub(angles[1], lamb, angles[1])
-    if floats:
-        return angles
+            angles[third] = op.mul(angles[third], _ops.const(-1.0, dtype), o2 if third == 2 else o0)
+        angles[1] = op.sub(angles[1], _ops.const(lamb, dtype), angles[1])
     if gimbal:
         _lock(abcd, mid, o, extrinsic, third, -1.0 if not symmetric and sign < 0 else 1.0)
     return gimbal
+
+
+_PI_LOCK = np.pi - _GIMBAL_EPS
 
 
 def _lock(A, mid, o, extrinsic, third, third_sign):
@@ -324,11 +341,21 @@ def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    w, qi, qj, qk = comps[0], comps[i + 1], comps[j + 1], comps[k + 1]
-    if sign < 0:
-        qk = qk * -1.0
-    abcd = _abcd(w, qi, qj, qk, symmetric, _ops.FLOATS, _ops.NONE)
-    return _angles(abcd, None, extrinsic, symmetric, sign, np.pi / 2, _ops.FLOATS)
+    operands = _compiled_operands(i, j, k, symmetric, sign, extrinsic)(*comps)
+    return _angles(None, None, extrinsic, symmetric, sign, np.pi / 2, _ops.FLOATS, operands=operands)
+
+
+@functools.lru_cache(maxsize=64)
+def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
+    """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
+    four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows."""
+    first, third = (0, 2) if extrinsic else (2, 0)
+
+    def operands(op, stack, *q):
+        qk = op.mul(q[k + 1], -1.0, None) if sign < 0 else q[k + 1]
+        abcd = _abcd(q[0], q[i + 1], q[j + 1], qk, symmetric, op, _ops.NONE)
+        return _operands(abcd, op, stack, first, third)
+    return _ops.compiled(operands, 4)
 
 
 _F64 = np.dtype(np.float64)
@@ -387,13 +414,14 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     >>> np.round(as_euler(q, "zyx", degrees=True), 9)
     array([90., 30., 10.])
     """
-    check_seq(seq, 3)
+    if not isinstance(seq, str):
+        check_seq(seq, 3)   # its TypeError
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
-    i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)
+    i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)   # which checks seq
     one = _euler_floats(q, i, j, k, symmetric, sign, extrinsic)
     if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
-        out = _ops.to_array(one, q.shape[:-1] + (3,))
+        out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
         flat, oflat = q.reshape(-1, 4), out.reshape(-1, 3)
@@ -578,7 +606,7 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
     one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
     if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
-        out = _ops.to_array(one, q.shape[:-1] + (3,))
+        out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
         gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)],

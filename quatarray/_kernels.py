@@ -144,15 +144,16 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     >>> bool(arctan2(1.0, -2.0) == arctan2(np.array([1.0]), np.array([-2.0]))[0])
     True
 
-    Lists of floats give a list (one call for a few angles):
+    Lists of floats give a new float64 array (one call for a few angles, e.g. one
+    rotation's Euler angles, whose result it can be):
 
-    >>> arctan2([1.0, -1.0], [-2.0, 3.0]) == [arctan2(1.0, -2.0), arctan2(-1.0, 3.0)]
+    >>> arctan2([1.0, -1.0], [-2.0, 3.0]).tolist() == [arctan2(1.0, -2.0), arctan2(-1.0, 3.0)]
     True
     """
     if type(y) is list:   # a few Python floats (one rotation's angles) in one call
         if _trig.SIMD_TAN:   # one binary ufunc call costs four unary ones on floats
-            return np.arctan2(np.array(y), np.array(x)).tolist()
-        return [arctan2(a, b) for a, b in zip(y, x)]
+            return np.arctan2(np.array(y), np.array(x))
+        return np.array([arctan2(a, b) for a, b in zip(y, x)])
     if _trig.SIMD_TAN:   # on Python floats too: NumPy's loop, the arrays' bits
         return float(np.arctan2(y, x)) if type(y) is float else np.arctan2(y, x, out=out)
     if type(y) is float:
