@@ -212,13 +212,29 @@ def _operands(abcd, op, stack, first, third):
     return ys + xs + [op.add(u2, r2, None)]
 
 
-def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False, operands=None):
+def _angles_floats(v, extrinsic, symmetric, sign, lamb):
+    """`_angles` on one rotation's floats, from `_operands`' seven: the three angles as a new
+    float64 array (3,), or None where the array kernel would rescale or find gimbal lock
+    (its own path, with the warning)."""
+    if not _LOW64 <= v[6] <= _HIGH64:
+        return None
+    angles = arctan2(v[0:3], v[3:6])   # a new array (3,): the result, as the floats give it
+    mid = angles.item(1) * 2.0
+    if mid <= _GIMBAL_EPS or mid >= _PI_LOCK:
+        return None
+    if not symmetric:
+        if sign < 0:
+            third = 2 if extrinsic else 0
+            angles[third] = angles.item(third) * -1.0
+        mid = mid - lamb
+    angles[1] = mid
+    return angles
+
+
+def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
     """Bernardes & Viollet's step 2-3 from a, b, c, d (`abcd`: four rows (4, m), a buffer that
-    may be rescaled in place; or one rotation's four floats) into o (three rows), in the
-    arithmetic `op` (`_ops.ARRAYS` / `_ops.FLOATS`).  Returns whether any element is in gimbal
-    lock (arrays), or on floats the three angles (a new float64 array (3,)), or None where the
-    array kernel would rescale or find gimbal lock (its own path, with the warning).  On floats `operands` may give
-    `_operands`' seven floats already (a compiled formula's).
+    may be rescaled in place) into o (three rows).  Returns whether any element is in gimbal
+    lock.  One rotation's floats take `_operands` and `_angles_floats`: the same operations.
 
     The middle angle is 2 atan2(|(c, d)|, |(a, b)|); the first and third angles are
     half_sum ∓ half_diff with half_sum = arg(a + ib) and half_diff = arg(c + id), each read as
@@ -229,20 +245,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, op, unit=False, operands=
     first takes the whole turn, as in scipy.  `unit`: a, b, c, d come from finite unit
     quaternions (`Rotation`'s storage), whose squared norms always fit: no range check."""
     first, third = (0, 2) if extrinsic else (2, 0)
-    if op is _ops.FLOATS:
-        v = operands or _operands(abcd, op, _ops.FLOAT_STACKS, first, third)
-        if not _LOW64 <= v[6] <= _HIGH64:
-            return None
-        angles = arctan2(v[0:3], v[3:6])   # a new array (3,): the result, as the floats give it
-        mid = angles.item(1) * 2.0
-        if mid <= _GIMBAL_EPS or mid >= _PI_LOCK:
-            return None
-        if not symmetric:
-            if sign < 0:
-                angles[third] = op.mul(angles.item(third), -1.0, None)
-            mid = op.sub(mid, lamb, None)
-        angles[1] = mid
-        return angles
+    op = _ops.ARRAYS
     shape, dtype = abcd.shape[1:], abcd.dtype
     rows = (_blocks.scratch().rows(15, shape, dtype) if abcd.size > 4 * _blocks.FEW
             else np.empty((15,) + shape, dtype))
@@ -332,20 +335,21 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
     if sign < 0:   # q is only read (views of a Rotation's storage)
         qk = np.multiply(qk, _ops.const(-1.0, q.dtype), out=abcd[4])
     _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
-    return _angles(abcd[:4], o, extrinsic, symmetric, sign, np.pi / 2, _ops.ARRAYS, unit)
+    return _angles(abcd[:4], o, extrinsic, symmetric, sign, _HALF_PI, unit)
 
 
-def _euler_floats(q, i, j, k, symmetric, sign, extrinsic):
+def _euler_floats(q, plan):
     """`_k_as_euler` on the floats of one float64 quaternion, or None where the kernel would
     rescale or find gimbal lock (its own path, with the warning)."""
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    operands = _compiled_operands(i, j, k, symmetric, sign, extrinsic)(*comps)
-    return _angles(None, None, extrinsic, symmetric, sign, np.pi / 2, _ops.FLOATS, operands=operands)
+    return _angles_floats(plan[6](*comps), plan[5], plan[3], plan[4], _HALF_PI)
 
 
-@functools.lru_cache(maxsize=64)
+_HALF_PI = np.pi / 2
+
+
 def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
     four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows."""
@@ -369,13 +373,15 @@ def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
 
 @functools.lru_cache(maxsize=128)
 def _euler_plan(seq):
-    """The quaternion components an Euler sequence reads: (i, j, k, symmetric, sign, extrinsic)."""
+    """The quaternion components an Euler sequence reads: (i, j, k, symmetric, sign, extrinsic),
+    and the sequence's `_compiled_operands`."""
     axes, intrinsic = _check_str_seq(seq, 3)
     i, j, k = axes[::-1] if intrinsic else axes
     symmetric = i == k
     if symmetric:
         k = 3 - i - j
-    return i, j, k, symmetric, (i - j) * (j - k) * (k - i) // 2, not intrinsic
+    plan = i, j, k, symmetric, (i - j) * (j - k) * (k - i) // 2, not intrinsic
+    return plan + (_compiled_operands(*plan),)
 
 
 def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
@@ -418,11 +424,12 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
         check_seq(seq, 3)   # its TypeError
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
-    i, j, k, symmetric, sign, extrinsic = _euler_plan(seq)   # which checks seq
-    one = _euler_floats(q, i, j, k, symmetric, sign, extrinsic)
+    plan = _euler_plan(seq)   # which checks seq
+    one = _euler_floats(q, plan)
     if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
+        i, j, k, symmetric, sign, extrinsic = plan[:6]
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
         flat, oflat = q.reshape(-1, 4), out.reshape(-1, 3)
         if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:   # a Rotation's few: the kernel at once on
@@ -539,8 +546,9 @@ def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    o = _angles(_davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None), None, extrinsic, False, 1, lamb,
-                _ops.FLOATS)
+    first, third = (0, 2) if extrinsic else (2, 0)
+    abcd = _davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None)
+    o = _angles_floats(_operands(abcd, _ops.FLOATS, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb)
     if o is not None and flip:
         o[1] = -o[1]
     return o
@@ -563,7 +571,7 @@ def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
     with _blocks.scratch().frame() as work:
         A = work.rows(4, q.shape[1:], q.dtype)
         _davenport_abcd(q, lmat, _ops.ARRAYS, A, work.rows(1, q.shape[1:], q.dtype)[0])
-        gimbal = _angles(A, o, extrinsic, False, 1, lamb, _ops.ARRAYS)
+        gimbal = _angles(A, o, extrinsic, False, 1, lamb)
     if flip:
         _negate(o[1])
     return gimbal
