@@ -680,19 +680,24 @@ def _half_turn(q, unit=False):
     big = q.size > 4 * _blocks.FEW
     sq = np.multiply(q, q, out=_blocks.scratch().rows(4, s, dtype) if big else None)
     t = _blocks.scratch().rows(2, s, dtype) if big else np.empty((2,) + s, dtype)
-    w2, x2, y2, z2, t0, v2 = sq[0], sq[1], sq[2], sq[3], t[0], t[1]   # rows (indexing: a fifth of unpacking)
-    np.add(x2, y2, out=v2)
-    np.add(v2, z2, out=v2)                         # |v|² = (x² + y²) + z²
+    w2, t0, v2 = sq[0], t[0], t[1]   # rows (indexing: a fifth of unpacking)
+    np.add(sq[1], sq[2], out=v2)
+    np.add(v2, sq[3], out=v2)                      # |v|² = (x² + y²) + z²
     if not unit:   # the range guard on |q|² = w² + |v|²: extreme magnitudes are rescaled
-        n2 = np.add(w2, v2, out=x2)
+        n2 = np.add(w2, v2, out=sq[1])
         if not _scale.fits(n2):
             _scale.guard(q, n2, zero=True)
             np.multiply(q, q, out=sq)
-            np.add(x2, y2, out=v2)
-            np.add(v2, z2, out=v2)
-    np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-    exact = _least(t) < _LOW[dtype]
-    np.divide(v2, t0, out=t0)
+            np.add(sq[1], sq[2], out=v2)
+            np.add(v2, sq[3], out=v2)
+    if big:
+        np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
+        exact = _least(t) < _LOW[dtype]
+    else:   # a few: the test first (by Python's min), the floor only where it changes w²
+        exact = min(w2.ravel().tolist() + v2.ravel().tolist()) < _LOW[dtype]
+        if exact:
+            np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
+    np.divide(v2, t0 if exact or big else w2, out=t0)
     return t, exact
 
 
@@ -707,7 +712,7 @@ def _least(a):
     rows of `_half_turn` for up to 32 rotations) by Python's min (a NumPy reduction costs
     more there)."""
     if a.size <= 64:
-        return min(a.ravel().tolist())
+        return min(a.tolist() if a.ndim == 1 else a.ravel().tolist())
     return float(np.minimum.reduce(a, axis=None))
 
 
@@ -1072,7 +1077,7 @@ def from_rotvec(rotvec, degrees=False):
 
 def _k_magnitude(q, o, unit=False):
     t, exact = _half_turn(q, unit)
-    _tangent_rows(q, t[:1] if not exact else t, exact)
+    _tangent_rows(q, t if exact else t[0], exact)   # (a row: cheaper than a stack of one)
     _angle(t[0], o[0])
 
 
@@ -1109,10 +1114,10 @@ def magnitude(q, unit=False):
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
         angle = _angle(one[4], None)   # np.array, not np.full (5x its cost) nor a reshape (2x)
         return np.array(angle) if q.ndim == 1 else np.array([angle])   # (4,) or (1, 4) here
-    if q.ndim == 2:   # (N, 4): its rows as they are, the output (N, 1) read as (N,)
-        out = np.empty((len(q), 1), q.dtype)
-        _blockwise_unit(_k_magnitude, q, out, unit)
-        return out[:, 0]
+    if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)
+        out = np.empty(len(q), q.dtype)
+        _blockwise_unit(_k_magnitude, q, out[:, None], unit)
+        return out
     out = np.empty(q.shape[:-1], q.dtype)
     _blockwise_unit(_k_magnitude, q.reshape(-1, 4), out.reshape(-1, 1), unit)
     return out
