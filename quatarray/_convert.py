@@ -690,14 +690,15 @@ def _half_turn(q, unit=False):
             np.multiply(q, q, out=sq)
             np.add(sq[1], sq[2], out=v2)
             np.add(v2, sq[3], out=v2)
-    if big:
-        np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-        exact = _least(t) < _LOW[dtype]
-    else:   # a few: the test first (by Python's min), the floor only where it changes w²
-        exact = min(w2.ravel().tolist() + v2.ravel().tolist()) < _LOW[dtype]
+    few = v2.size <= 32 and v2.ndim == 1
+    if few:   # the test first (by Python's min), the floor only where it changes w²
+        exact = min(w2.tolist() + v2.tolist()) < _LOW[dtype]
         if exact:
             np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-    np.divide(v2, t0 if exact or big else w2, out=t0)
+    else:
+        np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
+        exact = _least(t) < _LOW[dtype]
+    np.divide(v2, w2 if few and not exact else t0, out=t0)
     return t, exact
 
 
@@ -712,7 +713,7 @@ def _least(a):
     rows of `_half_turn` for up to 32 rotations) by Python's min (a NumPy reduction costs
     more there)."""
     if a.size <= 64:
-        return min(a.tolist() if a.ndim == 1 else a.ravel().tolist())
+        return min(a.ravel().tolist())
     return float(np.minimum.reduce(a, axis=None))
 
 
