@@ -1079,13 +1079,17 @@ def from_rotvec(rotvec, degrees=False):
 def _k_magnitude(q, o, unit=False):
     t, exact = _half_turn(q, unit)
     _tangent_rows(q, t if exact else t[0], exact)   # (a row: cheaper than a stack of one)
-    _angle(t[0], o[0])
+    _angle(t[0], _ops.ARRAYS, None, o[0])
 
 
-def _angle(tan_half, o):
-    """θ = 2 atan(tan(θ/2)), into `o` (a row, or None on a Python float)."""
-    half = _kernels.arctan(tan_half, o)
-    return half + half if o is None else np.add(half, half, out=o)
+def _angle(tan_half, op, stack, o):
+    """θ = 2 atan(tan(θ/2)) in `op`'s arithmetic (`_ops`), into the row `o`."""
+    half = op.arctan(tan_half, o)
+    return op.add(half, half, o)
+
+
+_angle_floats = _ops.compiled(lambda op, stack, tan_half: _angle(tan_half, op, stack, None), 1)
+"""`_angle` on one rotation's float (`_ops.compiled`)."""
 
 
 def magnitude(q, unit=False):
@@ -1113,7 +1117,7 @@ def magnitude(q, unit=False):
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
-        angle = _angle(one[4], None)   # np.array, not np.full (5x its cost) nor a reshape (2x)
+        angle = _angle_floats(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
         return np.array(angle) if q.ndim == 1 else np.array([angle])   # (4,) or (1, 4) here
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)
         out = np.empty(len(q), q.dtype)

@@ -213,7 +213,8 @@ def operands(*values):
 def floats64(q, k=4):
     """The `k` components of one float64 quaternion (or vector), shape (k,) or (1, k), as
     Python floats (so that a formula runs on `FLOATS`), or None for any other input (the
-    block kernel's).
+    block kernel's).  `q`'s last axis has length k (a validated array of quaternions or
+    vectors: (k, 1) is not one).
 
     >>> import numpy as np
     >>> from quatarray._ops import floats64
@@ -224,7 +225,7 @@ def floats64(q, k=4):
         ndim = q.ndim
         if ndim == 1:
             return q.tolist()
-        if ndim == 2 and q.shape[1] == k:
+        if ndim == 2:
             return q.tolist()[0]   # (1, k): half a reshape's cost
     return None
 
