@@ -7,7 +7,9 @@ returned.  ``+ − × ÷`` and ``sqrt`` round alike on floats and float64 arrays
 multiply-add in either), so one formula evaluated in one order gives the same bits on both:
 a single rotation skips the 16–60 ufunc calls of the block kernel without a second copy of
 its maths.  Functions whose results differ between `math` and NumPy (atan2, sin, ...) are
-not offered on floats.
+not offered on floats, except ``arctan``, which is NumPy's own loop on the float.
+`compiled` turns such a formula into plain Python statements on floats, once: the same
+operations in the same order, without a call per operation.
 """
 
 import math
