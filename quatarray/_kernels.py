@@ -153,15 +153,19 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     if type(y) is list:   # a few Python floats (one rotation's angles) in one call
         if _trig.SIMD_TAN:   # one binary ufunc call costs four unary ones on floats
             return np.arctan2(np.array(y), np.array(x))
-        return np.array([arctan2(a, b) for a, b in zip(y, x)])
+        angles = []
+        for a, b in zip(y, x):   # the ratio route below, one float at a time (no call each)
+            if b > 0:
+                angles.append(float(np.arctan(a / b)))
+            elif b < 0:
+                angles.append(float(np.arctan(a / b)) + math.copysign(math.pi, a))
+            else:   # x = ±0 (or NaN): the array code
+                angles.append(float(arctan2(np.array(a), np.array(b), out=np.empty(()), x_nonneg=x_nonneg)))
+        return np.array(angles)
     if _trig.SIMD_TAN:   # on Python floats too: NumPy's loop, the arrays' bits
         return float(np.arctan2(y, x)) if type(y) is float else np.arctan2(y, x, out=out)
-    if type(y) is float:
-        if x > 0:
-            return float(np.arctan(y / x))
-        if x < 0:
-            return float(np.arctan(y / x)) + math.copysign(math.pi, y)
-        return float(arctan2(np.array(y), np.array(x), out=np.empty(()), x_nonneg=x_nonneg))
+    if type(y) is float:   # the ratio route on one float: NumPy's arctan (the arrays' bits), the ±π fix
+        return arctan2([y], [x], x_nonneg=x_nonneg).item(0)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
         out = np.divide(y, x, out=out)
     # a reduction, no mask, when no ratio is 0 / 0

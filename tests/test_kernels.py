@@ -479,6 +479,22 @@ def test_arctan2_from_one_arctan_matches_numpy(rng, dtype):
     assert (np.abs(got - want) <= 2 * np.spacing(np.abs(want))).all()
 
 
+def test_arctan2_on_floats_gives_the_array_bits(rng):
+    """On Python floats, one at a time and as lists (one rotation's angles), arctan2 gives the
+    bits of the float64 array path, signed zeros included, in every quadrant and at x = ±0
+    (NumPy's SIMD arctan2 where that is used, else the ratio route)."""
+    y = (rng.standard_normal(600) * 10.0 ** rng.uniform(-30, 30, 600))
+    x = (rng.standard_normal(600) * 10.0 ** rng.uniform(-30, 30, 600))
+    y = np.concatenate([y, [0.0, -0.0, 0.0, -0.0, 1.0, -1.0, 2.0, -2.0, 0.0, -0.0]])
+    x = np.concatenate([x, [0.0, 0.0, -0.0, -0.0, 0.0, -0.0, -3.0, -3.0, 5.0, 5.0]])
+    want = K.arctan2(y, x, out=np.empty_like(y))
+    listed = np.concatenate([K.arctan2(y[i:i + 3].tolist(), x[i:i + 3].tolist()) for i in range(0, len(y), 3)])
+    alone = np.array([K.arctan2(a, b) for a, b in zip(y.tolist(), x.tolist())])
+    for got in (listed, alone):
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(want))
+
+
 def _one_vs_batch(func, q, *args):
     """func on one quaternion (the Python-float path) and on a batch of one (the block path)."""
     return func(q, *args), func(q[None], *(np.asarray(a)[None] for a in args))[0]
