@@ -825,7 +825,13 @@ def as_rotvec(q, degrees=False, unit=False):
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: the same formula on its floats
-        return _ops.to_array(_rotvec_floats(*one, _ROTVEC_FACTOR[degrees]), (3,) if q.ndim == 1 else (1, 3))
+        w, x, y, z, tan_half, nv = one   # (unpacked: a fifth of splatting with the factor)
+        v = _rotvec_floats(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[degrees])
+        if q.ndim == 1:
+            return np.array(v)
+        out = np.empty((1, 3))   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
+        out[0, 0], out[0, 1], out[0, 2] = v
+        return out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise_unit(_k_as_rotvec, q if q.ndim == 2 else q.reshape(-1, 4), out if q.ndim == 2 else out.reshape(-1, 3),
                     unit, factor=_ROTVEC_FACTOR[degrees])
