@@ -128,6 +128,7 @@ def compiled(formula, nargs):
     operations on the same operands, in the same order) without a call per operation:
     a third of the cost of a single rotation's formula on `FLOATS`.
 
+    >>> from quatarray._ops import FLOATS, FLOAT_STACKS, compiled
     >>> def f(op, stack, a, b):
     ...     s = op.add(a, b, None)
     ...     return [op.sqrt(s, None), *stack.scale([a, b], s, None)]
