@@ -252,14 +252,14 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
     # rows 0-3: squares, then products; 4-5: the norms; 6-8 and 9-11: arctan2's numerators
     # and denominators in the rows' order of o; 12-14: the arctangents
     n = (rows[4], rows[5])   # rows by indexing (a fifth of the cost of unpacking an array)
-    u2, r2 = _norms(abcd, _ops.ARRAYS, _ops.STACKS, rows[0:4], n)
+    u2, r2 = _norms(abcd, op, op, rows[0:4], n)   # (on a block's contiguous rows ARRAYS stacks too)
     if not unit:   # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²)
         n2 = np.add(u2, r2, out=rows[9])
         if not _scale.fits(n2):
             if not np.isfinite(abcd).all():
                 raise ValueError(_scale.NONFINITE)
             _scale.rescale(abcd, _scale.outside(n2))   # by powers of two: the angles are unchanged
-            u2, r2 = _norms(abcd, _ops.ARRAYS, _ops.STACKS, rows[0:4], n)
+            u2, r2 = _norms(abcd, op, op, rows[0:4], n)
             if not np.add(u2, r2, out=rows[9]).all():
                 raise ValueError(_scale.ZERO)
     _arguments(abcd, u2, r2, _ops.ARRAYS, first, third, (rows[6], rows[7], rows[8], rows[9], rows[10], rows[11]),
