@@ -1166,7 +1166,7 @@ def _unit_mrp(q):
     `_mrp_denominator`, read in place from the rows of `q`."""
     w = _ops.first64(q)
     if w is not None:   # one float64 rotation: the denominator on its float, v over it in one call
-        return np.divide(q[..., 1:], _mrp_denominator(w, _ops.FLOATS, None, None))
+        return np.divide(q[..., 1:], _mrp_denominator_floats(w))
     if q.ndim == 2:
         n = len(q)
         if n <= _MRP_NEW_ROWS:   # a few rows as stored: into a new array
@@ -1180,6 +1180,9 @@ def _unit_mrp(q):
     _rowwise(_k_unit_mrp, _rows(q, 4), _rows(out, 3), 2)
     return out
 
+
+_mrp_denominator_floats = _ops.compiled(lambda op, stack, w: _mrp_denominator(w, op, None, None), 1)
+"""`_mrp_denominator` on one rotation's float w (`_ops.compiled`)."""
 
 _MRP_NEW_ROWS = 32
 """Up to this many rows, as_mrp's division makes its own (n, 3) output: its n inner loops
