@@ -796,10 +796,8 @@ def _rotate_floats(q, v, inverse):
     big = _HALF_BIG64
     if not (0.25 <= n2 <= 4.0 and -big <= ux <= big and -big <= uy <= big and -big <= uz <= big):
         return None
-    w = c[0] * -1.0 if inverse else c[0]
-    x, y, z = c[1:]
-    return _rotated(w, [y, z, x], [z, x, y], u, [uy, uz, ux], [uz, ux, uy], 2.0 / n2, _ops.FLOAT_ROWS,
-                    None, _ops.NONE, None, None)
+    w, x, y, z = c
+    return _rotated_floats(w * -1.0 if inverse else w, x, y, z, ux, uy, uz, 2.0 / n2)
 
 
 _HALF_BIG = {d: 0.5 * big for d, big in _scale.BIG_VECTOR.items()}
@@ -818,6 +816,12 @@ def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
     t1, t2 = op.shifts(t0, t)
     r = op.add(op.mul(w, t0, m), u, u)                                            # u + w t
     return op.add(r, op.sub(op.mul(v1, t2, m), op.mul(v2, t1, m2), m), o)         # + vec × t
+
+
+_rotated_floats = _ops.compiled(
+    lambda op, rows, w, x, y, z, ux, uy, uz, s: _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux],
+                                                         [uz, ux, uy], s, rows, None, _ops.NONE, None, None), 8)
+"""`_rotated` on one pair's floats ``(w, x, y, z, ux, uy, uz, s)`` (`_ops.compiled`)."""
 
 
 def rotate_block(q, u, o, add=None, *, wsign, unit=False):

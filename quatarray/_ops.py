@@ -120,13 +120,22 @@ _TEMPLATES = {"add": "{0} + {1}", "sub": "{0} - {1}", "mul": "{0} * {1}", "div":
 """`FLOATS`' operations as Python expressions (the same calls and operators, in place)."""
 
 
+def _pairs(a, b):
+    """The element pairs of two lists, or of a list and one value (applied to every element)."""
+    if type(a) is list:
+        return zip(a, b) if type(b) is list else ((x, b) for x in a)
+    return ((a, y) for y in b)
+
+
 def compiled(formula, nargs):
     """`formula` (a function ``formula(op, stack, *floats)`` written over `ARRAYS`' names,
     with no branch on values) as a plain Python function of `nargs` floats: the formula is
     run once on names, each operation recorded as the expression `FLOATS` evaluates, and
-    the statements compiled.  The result has `FLOATS`' and `FLOAT_STACKS`' bits (the same
-    operations on the same operands, in the same order) without a call per operation:
-    a third of the cost of a single rotation's formula on `FLOATS`.
+    the statements compiled.  `stack` does what `FLOAT_STACKS` and `FLOAT_ROWS` do on lists
+    (element by element, a single value applying to every element; ``scale``, ``shifts``).
+    The result has their and `FLOATS`' bits (the same operations on the same operands, in
+    the same order) without a call per operation: a third of the cost of a single
+    rotation's formula on `FLOATS`.
 
     >>> from quatarray._ops import FLOATS, FLOAT_STACKS, compiled
     >>> def f(op, stack, a, b):
@@ -158,9 +167,10 @@ def compiled(formula, nargs):
         raise TypeError("a compiled formula may not branch on values (where)")
 
     trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
-    elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in zip(a, b)])(getattr(trace, name))
+    elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul")}
-    stack = SimpleNamespace(**elementwise, scale=lambda a, x, out: [trace.mul(v, x, None) for v in a])
+    stack = SimpleNamespace(**elementwise, scale=lambda a, x, out: [trace.mul(v, x, None) for v in a],
+                            shifts=FLOAT_ROWS.shifts)
     names = [_Name(f"a{i}") for i in range(nargs)]
     result = formula(trace, stack, *names)
     if type(result) in (list, tuple):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from quatarray import _convert, _ops
+from quatarray import _convert, _kernels, _ops
 
 
 def _every_operation(op, stack, a, b, c):
@@ -33,6 +33,21 @@ def test_compiled_rotvec_is_the_formula_on_floats():
         w, x, y, z, t, nv = _convert._half_turn_floats(q / np.linalg.norm(q))
         want = _convert._rotvec(w, [x, y, z], t, nv, 2.0, _ops.FLOATS, _ops.FLOAT_STACKS, None, _ops.NONE)
         assert _convert._rotvec_floats(w, x, y, z, t, nv, 2.0) == want
+
+
+def test_compiled_rows_of_three_are_float_rows():
+    """A formula on rows of three (lists, a float applying to every element, cyclic shifts)
+    compiled gives `FLOAT_ROWS`' bits: the rotation of a vector, with signed zeros."""
+    rng = np.random.default_rng(7)
+    for i, c in enumerate(rng.standard_normal((2000, 8)) * 10.0 ** rng.integers(-20, 20, (2000, 1))):
+        w, x, y, z, ux, uy, uz, s = c.tolist()
+        if i % 4 == 0:
+            x, uy = -0.0, 0.0
+        want = _kernels._rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux], [uz, ux, uy], s,
+                                 _ops.FLOAT_ROWS, None, _ops.NONE, None, None)
+        got = _kernels._rotated_floats(w, x, y, z, ux, uy, uz, s)
+        assert [math.copysign(1, v) for v in got] == [math.copysign(1, v) for v in want]
+        assert got == want
 
 
 def test_a_branch_on_values_cannot_be_compiled():
