@@ -223,12 +223,26 @@ def _angles_floats(v, extrinsic, symmetric, sign, lamb):
     if mid <= _GIMBAL_EPS or mid >= _PI_LOCK:
         return None
     if not symmetric:
-        if sign < 0:
-            third = 2 if extrinsic else 0
-            angles[third] = angles.item(third) * -1.0
-        mid = mid - lamb
+        third = 2 if extrinsic else 0
+        mid, value = _ASYMMETRIC_FLOATS[sign](mid, angles.item(third), lamb)
+        if sign < 0:   # (else the third angle is arctan2's, as it stands)
+            angles[third] = value
     angles[1] = mid
     return angles
+
+
+def _asymmetric(mid, third, sign, k, op, o_mid, o_third):
+    """The last step of an asymmetric sequence (i ≠ k), in `op`'s arithmetic (`_ops`): the
+    middle angle less λ and the third angle negated for an odd permutation (`sign` < 0);
+    ``k = (-1, λ)`` as `op`'s operands; into the rows `o_mid`, `o_third`; returned."""
+    if sign < 0:
+        third = op.mul(third, k[0], o_third)
+    return op.sub(mid, k[1], o_mid), third
+
+
+_ASYMMETRIC_FLOATS = {sign: _ops.compiled(lambda op, stack, mid, third, lamb, sign=sign: list(
+    _asymmetric(mid, third, sign, (-1.0, lamb), op, None, None)), 3) for sign in (-1, 1)}
+"""`_asymmetric` on one rotation's floats ``(mid, third, λ)``, by sign (`_ops.compiled`)."""
 
 
 def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
@@ -279,9 +293,9 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
     if symmetric or sign > 0:
         angles[third] = op.copy(angles[third], o2 if third == 2 else o0)
     if not symmetric:
-        if sign < 0:
-            angles[third] = op.mul(angles[third], _ops.const(-1.0, dtype), o2 if third == 2 else o0)
-        angles[1] = op.sub(angles[1], _ops.const(lamb, dtype), angles[1])
+        angles[1], angles[third] = _asymmetric(angles[1], angles[third], sign,
+                                               (_ops.const(-1.0, dtype), _ops.const(lamb, dtype)), op,
+                                               angles[1], o2 if third == 2 else o0)
     if gimbal:
         _lock(abcd, mid, o, extrinsic, third, -1.0 if not symmetric and sign < 0 else 1.0)
     return gimbal

@@ -152,7 +152,7 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     """
     if type(y) is list:   # a few Python floats (one rotation's angles) in one call
         if _trig.SIMD_TAN:   # one binary ufunc call costs four unary ones on floats
-            return np.arctan2(np.array(y), np.array(x))
+            return np.arctan2(y, x)   # (the lists as float64 arrays: the arrays' loop and bits)
         angles = []
         for a, b in zip(y, x):   # the ratio route below, one float at a time (no call each)
             if b > 0:
