@@ -391,7 +391,8 @@ def as_matrix(q, unit=False):
     """
     one = _ops.floats64(q) if unit and type(q) is np.ndarray else None
     if one is not None:   # one float64 rotation (a valid array, then): the same formula on its floats
-        return _ops.to_array(_unit_matrix(*one), q.shape[:-1] + (3, 3))
+        # (np.fromiter and a reshape: the cheapest (3, 3) array of nine floats, 0.5 µs)
+        return np.fromiter(_unit_matrix(*one), np.float64, 9).reshape(q.shape[:-1] + (3, 3))
     q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     flat = q.reshape(-1, 4)
