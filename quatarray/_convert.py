@@ -859,7 +859,7 @@ def _powered(w, tan_half, nv, vec, n, op, stack, o, rows):
     as a list.  sin and cos, not `_kernels.cos_sin`'s one tangent: two calls against its
     eleven on a few rotations, cos(n θ/2) keeps its relative accuracy near a quarter turn,
     and NumPy's loops give a Python float the array loop's bits on every CPU."""
-    half = _kernels.arctan(tan_half, rows[0])
+    half = op.arctan(tan_half, rows[0])
     half = op.copysign(half, w, half)
     a = op.mul(half, n, half)
     if type(a) is float:

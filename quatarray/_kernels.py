@@ -16,7 +16,7 @@ from ._blocks import soa
 from ._validate import all_finite
 
 __all__ = [
-    "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan", "arctan2",
+    "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
     "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
     "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
 ]
@@ -102,20 +102,6 @@ def half_angle(angle, scale):
     [0.707106781187, 0.707106781187]
     """
     return cos_sin(angle * (2 * scale))
-
-
-def arctan(x, out=None):
-    """``np.arctan(x)`` into `out`; on a Python float (one rotation's) NumPy's loop all the
-    same (the array loop's bits; `math.atan` differs in a few per cent of cases), as a float.
-
-    >>> import numpy as np
-    >>> from quatarray._kernels import arctan
-    >>> bool(arctan(0.5) == np.arctan(np.array([0.5]))[0])
-    True
-    """
-    if type(x) is float:
-        return float(np.arctan(x))
-    return np.arctan(x, out=out)
 
 
 def arctan2(y, x, out=None, x_nonneg=False, defined=False):

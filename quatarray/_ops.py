@@ -169,8 +169,7 @@ def compiled(formula, nargs):
     trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul")}
-    stack = SimpleNamespace(**elementwise, scale=lambda a, x, out: [trace.mul(v, x, None) for v in a],
-                            shifts=FLOAT_ROWS.shifts)
+    stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts)
     names = [_Name(f"a{i}") for i in range(nargs)]
     result = formula(trace, stack, *names)
     if type(result) in (list, tuple):
