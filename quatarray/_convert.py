@@ -903,7 +903,8 @@ def rotation_power(q, n, unit=False):
         Scalar-first quaternions, not necessarily unit.
     n : float or ndarray
         The exponent, finite with ``|n| <= POWER_MAX[q.dtype]``: a number, or an array of
-        q's dtype that broadcasts with the batch shape (one exponent per rotation).
+        q's dtype that broadcasts with the batch shape (one exponent per rotation).  A larger
+        exponent raises a `ValueError`.
     unit : bool, default False
         The caller knows every q is a finite unit quaternion (`Rotation`'s storage).
 
@@ -922,8 +923,11 @@ def rotation_power(q, n, unit=False):
     """
     if not unit:
         q = quat_array(q, "quat")
+    top = POWER_MAX[q.dtype]   # n θ/2 would overflow beyond it: no angle left to reduce
     if type(n) is not np.ndarray or n.ndim == 0:
         n = float(n)
+        if abs(n) > top:
+            raise ValueError(f"expected an exponent n of magnitude at most {top:.3g}, got {n}")
         one = _half_turn_floats(q)
         if one is not None:   # one float64 rotation: the same formula on its floats
             w, x, y, z, tan_half, nv = one
@@ -932,6 +936,8 @@ def rotation_power(q, n, unit=False):
         out = np.empty(q.shape, q.dtype)
         _blockwise_unit(_k_power, _rows(q, 4), _rows(out, 4), unit, n=np.array(n, q.dtype))
         return out
+    if n.size and np.abs(n).max() > top:
+        raise ValueError(f"expected exponents n of magnitude at most {top:.3g}, got {np.abs(n).max():.3g}")
     batch = np.broadcast_shapes(q.shape[:-1], n.shape)
     q = np.broadcast_to(q, batch + (4,)).reshape(-1, 4)
     n = np.broadcast_to(n.astype(q.dtype, copy=False), batch).reshape(-1)

@@ -494,9 +494,6 @@ class Rotation:
                                      f"scipy's) broadcast with the rotations' shape "
                                      f"{q.shape[:-1]}: got shape {t.shape}")
                 t = finite(t.astype(np.result_type(t.dtype, q.dtype), copy=False), "the exponent n")
-                if t.size and np.abs(t).max() > _convert.POWER_MAX[t.dtype]:
-                    raise ValueError(f"expected exponents n of magnitude at most "
-                                     f"{_convert.POWER_MAX[t.dtype]:.3g}, got {np.abs(t).max():.3g}")
                 if t.dtype != q.dtype:
                     q = q.astype(t.dtype)
                 return type(self)._wrap(_convert.rotation_power(q, t, unit=self._unit), unit=True)
@@ -513,9 +510,6 @@ class Rotation:
             return self.inv()
         if n == 1:
             return type(self)._wrap(q.copy())
-        if abs(n) > _convert.POWER_MAX[q.dtype]:   # n θ/2 would overflow: no angle to reduce
-            raise ValueError(f"expected an exponent n of magnitude at most "
-                             f"{_convert.POWER_MAX[q.dtype]:.3g}, got {n}")
         return type(self)._wrap(_convert.rotation_power(q, n, unit=self._unit), unit=True)
 
     def inv(self):

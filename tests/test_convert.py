@@ -705,3 +705,7 @@ def test_rotation_power_rejects_an_exponent_whose_angle_overflows():
         Rotation.from_rotvec(np.ones((2, 3))) ** np.array([1.0, -1.5e308])
     with pytest.raises(ValueError, match="exponent n of magnitude at most"):
         Rotation.from_rotvec(np.ones(3, np.float32)) ** 3e38
+    with pytest.raises(ValueError, match="exponent n of magnitude at most"):
+        C.rotation_power(np.array([1.0, 0, 0, 0]), -1.5e308)   # the kernel's own check
+    with pytest.raises(ValueError, match="exponents n of magnitude at most"):
+        C.rotation_power(np.ones((2, 4)), np.array([1.0, 1.5e308]))
