@@ -670,20 +670,26 @@ def _half_turn(q, unit=False):
     """(t, exact) for the rotation angle θ of quaternions `q` (four component rows (4, *s):
     views of `Rotation` storage, only read, with `unit`; else a block's scratch copy, rescaled
     in place first where |q|² would over- or underflow): ``t[0] = tan(θ/2)² = |v|² / w²``
-    (w² floored at the dtype's smallest normal number: a unit q with w = 0 gives a huge
-    finite ratio, no division by zero) and ``t[1] = |v|²``, two contiguous rows.  `exact`:
-    some row has w² or |v|² below `_scale.LOW` (w = 0, or |v|² lost to underflow), which
-    `_exact_rows` then handles; the common path pays one range test of the two rows.
+    and ``t[1] = |v|²``, two contiguous rows.  `exact`: some row has w² or |v|² below `_scale.LOW` (w = 0, or |v|² lost to
+    underflow), which `_tangent_rows` and the kernels then handle; only then is w² floored
+    at the dtype's smallest normal number (a unit q with w = 0 gives a huge finite ratio,
+    no division by zero).  The common path pays one range test of the two rows, by
+    Python's min on up to 32 rotations (a NumPy reduction costs more there).
 
     One multiply squares the four components (their layout kept: contiguous for a block,
     one flat pass for a Rotation's (n, 4) storage)."""
-    s, dtype = q.shape[1:], q.dtype
-    big = q.size > 4 * _blocks.FEW
-    sq = np.multiply(q, q, out=_blocks.scratch().rows(4, s, dtype) if big else None)
-    t = _blocks.scratch().rows(2, s, dtype) if big else np.empty((2,) + s, dtype)
+    dtype = q.dtype
+    if q.size > 4 * _blocks.FEW:   # a block: scratch rows (the squares in q's layout)
+        rows = _blocks.scratch().rows
+        sq = np.multiply(q, q, out=rows(q.shape[1], (4,), dtype).T if q.ndim == 2 and q.flags.f_contiguous
+                         else rows(4, q.shape[1:], dtype))
+        t = rows(2, q.shape[1:], dtype)
+    else:
+        sq = np.multiply(q, q)
+        t = np.empty((2,) + q.shape[1:], dtype)
     w2, t0, v2 = sq[0], t[0], t[1]   # rows (indexing: a fifth of unpacking)
-    np.add(sq[1], sq[2], out=v2)
-    np.add(v2, sq[3], out=v2)                      # |v|² = (x² + y²) + z²
+    np.add(sq[1], sq[2], v2)
+    np.add(v2, sq[3], v2)                          # |v|² = (x² + y²) + z²
     if not unit:   # the range guard on |q|² = w² + |v|²: extreme magnitudes are rescaled
         n2 = np.add(w2, v2, out=sq[1])
         if not _scale.fits(n2):
@@ -691,15 +697,14 @@ def _half_turn(q, unit=False):
             np.multiply(q, q, out=sq)
             np.add(sq[1], sq[2], out=v2)
             np.add(v2, sq[3], out=v2)
-    few = v2.size <= 32 and v2.ndim == 1
-    if few:   # the test first (by Python's min), the floor only where it changes w²
-        exact = min(w2.tolist() + v2.tolist()) < _LOW[dtype]
-        if exact:
-            np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-    else:
-        np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-        exact = _least(t) < _LOW[dtype]
-    np.divide(v2, w2 if few and not exact else t0, out=t0)
+    low = _LOW[dtype]
+    if v2.size <= 32 and v2.ndim == 1:
+        exact = min(w2.tolist() + v2.tolist()) < low
+    else:   # (two passes: a floor with a 0-d operand runs NumPy's scalar loop, 1.4 ns a row)
+        exact = float(np.minimum.reduce(np.minimum(w2, v2, out=t0), axis=None)) < low
+    if exact:
+        w2 = np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
+    np.divide(v2, w2, t0)
     return t, exact
 
 
@@ -707,15 +712,6 @@ _LOW = _scale.LOW
 
 
 _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
-
-
-def _least(a):
-    """The least element of `a` (no NaN in it), as a Python float: up to 64 elements (the two
-    rows of `_half_turn` for up to 32 rotations) by Python's min (a NumPy reduction costs
-    more there)."""
-    if a.size <= 64:
-        return min(a.ravel().tolist())
-    return float(np.minimum.reduce(a, axis=None))
 
 
 def _tangent_rows(q, t, exact):
@@ -788,8 +784,12 @@ def _blockwise_unit(kernel, q, out, unit, **params):
     which cannot overflow, divide by zero or give NaN: no errstate, and views for small
     batches (`_blocks.blockwise`'s ``read_only``)."""
     if unit:
-        if 0 < len(q) <= _blocks.VIEWS_MAX:   # a few: the kernel at once on views of them (the
+        n = len(q)
+        if 0 < n <= _blocks.VIEWS_MAX:   # a few: the kernel at once on views of them (the
             return kernel(q.T, out.T, unit=True, **params)   # engine's setup costs a ufunc call's)
+        if 0 < n <= _blocks.BLOCK:   # one block: views too, the scratch rows it takes given back
+            with _blocks.scratch().frame():
+                return kernel(q.T, out.T, unit=True, **params)
         return _blocks.blockwise(kernel, [q], [out], read_only=True, unit=True, **params)
     return _blockwise(kernel, [q], [out], **params)
 
@@ -1091,8 +1091,8 @@ def from_rotvec(rotvec, degrees=False):
 
 def _k_magnitude(q, o, unit=False):
     t, exact = _half_turn(q, unit)
-    _tangent_rows(q, t if exact else t[0], exact)   # (a row: cheaper than a stack of one)
-    _angle(t[0], _ops.ARRAYS, None, o[0])
+    tan_half = _tangent_rows(q, t, exact)[0] if exact else np.sqrt(t[0], t[0])   # (a row: cheaper than a stack)
+    _angle(tan_half, _ops.ARRAYS, None, o[0])
 
 
 def _angle(tan_half, op, stack, o):

@@ -297,8 +297,9 @@ def test_one_rotation_at_the_kernels_branches(s):
                                2048, 2049, 4096, 4097])
 def test_batches_at_the_engines_size_thresholds(dtype, n):
     """At either side of the size thresholds of the small-batch paths (Python-float range
-    checks up to 32 norms or vectors; `_blocks.VIEWS_MAX`: strided views of a Rotation's
-    storage or copies, and as_matrix's stacked plan or its block program; `_blocks.FEW`:
+    checks up to 32 norms or vectors; `_blocks.VIEWS_MAX`: kernels called on views of a
+    Rotation's storage without the engine, and as_matrix's stacked plan or its block
+    program; `_blocks.FEW`:
     rotations and products on stacked rows; `_blocks.SMALL_ROWS`: fresh scratch rows or the
     kept buffer, at 1024 float64 / 2048 float32 rows of four; squares of 4096 elements
     stacked), the first, middle and last rows of the
@@ -337,6 +338,18 @@ def test_batches_at_the_engines_size_thresholds(dtype, n):
             for i in (0, n // 2, n - 1):
                 _same(_raw(f(*(a[i] for a in args))), whole[i], f"{name} at {i}: alone")
                 _same(_raw(f(*(a[i:i + 1] for a in args)))[0], whole[i], f"{name} at {i}: batch of one")
+
+
+@DTYPE
+@pytest.mark.parametrize("n", [1100, 1101])
+def test_one_block_of_views_or_copied_blocks(dtype, n, monkeypatch):
+    """Read-only kernels read a Rotation's storage through views up to one block
+    (`_blocks.BLOCK`) and copies of its blocks past it: the same bits either side.  The
+    block is lowered to 1100 rows (past `_blocks.FEW`, where the squares of
+    `_convert._half_turn` take kept scratch rows in the storage's layout) to keep the
+    check short."""
+    monkeypatch.setattr(_blocks, "BLOCK", 1100)
+    test_batches_at_the_engines_size_thresholds(dtype, n)
 
 
 @DTYPE
