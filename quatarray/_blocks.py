@@ -41,7 +41,7 @@ import numpy as np
 __all__ = [
     "BLOCK", "FEW", "PARALLEL_MIN", "VIEWS_MAX", "SMALL_ROWS", "SCRATCH_LIMIT",
     "get_num_threads", "set_num_threads", "num_threads",
-    "block_size", "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise",
+    "block_size", "split", "part", "soa", "scratch", "scratch_bytes", "run", "blockwise", "on_views",
 ]
 
 #: float64 elements (quaternions, vectors, matrices) per block (float32 blocks hold
@@ -527,3 +527,16 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         return kernel(*iv, *ov, **params)
 
     return any(r is True or r is np.True_ for r in run(block, split(batch, size), prod(batch)))
+
+
+def on_views(kernel, a, out, **params):
+    """Run the read-only `kernel` (as for `blockwise`) on a flat batch `a` (n, k) into `out`
+    (n, m), given the components-first views of both up to one block (within a scratch
+    frame: the rows the kernel takes are given back), and by `blockwise` past it (copies
+    of blocks, on threads).  Returns the kernel's result (`blockwise`'s bool past one
+    block).  (Up to `VIEWS_MAX` rows, callers call their kernels on the views themselves:
+    the kernels take no kept scratch rows there.)"""
+    if 0 < len(a) <= BLOCK:
+        with scratch().frame():
+            return kernel(a.T, out.T, **params)
+    return blockwise(kernel, [a], [out], read_only=True, **params)

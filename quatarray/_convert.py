@@ -781,16 +781,12 @@ _DENORM_MIN = {d: np.finfo(d).smallest_subnormal for d in _TINY}
 def _blockwise_unit(kernel, q, out, unit, **params):
     """Run a conversion kernel on quaternions `q` (N, 4) into `out` (N, k).  `unit`: they are
     finite unit quaternions (`Rotation`'s storage), which the kernel then only reads and
-    which cannot overflow, divide by zero or give NaN: no errstate, and views for small
-    batches (`_blocks.blockwise`'s ``read_only``)."""
+    which cannot overflow, divide by zero or give NaN: no errstate, and views of them up to
+    one block (`_blocks.on_views`)."""
     if unit:
-        n = len(q)
-        if 0 < n <= _blocks.VIEWS_MAX:   # a few: the kernel at once on views of them (the
+        if 0 < len(q) <= _blocks.VIEWS_MAX:   # a few: the kernel at once on views of them (the
             return kernel(q.T, out.T, unit=True, **params)   # engine's setup costs a ufunc call's)
-        if 0 < n <= _blocks.BLOCK:   # one block: views too, the scratch rows it takes given back
-            with _blocks.scratch().frame():
-                return kernel(q.T, out.T, unit=True, **params)
-        return _blocks.blockwise(kernel, [q], [out], read_only=True, unit=True, **params)
+        return _blocks.on_views(kernel, q, out, unit=True, **params)
     return _blockwise(kernel, [q], [out], **params)
 
 

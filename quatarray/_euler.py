@@ -448,10 +448,12 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
         flat, oflat = q.reshape(-1, 4), out.reshape(-1, 3)
         if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:   # a Rotation's few: the kernel at once on
             gimbal = _k_as_euler(flat.T, oflat.T, i, j, k, symmetric, sign, extrinsic, True)   # views
+        elif unit:   # up to a block on views too, then blocks on threads
+            gimbal = _blocks.on_views(_k_as_euler, flat, oflat, i=i, j=j, k=k, symmetric=symmetric,
+                                      sign=sign, extrinsic=extrinsic, unit=True)
         else:
-            gimbal = (_blocks.blockwise if unit else _blockwise)(
-                _k_as_euler, [flat], [oflat], read_only=True, i=i, j=j, k=k,
-                symmetric=symmetric, sign=sign, extrinsic=extrinsic, unit=unit)
+            gimbal = _blockwise(_k_as_euler, [flat], [oflat], read_only=True, i=i, j=j, k=k,
+                                symmetric=symmetric, sign=sign, extrinsic=extrinsic, unit=False)
         _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 
