@@ -177,6 +177,10 @@ def _index(flat_index, batch):
 
 # --- matrices -----------------------------------------------------------------------
 
+_MATRIX_SHAPE = {1: (3, 3), 2: (1, 3, 3)}
+"""The shape of one rotation's matrix by its quaternion's ndim: (4,) or (1, 4)."""
+
+
 def _unit_matrix(w, x, y, z):
     """The nine entries of the rotation matrix of a unit q, row-major, in plain arithmetic:
     scipy's diagonal (w² ∓ z²) ± (x² ∓ y²) (exact zeros where two components are equal in
@@ -392,7 +396,7 @@ def as_matrix(q, unit=False):
     one = _ops.floats64(q) if unit and type(q) is np.ndarray else None
     if one is not None:   # one float64 rotation (a valid array, then): the same formula on its floats
         # (np.fromiter and a reshape: the cheapest (3, 3) array of nine floats, 0.5 µs)
-        return np.fromiter(_unit_matrix(*one), np.float64, 9).reshape(q.shape[:-1] + (3, 3))
+        return np.fromiter(_unit_matrix(*one), np.float64, 9).reshape(_MATRIX_SHAPE[q.ndim])
     q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     flat = q.reshape(-1, 4)

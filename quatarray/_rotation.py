@@ -262,7 +262,7 @@ class Rotation:
                [ 1.,  0.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return _convert.as_matrix(self._q, unit=self._unit)
+        return _convert.as_matrix(self._q, self._unit)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
