@@ -983,11 +983,13 @@ def _k_rotvec_rows(r, o, rows, factor):
     sq = np.multiply(r, r, out=rows[1:4].reshape(r.shape))   # x², y², z² summed in `squares`' order
     np.add(sq[:, 0], sq[:, 1], out=theta)
     theta += sq[:, 2]
-    if not _scale.at_most(theta, _scale.HIGH[theta.dtype]):
+    most = _scale.largest(theta)
+    if not most <= _scale.HIGH[theta.dtype]:
         _k_from_rotvec(r.T.copy(), o.T, factor)
         return
     np.sqrt(theta, out=theta)
-    _rotvec_quat(r.T, theta, factor, None, _ops.ARRAYS, _ops.STACKS, o.T, rows)
+    _rotvec_quat(r.T, theta, factor, None, _ops.ARRAYS, _ops.STACKS, o.T, rows,
+                 math.sqrt(most) if theta.dtype == _F64 and most >= 0.0 else None)   # (-inf: empty)
 
 
 def _k_from_rotvec(r, q, factor):
@@ -1001,18 +1003,22 @@ def _k_from_rotvec(r, q, factor):
             _huge_rotvecs(r, q, e, ~np.isfinite(rows[0]), factor)
 
 
-def _rotvec_quat(r, theta, factor, e, op, stack, q, rows):
+def _rotvec_quat(r, theta, factor, e, op, stack, q, rows, most=None):
     """The unit quaternion of the rotation vector `r` (x, y, z) of norm `theta` (times
     `factor`; `e` the exponents by which a block's x, y, z were scaled down, or None) in
     `op`'s arithmetic (`_ops`, `stack` its stacked form: r as three rows scaled in one call),
-    into ``q`` (four rows) with the six work rows `rows`; returned as a list."""
+    into ``q`` (four rows) with the six work rows `rows`; returned as a list.  `most`: the
+    largest float64 norm where the caller knows it: the half angles' bounds follow from it
+    by the same roundings (monotone), which spares the tangent its range reductions."""
     q0, qv = q[0], q[1:4]
     _, t, u, v, c, d = rows[:6]
     if factor != 1.0:
         theta = op.mul(theta, factor, theta)
-    theta = op.max(theta, ANGLE_FLOOR[np.dtype(np.float64)] if type(theta) is float else _floor_row(theta.dtype, theta.shape), theta)
+    floor = ANGLE_FLOOR[np.dtype(np.float64)]
+    theta = op.max(theta, floor if type(theta) is float else _floor_row(theta.dtype, theta.shape), theta)
     t = op.mul(theta, 0.5, t)
-    c, d = _cos_sin(t, c, d, (u, v))     # cos(θ/2), sin(θ/2)
+    bounds = None if most is None else (0.0, math.nextafter(max(most * factor, floor) * 0.5, math.inf))
+    c, d = _cos_sin(t, c, d, (u, v), bounds)     # cos(θ/2), sin(θ/2)
     q0 = op.copy(c, q0)
     # sin(θ/2) / θ, times the degree factor that converts v itself
     d = op.div(d, theta, d)

@@ -42,7 +42,7 @@ def result_dtype(*arrays):
 ANGLE_FLOOR = {np.dtype(np.float32): np.float32(1e-30), np.dtype(np.float64): 1e-300}
 
 
-def cos_sin(angle, c=None, s=None, rows=None):
+def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     """(cos a, sin a) of an array of angles, by the cheaper exact route for its dtype.
 
     float32: `np.cos` and `np.sin`, SIMD loops on every x86 NumPy build.
@@ -55,7 +55,8 @@ def cos_sin(angle, c=None, s=None, rows=None):
     small cosine is accurate to about one ulp of t.
 
     Kernels pass output rows `c` and `s` and two scratch rows `rows` of the
-    angle's shape (none may overlap `angle`): then nothing is allocated.
+    angle's shape (none may overlap `angle`): then nothing is allocated; and
+    ``bounds = (lo, hi)`` of the angles where they know them (`_trig.tan`'s).
 
     >>> import numpy as np
     >>> from quatarray._kernels import cos_sin
@@ -70,15 +71,16 @@ def cos_sin(angle, c=None, s=None, rows=None):
     if c is None:
         c, s = np.empty_like(angle, dtype=np.float64), np.empty_like(angle, dtype=np.float64)
         rows = (np.empty_like(c), np.empty_like(c))
-    return _cos_sin_tan(angle, _ops.ARRAYS, _trig.tan, c, s, rows)
+    return _cos_sin_tan(angle, _ops.ARRAYS, _trig.tan, c, s, rows, bounds and (bounds[0] * 0.5, bounds[1] * 0.5))
 
 
-def _cos_sin_tan(angle, op, tan, c, s, rows):
-    """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`."""
+def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None):
+    """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`
+    (`bounds`: of angle / 2, for `tan`)."""
     u, v = rows[:2]
     half, one, two = _COS_SIN[op is _ops.FLOATS]
     s = op.mul(angle, half, s)
-    t = tan(s, out=s, rows=(c, u, v))
+    t = tan(s, out=s, rows=(c, u, v), bounds=bounds)
     c = op.mul(t, t, c)
     c = op.add(c, one, c)
     d = op.div(two, c, c)                   # 2 / (1 + t²)

@@ -76,9 +76,21 @@ def at_most(a, bound):
     >>> at_most(np.array([1.0, 2.0]), 2.0), at_most(np.array([1.0, np.nan]), 2.0)
     (True, False)
     """
+    return largest(a) <= bound
+
+
+def largest(a):
+    """The largest element of `a` as a Python float (NaN where `a` holds a NaN, -inf when
+    empty): one reduction, or Python's max up to `_FEW` elements.
+
+    >>> import numpy as np
+    >>> from quatarray._scale import largest
+    >>> largest(np.array([1.0, 3.0, 2.0]))
+    3.0
+    """
     if a.size <= _FEW:
-        return _bounds(a, _FEW)[1] <= bound
-    return bool(a.max() <= bound)   # one reduction: the lower bound is not needed
+        return _bounds(a, _FEW)[1]
+    return float(a.max())
 
 
 def sum_squares(q, out, start=0, rows=None):

@@ -146,10 +146,10 @@ def reduced(x, out, rows, op=_ops.ARRAYS):
     return op.div(z, y, out)
 
 
-def tan_float(x, out=None, rows=None):
+def tan_float(x, out=None, rows=None, bounds=None):
     """`tan` of one Python float with the bits of `tan` on an array holding it: NumPy's
-    loop where `tan` is `np.tan`, else `rational` or `reduced` on the float (`out`, `rows`:
-    ignored, for kernels written for either).
+    loop where `tan` is `np.tan`, else `rational` or `reduced` on the float (`out`, `rows`,
+    `bounds`: ignored, for kernels written for either).
 
     >>> import numpy as np
     >>> from quatarray._trig import tan, tan_float
@@ -165,7 +165,7 @@ def tan_float(x, out=None, rows=None):
     return reduced(x, None, _ops.NONE[:3], _ops.FLOATS)
 
 
-def tan(x, out=None, rows=None):
+def tan(x, out=None, rows=None, bounds=None):
     """``np.tan(x, out=out)``, within 2 ulp, by the cheaper route on this CPU.
 
     Parameters
@@ -179,6 +179,10 @@ def tan(x, out=None, rows=None):
         Scratch of x's shape and dtype, overlapping neither `x` nor `out`
         (kernels pass rows they hold): then nothing is allocated for
         arguments within [-π/4, π/4].
+    bounds : (float, float), optional
+        Bounds ``lo <= x <= hi`` the caller knows (float64): then `x` is not
+        reduced to find them (two reductions).  Looser bounds give the same
+        bits (`reduced` is exact where `rational` applies).
 
     Examples
     --------
@@ -194,7 +198,7 @@ def tan(x, out=None, rows=None):
         out = np.empty_like(x)
     if rows is None:
         rows = (np.empty_like(x), np.empty_like(x), np.empty_like(x))
-    lo, hi = np.minimum.reduce(x, axis=None), np.maximum.reduce(x, axis=None)
+    lo, hi = bounds or (np.minimum.reduce(x, axis=None), np.maximum.reduce(x, axis=None))
     if -QUARTER_PI < lo and hi < QUARTER_PI:     # the common case (NaN fails the test)
         return rational(x, out, *rows)
     quarter = np.abs(x) == QUARTER_PI            # masks, not indices: x may be 0-d

@@ -53,6 +53,28 @@ def test_signed_zero_beside_reduced_arguments(rational_path):
     np.testing.assert_array_equal(np.signbit(got[:2]), [True, False])
 
 
+def test_known_bounds_give_the_bits_of_found_ones(rational_path, rng):
+    """Bounds the caller knows (`tan`'s ``bounds``), tight or loose, give the bits of the
+    bounds `tan` finds itself: inside a quarter turn, astride it and beyond."""
+    for x in (rng.uniform(0, np.pi / 4 * 0.999, 300), rng.uniform(0, 3.0, 300),
+              np.array([0.0, np.nextafter(np.pi / 4, 0)])):
+        want = _trig.tan(x)
+        lo, hi = float(x.min()), float(x.max())
+        for bounds in ((lo, hi), (0.0, hi), (-1.0, 10.0)):
+            np.testing.assert_array_equal(_trig.tan(x, bounds=bounds), want, strict=True)
+
+
+def test_from_rotvec_bounds_give_the_bits_of_the_huge_vector_path(rational_path, rng):
+    """`from_rotvec`'s row kernel passes the tangent bounds derived from its largest norm;
+    the component-major kernel (for a block holding a huge vector) finds them itself: the
+    same rows give the same bits either way, in radians and degrees."""
+    from quatarray._convert import from_rotvec
+    v = rng.standard_normal((50, 3)) * rng.choice([1e-9, 0.5, 3.0, 40.0], (50, 1))
+    huge = np.concatenate([v, [[1e200, 0.0, 0.0]]])
+    for degrees in (False, True):
+        np.testing.assert_array_equal(from_rotvec(v, degrees), from_rotvec(huge, degrees)[:50], strict=True)
+
+
 @pytest.mark.parametrize("simd", [False, True], ids=["rational", "numpy"])
 def test_one_float_has_the_bits_of_the_array_path(monkeypatch, rng, simd):
     """`tan_float` (one rotation's float paths) is `tan` on an array holding the float,
