@@ -674,11 +674,12 @@ def _half_turn(q, unit=False):
     """(t, exact) for the rotation angle θ of quaternions `q` (four component rows (4, *s):
     views of `Rotation` storage, only read, with `unit`; else a block's scratch copy, rescaled
     in place first where |q|² would over- or underflow): ``t[0] = tan(θ/2)² = |v|² / w²``
-    and ``t[1] = |v|²``, two contiguous rows.  `exact`: some row has w² or |v|² below `_scale.LOW` (w = 0, or |v|² lost to
-    underflow), which `_tangent_rows` and the kernels then handle; only then is w² floored
-    at the dtype's smallest normal number (a unit q with w = 0 gives a huge finite ratio,
-    no division by zero).  The common path pays one range test of the two rows, by
-    Python's min on up to 32 rotations (a NumPy reduction costs more there).
+    and ``t[1] = |v|²``, two contiguous rows.  `exact`: some row has w² or |v|² below
+    `_scale.LOW` (w = 0, or |v|² lost to underflow), which `_tangent_rows` and the kernels
+    then handle; only then is w² floored at the dtype's smallest normal number (a unit q
+    with w = 0 gives a huge finite ratio, no division by zero).  The common path pays one
+    range test of the two rows, by Python's min on up to 32 rotations (a NumPy reduction
+    costs more there).
 
     One multiply squares the four components (their layout kept: contiguous for a block,
     one flat pass for a Rotation's (n, 4) storage)."""
