@@ -89,7 +89,7 @@ def test_as_matrix_matches_scipy(rng, dtype, shape):
     np.testing.assert_allclose(got, sp(q).as_matrix(), rtol=0, atol=tol(dtype))
 
 
-@pytest.mark.parametrize("shape", [(), (1,), (7,), (3, 5), (_blocks.VIEWS_MAX + 3,)])
+@pytest.mark.parametrize("shape", [(), (1,), (1, 1), (7,), (3, 5), (_blocks.VIEWS_MAX + 3,)])
 @pytest.mark.parametrize("layout", ["contiguous", "read-only", "strided"])
 def test_unit_as_matrix_matches_scipy_and_the_general_path(rng, dtype, shape, layout):
     """`unit=True` (a Rotation's storage): its stacked plan for a few rotations and its
