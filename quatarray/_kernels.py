@@ -144,9 +144,9 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
         angles = []
         for a, b in zip(y, x):   # the ratio route below, one float at a time (no call each)
             if b > 0:
-                angles.append(float(np.arctan(a / b)))
+                angles.append(_ops.arctan_float(a / b))
             elif b < 0:
-                angles.append(float(np.arctan(a / b)) + math.copysign(math.pi, a))
+                angles.append(_ops.arctan_float(a / b) + math.copysign(math.pi, a))
             else:   # x = ±0 (or NaN): the array code
                 angles.append(float(arctan2(np.array(a), np.array(b), out=np.empty(()), x_nonneg=x_nonneg)))
         return np.array(angles)

@@ -60,21 +60,8 @@ _RATIONAL = _ops.operands(_P0, _P1, _P2, _Q0, _Q1, _Q2, _Q3)
 _REDUCTION = _ops.operands(_TWO_OVER_PI, _DP1, _DP2, _DP3, 0.0, 0.5, 1.0)
 
 
-def _numpy_tan_is_simd():
-    """True when NumPy runs its float64 tangent as a SIMD loop (AVX-512 builds with SVML).
-
-    Read from NumPy's public build and runtime report, ``numpy.show_config(mode="dicts")``
-    (the CPU features NumPy found, as ``numpy.show_runtime`` prints them); False where
-    that report has no such entry (NumPy before 1.26)."""
-    try:
-        found = np.show_config(mode="dicts")["SIMD Extensions"]["found"]
-    except (TypeError, KeyError, AttributeError):
-        return False
-    return "AVX512_SKX" in found or "X86_V4" in found
-
-
 #: NumPy's float64 tangent is a SIMD loop on this CPU: `tan` is `np.tan`.
-SIMD_TAN = _numpy_tan_is_simd()
+SIMD_TAN = _ops.SVML
 
 
 def rational(x, out, z, p, q, op=_ops.ARRAYS):

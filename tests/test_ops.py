@@ -53,3 +53,49 @@ def test_compiled_rows_of_three_are_float_rows():
 def test_a_branch_on_values_cannot_be_compiled():
     with pytest.raises(TypeError, match="may not branch on values"):
         _ops.compiled(lambda op, stack, a: op.where(a, a, a), 1)
+
+
+def _arctan_checks():
+    """What `arctan_float` must do on the CPU NumPy sees: the array loop's bits on a wide
+    sample (signed zeros, subnormals, huge, infinite and NaN arguments too), and the C
+    library's atan exactly where NumPy's loop is not SVML's.  Returns a report."""
+    rng = np.random.default_rng(11)
+    x = np.concatenate([rng.uniform(-3, 3, 20000), rng.standard_normal(20000) * 1e3,
+                        10.0 ** rng.uniform(-320, 308, 20000) * rng.choice([-1, 1], 20000),
+                        [0.0, -0.0, 5e-324, -5e-324, 1.0, -1.0, np.inf, -np.inf, np.nan]])
+    want = np.arctan(x)
+    got = np.array([_ops.arctan_float(v) for v in x.tolist()])
+    same = bool(np.array_equal(got.view(np.int64)[:-1], want.view(np.int64)[:-1]) and np.isnan(got[-1]))
+    return {"svml": _ops.SVML, "math": _ops.arctan_float is math.atan, "same": same}
+
+
+def test_arctan_of_a_float_has_the_array_loops_bits():
+    report = _arctan_checks()
+    assert report["same"]
+    assert report["math"] == (not report["svml"])
+
+
+def test_arctan_of_a_float_without_svml(tmp_path):
+    """With NumPy's AVX-512 loops switched off (``NPY_DISABLE_CPU_FEATURES``, where this CPU
+    has them), NumPy's float64 arctan is the C library's atan, and `arctan_float` is
+    ``math.atan`` with the same bits; as_euler of one rotation then keeps the batch's bits."""
+    import json
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ)
+    if _ops.SVML:
+        env["NPY_DISABLE_CPU_FEATURES"] = ("AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL "
+                                           "AVX512_SPR X86_V4")
+    code = ("import json, numpy as np, tests.test_ops as t\n"
+            "from quatarray import Rotation\n"
+            "r = Rotation.random(200, rng=3)\n"
+            "whole = r.as_euler('xyz')\n"
+            "alone = np.array([r[i].as_euler('xyz') for i in range(200)])\n"
+            "report = t._arctan_checks()\n"
+            "report['euler'] = bool(np.array_equal(whole, alone))\n"
+            "print(json.dumps(report))\n")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True,
+                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert report == {"svml": False, "math": True, "same": True, "euler": True}
