@@ -1034,14 +1034,10 @@ def _rotvec_quat(r, theta, factor, e, op, stack, q, rows, most=None):
     return [q0, *stack.scale(r, d, qv)]
 
 
-@functools.lru_cache(maxsize=8)
 def _floor_row(dtype, shape):
-    """`ANGLE_FLOOR` of `dtype` as a read-only array of `shape`, for the few block shapes a
-    program uses: ``np.maximum`` with a scalar operand runs a scalar loop (0.48 ns an
-    element at 32768, AVX-512), with an array the SIMD one (0.10)."""
-    row = np.full(shape, ANGLE_FLOOR[dtype], dtype)
-    row.flags.writeable = False
-    return row
+    """`ANGLE_FLOOR` of `dtype` as a read-only array of `shape` (`_ops.row`: a scalar operand
+    would run ``np.maximum``'s scalar loop)."""
+    return _ops.row(ANGLE_FLOOR[dtype], dtype, shape)
 
 
 def _huge_rotvecs(r, q, e, huge, factor):

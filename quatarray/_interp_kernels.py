@@ -136,11 +136,12 @@ def _sine_weights(r2, b2, h, w0, th, s2, w1):
     tan θ = sqrt(r2 / b2) <= 1: float32 sin is a SIMD loop, and θ comes from
     `_trig.atan_unit32` (NumPy's float32 arcsin and arctan are scalar loops on
     AVX2; benchmarks/README.md)."""
-    np.maximum(b2, _floor(r2.dtype), out=b2)
+    dtype = r2.dtype
+    np.maximum(b2, _ops.row(_floor(dtype), dtype, b2.shape), out=b2)
     np.divide(r2, b2, out=s2)
     np.sqrt(s2, out=s2)
     atan_unit32(s2, th, r2, b2, w0)           # r2, b2 and w0 are not needed again
-    np.maximum(th, _tiny(r2.dtype), out=th)   # sin(2hθ) / sin(2θ) -> h at θ = 0
+    np.maximum(th, _ops.row(_tiny(dtype), dtype, th.shape), out=th)   # sin(2hθ) / sin(2θ) -> h at θ = 0
     th *= 2                                   # Ω
     np.sin(th, out=s2)
     np.divide(1, s2, out=s2)                  # 1 / sin Ω
@@ -158,10 +159,10 @@ def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
     dtype = r2.dtype
     # b² = 0 only for zero input (or B = -A followed as given, see `wide_arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
-    np.maximum(b2, _floor(dtype), out=b2)
+    np.maximum(b2, _ops.row(_floor(dtype), dtype, b2.shape), out=b2)
     np.divide(r2, b2, out=r2)
     np.sqrt(r2, out=rho)
-    np.maximum(rho, _tiny(dtype), out=rho)
+    np.maximum(rho, _ops.row(_tiny(dtype), dtype, rho.shape), out=rho)
     np.arctan(rho, out=tau)
     np.multiply(tau, h, out=tau, casting="unsafe")
     tan(tau, out=tau, rows=(t2, w0, a2))
@@ -192,8 +193,11 @@ def hemisphere(A, B, a2, b2, out):
     numbers are exact.
     """
     np.subtract(b2, a2, out=out)
-    if out.dtype == np.float32:
-        unsure = np.abs(out) <= _UNSURE32 * (a2 + b2)
+    if out.dtype == np.float32:   # (in scratch rows: four fresh block-sized temporaries cost page faults)
+        bound, size = _rows(2, out.shape, out.dtype)
+        np.add(a2, b2, out=bound)
+        bound *= _UNSURE32
+        unsure = np.less_equal(np.absolute(out, out=size), bound)
         if unsure.any():
             s = out.shape
             at = _where(unsure)

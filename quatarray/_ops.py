@@ -12,6 +12,7 @@ not offered on floats, except ``arctan``, which has the bits of NumPy's loop (`a
 operations in the same order, without a call per operation.
 """
 
+import functools
 import math
 from types import SimpleNamespace
 
@@ -242,6 +243,22 @@ def const(value, dtype):
 
 
 _CONSTS = {}
+
+
+@functools.lru_cache(maxsize=16)
+def row(value, dtype, shape):
+    """`value` as a read-only array of `shape` and `dtype`, made once for the few block shapes
+    a program uses: ``np.maximum`` with a scalar operand runs NumPy's scalar loop (0.48 ns
+    an element at 32768, AVX-512), with an array of the block's shape the SIMD one (0.10).
+
+    >>> import numpy as np
+    >>> from quatarray._ops import row
+    >>> row(0.5, np.dtype(np.float32), (2,))
+    array([0.5, 0.5], dtype=float32)
+    """
+    r = np.full(shape, value, dtype)
+    r.flags.writeable = False
+    return r
 
 
 def operands(*values):
