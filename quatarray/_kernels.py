@@ -564,7 +564,7 @@ def _k_exp(q, o):
             e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
         np.exp(q[0], out=ew)
         # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
-        np.maximum(vn, ANGLE_FLOOR[vn.dtype], out=vn)
+        np.maximum(vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), out=vn)
         cos_sin(vn, c, s, (u, v))
         s /= vn
         s *= ew
