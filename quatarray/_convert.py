@@ -1020,7 +1020,8 @@ def _rotvec_quat(r, theta, factor, e, op, stack, q, rows, most=None):
     if factor != 1.0:
         theta = op.mul(theta, factor, theta)
     floor = ANGLE_FLOOR[np.dtype(np.float64)]
-    theta = op.max(theta, floor if type(theta) is float else _floor_row(theta.dtype, theta.shape), theta)
+    theta = op.max(theta, floor if type(theta) is float else _ops.row(ANGLE_FLOOR[theta.dtype], theta.dtype,
+                                                                          theta.shape), theta)
     t = op.mul(theta, 0.5, t)
     bounds = None if most is None else (0.0, math.nextafter(max(most * factor, floor) * 0.5, math.inf))
     c, d = _cos_sin(t, c, d, (u, v), bounds)     # cos(θ/2), sin(θ/2)
@@ -1032,12 +1033,6 @@ def _rotvec_quat(r, theta, factor, e, op, stack, q, rows, most=None):
     if e is not None:
         np.ldexp(d, e, out=d)
     return [q0, *stack.scale(r, d, qv)]
-
-
-def _floor_row(dtype, shape):
-    """`ANGLE_FLOOR` of `dtype` as a read-only array of `shape` (`_ops.row`: a scalar operand
-    would run ``np.maximum``'s scalar loop)."""
-    return _ops.row(ANGLE_FLOOR[dtype], dtype, shape)
 
 
 def _huge_rotvecs(r, q, e, huge, factor):

@@ -818,10 +818,8 @@ def rotate_block(q, u, o, add=None, *, wsign, unit=False):
     checks `_rotate_few` skips); `add` (3, *s), components-first view like o, is added to
     the result.  Evaluated one component row at a time (`_ops.ARRAY_ROWS`: a row's shifts
     are views, nothing is copied)."""
-    if unit and _scale.inside(u, _HALF_BIG[u.dtype]):   # as `_rotate_few`: nothing to rescale
-        w, s, e = _rotate_setup(q, u, wsign, unit, checked=True)
-    else:
-        w, s, e = _rotate_setup(q, u, wsign, unit)
+    # checked as `_rotate_few` does: a unit q and no vector near the float maximum, nothing to rescale
+    w, s, e = _rotate_setup(q, u, wsign, unit, checked=unit and _scale.inside(u, _HALF_BIG[u.dtype]))
     x, y, z = q[1:]
     ux, uy, uz = u
     with _blocks.scratch().frame() as work:
