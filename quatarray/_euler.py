@@ -183,6 +183,12 @@ def _norms(abcd, op, stack, sq, n):
     return op.add(sq[0], sq[1], n[0]), op.add(sq[2], sq[3], n[1])
 
 
+_FIRST_THIRD = {True: (0, 2), False: (2, 0)}
+"""`_arguments`' `first` and `third` by `extrinsic`: the rows of arctan2's three
+arguments that hold the angle from ``ac + bd`` and the one from ``ac - bd`` (rows in the
+output's order of angles, which an intrinsic sequence reverses)."""
+
+
 def _arguments(abcd, u2, r2, op, first, third, yx, work):
     """arctan2's numerators ``[im₁, r, im₂]`` and denominators ``[re₁, u, re₂]``, in the rows'
     order of the angles (`first`, `third`), from a, b, c, d (`abcd`) and `_norms`' ``u2``,
@@ -258,7 +264,7 @@ def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
     In gimbal lock (middle angle within 1e-7 of 0 or π) the third angle is set to 0 and the
     first takes the whole turn, as in scipy.  `unit`: a, b, c, d come from finite unit
     quaternions (`Rotation`'s storage), whose squared norms always fit: no range check."""
-    first, third = (0, 2) if extrinsic else (2, 0)
+    first, third = _FIRST_THIRD[extrinsic]
     op = _ops.ARRAYS
     shape, dtype = abcd.shape[1:], abcd.dtype
     rows = (_blocks.scratch().rows(15, shape, dtype) if abcd.size > 4 * _blocks.FEW
@@ -367,7 +373,7 @@ _HALF_PI = np.pi / 2
 def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
     four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows."""
-    first, third = (0, 2) if extrinsic else (2, 0)
+    first, third = _FIRST_THIRD[extrinsic]
 
     def operands(op, stack, *q):
         qk = op.mul(q[k + 1], -1.0, None) if sign < 0 else q[k + 1]
@@ -562,7 +568,7 @@ def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    first, third = (0, 2) if extrinsic else (2, 0)
+    first, third = _FIRST_THIRD[extrinsic]
     abcd = _davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None)
     o = _angles_floats(_operands(abcd, _ops.FLOATS, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb)
     if o is not None and flip:
