@@ -433,6 +433,8 @@ class RigidTransform:
             if w.shape != q.shape[:-1]:
                 raise ValueError(f"Expected `weights` to match transform shape, got shape {w.shape} "
                                  f"for {q.shape[:-1]} transformations.")
+        if not axes:   # nothing averaged: each transform is its own mean (scipy's copy)
+            return type(self)._from_parts(q.copy(), t.copy(), False, self._unit)
         rot = Rotation(q, normalize=False, copy=False, scalar_first=True)
         qm = np.asarray(rot.mean(weights=weights, axis=axes).as_quat(scalar_first=True), q.dtype)
         # translations and weights scaled per mean by powers of two (exact: the same bits where

@@ -627,6 +627,8 @@ class Rotation:
             if not _broadcastable(w.shape, batch) or np.broadcast_shapes(w.shape, batch) != batch:
                 raise ValueError(f"Expected `weights` to be broadcastable to rotation shape, got "
                                  f"shape {w.shape} for {batch} rotations.")
+        if not axes:   # nothing averaged: each rotation is its own mean, as given (scipy's copy)
+            return type(self)._wrap(q.copy(), unit=self._unit)
         return type(self)._wrap(_rotation_algorithms.mean(q, w, axes, unit=self._unit))
 
     def reduce(self, left=None, right=None, return_indices=False):

@@ -307,8 +307,31 @@ def test_pow_like_scipy(n):
 def test_mean_like_scipy(shape, weights):
     w = {None: None, "ones": np.ones(shape), "random": np.random.default_rng(1).uniform(size=shape),
          "zeros": np.zeros(shape), "negative": -np.ones(shape), "wrong length": np.ones(7)}[weights]
-    for axis in [None, 0, -1, (0, 0), 5, 1.0]:
+    for axis in [None, 0, -1, (0, 0), (), 5, 1.0]:
+        if axis == ():
+            # nothing averaged: each rotation is its own mean, as scipy returns it for one batch
+            # axis whatever the weights (for more axes scipy's other backend gives the identity
+            # where a weight is 0); weights refused for any other axis are refused here too
+            r = _random(qa.Rotation, shape, 5)
+            if weights in ("negative", "wrong length"):
+                with pytest.raises(ValueError, match="weights"):
+                    r.mean(weights=w, axis=axis)
+            else:
+                np.testing.assert_array_equal(r.mean(weights=w, axis=axis).as_quat(), r.as_quat())
+                if len(shape) == 1:
+                    same_as_scipy(lambda R, **_: _random(R, shape, 5).mean(weights=w, axis=axis))
+            continue
         same_as_scipy(lambda R, **_: _random(R, shape, 5).mean(weights=w, axis=axis), atol=1e-7)
+
+
+@pytest.mark.parametrize("weights", [None, [1.0, 2.0, 3.0], [0.0, 0.0, 0.0]])
+def test_rigid_transform_mean_over_no_axis_is_each_transform(weights):
+    def f(R, RT, **_):
+        t = RT.from_components([[1.0, 2, 3], [4, 5, 6], [7, 8, 9]], _random(R, (3,), 2))
+        return t.mean(weights=weights, axis=())
+    same_as_scipy(f)
+    t = qa.RigidTransform.from_translation([1.0, 2, 3])
+    assert t.mean(axis=()).as_matrix().shape == (1, 4, 4)   # as scipy: a batch of one
 
 
 def test_mean_of_nothing_raises_like_scipy():
