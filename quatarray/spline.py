@@ -177,7 +177,9 @@ class RotationSpline:
             raise ValueError("`rotations` must be a sequence of rotations.")
         if len(keys) == 1:
             raise ValueError("`rotations` must contain at least 2 rotations.")
-        times = np.asarray(in_memory(times, "times"), dtype=float)
+        # a copy: the spline's segments index these times, so the caller's array changing
+        # later must not move them (as a Slerp's)
+        times = np.array(in_memory(times, "times"), dtype=float)
         if times.ndim != 1:
             raise ValueError("`times` must be 1-dimensional.")
         finite(times, "times")   # scipy: "array must not contain infs or NaNs"

@@ -107,6 +107,17 @@ def test_inputs_not_modified_and_readonly(rng):
     assert np.array_equal(keys, before)
 
 
+def test_times_changed_after_construction_do_not_move_the_spline(rng):
+    times, keys = _track(rng, 5)
+    times = times.copy()
+    sp = RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))
+    t = np.linspace(times[0], times[-1], 7)
+    want = sp(t).as_quat()
+    times *= 10   # the caller's array, reused
+    np.testing.assert_array_equal(sp(t).as_quat(), want)
+    np.testing.assert_array_equal(sp.times, times / 10)
+
+
 # the reduction stops at S.DENSE rows: sizes below, at and above it, odd and even, and a batch
 @pytest.mark.parametrize("n, batch", [(1, ()), (9, ()), (16, ()), (17, ()), (34, ()), (67, ()), (40, (2,))])
 def test_block_tridiagonal_solve_matches_dense(rng, n, batch):
