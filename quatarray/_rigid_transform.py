@@ -178,7 +178,9 @@ class RigidTransform:
             self._q = _convert.from_matrix(m[..., :3, :3])
             self._t = m[..., :3, 3].copy()
         else:
-            self._m = m.copy() if copy and m is matrix else m
+            # copied unless `_promote` made it: np.asarray returns a view of an ndarray
+            # subclass (np.matrix, np.memmap) or of another buffer, not just `matrix` itself
+            self._m = m.copy() if copy and (m is matrix or m.base is not None) else m
             self._q = self._t = None
 
     @classmethod

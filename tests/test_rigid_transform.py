@@ -132,6 +132,11 @@ def test_normalize_false_keeps_the_matrix_and_copy_false_shares_it():
     kept = RigidTransform(m, normalize=False)           # copy=True: later writes are not seen
     m[:3, 3] = 0
     np.testing.assert_array_equal(kept.translation, [1, 2, 3])
+    for view in (m.view(type("Sub", (np.ndarray,), {})), m[:, :]):   # a subclass, a view: copied too
+        kept = RigidTransform(view, normalize=False)
+        view[0, 3] = 7
+        np.testing.assert_array_equal(kept.translation, [0, 0, 0])
+        m[0, 3] = 0
     many = RigidTransform(np.stack([m, m]), normalize=False, copy=False)
     many[1] = RigidTransform.from_translation([5.0, 0, 0])
     np.testing.assert_array_equal(many.as_matrix()[1, :3, 3], [5, 0, 0])
