@@ -341,9 +341,14 @@ class RigidTransform:
         return np.concatenate([phi, u.astype(phi.dtype, copy=False)], axis=-1)
 
     def as_dual_quat(self, *, scalar_first=False):
-        """Unit dual quaternions (..., 8): the real part with w >= 0 as scipy, then the dual part."""
+        """Unit dual quaternions (..., 8): the real part, then the dual part.
+
+        The real part has scipy's sign, that of its quaternion from the rotation matrix:
+        its largest component in magnitude (x, y, z, w: the first of equal ones) is positive."""
         q = self._quat
-        q = np.where(q[..., :1] < 0, -q, q)
+        xyzw = q[..., _TO_LAST[:4]]
+        lead = np.take_along_axis(xyzw, np.argmax(xyzw * xyzw, axis=-1)[..., None], axis=-1)
+        q = np.where(lead < 0, 0.0 - q, q)   # (0 - q: no -0 where a component is 0)
         dq = _dualquat.from_rotation_translation(q, self._translation)
         return dq if scalar_first else dq[..., _TO_LAST]
 

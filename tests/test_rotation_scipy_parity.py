@@ -472,6 +472,8 @@ def test_rigid_transform_like_scipy(shape):
                                       (make(RT, R, 1) * make(RT, R, 2)).as_matrix(), make(RT, R, 1).single))
     same_as_scipy(lambda RT, R, **_: RT.from_exp_coords(make(RT, R, 1).as_exp_coords()).as_matrix())
     same_as_scipy(lambda RT, R, **_: RT.from_dual_quat(make(RT, R, 1).as_dual_quat()).as_matrix())
+    for scalar_first in (False, True):   # the values themselves: scipy's sign of the real part
+        same_as_scipy(lambda RT, R, **_: make(RT, R, 3).as_dual_quat(scalar_first=scalar_first))
     same_as_scipy(lambda RT, R, **_: make(RT, R, 1).apply([1, 2, 3]))
     same_as_scipy(lambda RT, R, **_: len(make(RT, R, 1)))
 
