@@ -832,7 +832,7 @@ def as_rotvec(q, degrees=False, unit=False):
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: the same formula on its floats
         w, x, y, z, tan_half, nv = one   # (unpacked: a fifth of splatting with the factor)
-        v = _rotvec_floats(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[degrees])
+        v = _rotvec_floats(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
         if q.ndim == 1:
             return np.array(v)
         out = np.empty((1, 3))   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
@@ -840,7 +840,7 @@ def as_rotvec(q, degrees=False, unit=False):
         return out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
     _blockwise_unit(_k_as_rotvec, q if q.ndim == 2 else q.reshape(-1, 4), out if q.ndim == 2 else out.reshape(-1, 3),
-                    unit, factor=_ROTVEC_FACTOR[degrees])
+                    unit, factor=_ROTVEC_FACTOR[bool(degrees)])
     return out
 
 

@@ -198,6 +198,16 @@ def test_conversions_of_special_and_empty_rotations(method):
     same_as_scipy(lambda R, **_: R.from_quat(-_SPECIAL).as_quat(canonical=True), atol=0)
 
 
+@pytest.mark.parametrize("degrees", [None, 0, 2, "yes", [], np.bool_(True), np.array(True), np.array([1, 2])],
+                         ids=repr)
+def test_degrees_flags_are_taken_for_their_truth_as_scipy(degrees):
+    for shape in [(), (3,)]:
+        same_as_scipy(lambda R, **_: _random(R, shape, 4).as_rotvec(degrees=degrees))
+        same_as_scipy(lambda R, **_: _random(R, shape, 4).as_euler("xyz", degrees=degrees))
+        same_as_scipy(lambda R, **_: R.from_rotvec([0.1, 0.2, 0.3], degrees=degrees).as_quat())
+        same_as_scipy(lambda R, **_: R.from_euler("xyz", [0.1, 0.2, 0.3], degrees=degrees).as_quat())
+
+
 # --- the container protocol ----------------------------------------------------------
 
 _INDICES = [0, -1, 4, 5, slice(1, 3), slice(None, None, -1), slice(10, 20), [0, 2], [], np.array([0, 2]),
