@@ -481,8 +481,10 @@ def check_order(order):
                      f"for intrinsic sequences, got {order!r}")
 
 
-def _unit_axes(axes, n=None):
-    """Axes as unit float64 rows (k, 3); consecutive axes must be orthogonal."""
+def _unit_axes(axes, n=None, signed=False):
+    """Axes as unit float64 rows (k, 3); consecutive axes must be orthogonal: |cos| <= 1e-7
+    between them (scipy's from_davenport), or with `signed` cos < 1e-7 (its as_davenport's
+    test, which lets obtuse axes through)."""
     a = float_array(axes, "axes").astype(np.float64)
     if a.ndim == 1:
         a = a[None]
@@ -494,13 +496,14 @@ def _unit_axes(axes, n=None):
         raise ValueError(f"expected 1 to 3 axes, got {a.shape[0]}")
     # at most 3 rows: Python floats (numpy calls would cost more than a single rotation's maths)
     rows = a.tolist()
-    norms = [math.sqrt(x * x + y * y + z * z) for x, y, z in rows]
+    norms = [math.hypot(*row) for row in rows]   # (no overflow of the squares for huge axes)
     if not (all(map(math.isfinite, a.flat)) and all(n > 0 for n in norms)):
         raise ValueError("expected finite, non-zero axes")
     unit = [[x / n, y / n, z / n] for (x, y, z), n in zip(rows, norms)]
-    dots = [abs(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) for u, v in zip(unit[1:], unit)]
-    if any(d >= 1e-7 for d in dots):
-        raise ValueError(f"Consecutive axes must be orthogonal: got |cos| = {max(dots):.3g} between them")
+    dots = [u[0] * v[0] + u[1] * v[1] + u[2] * v[2] for u, v in zip(unit[1:], unit)]
+    if any(d >= 1e-7 if signed else abs(d) > 1e-7 for d in dots):
+        raise ValueError(f"Consecutive axes must be orthogonal: got cos = "
+                         f"{max(dots, key=abs):.3g} between them")
     return np.array(unit)
 
 
@@ -682,7 +685,7 @@ def as_davenport_batched(q, axes, order, degrees=False, suppress_warnings=False)
 def _davenport_frame(axes_bytes, shape, extrinsic):
     """(4x4 matrix L as nested tuples, λ, flip) for `as_davenport`'s axes, remembered:
     the same few axes serve many calls, and building L costs more than one rotation."""
-    n1, n2, n3 = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3)
+    n1, n2, n3 = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3, signed=True)
     if not extrinsic:
         n1, n3 = n3, n1
     ncross = np.cross(n1, n2)

@@ -409,9 +409,7 @@ class Rotation:
         if ax.ndim > 2 and not _broadcastable(ax.shape[:-2], self._q.shape[:-1]):
             raise ValueError(f"Expected `axes` to match number of rotations, got {ax.shape} axes "
                              f"and {self._q.shape} rotations.")
-        if ax.ndim == 2:
-            if any(c >= 1e-7 for c in _cosines(ax)):   # scipy's test, without abs
-                raise ValueError("Consecutive axes must be orthogonal.")
+        if ax.ndim == 2:   # (scipy's test of the axes, cos < 1e-7: `_euler._unit_axes`)
             return _euler.as_davenport(self._q, ax, order, degrees=degrees,
                                   suppress_warnings=suppress_warnings)
         unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
@@ -908,14 +906,6 @@ def _batch_key(indexer, shape):
         raise IndexError(f"too many indices for rotations of shape {shape}: {used} batch axes "
                          f"indexed, {len(shape)} present")
     return key + (slice(None),) if any(k is Ellipsis for k in key) else key + (Ellipsis,)
-
-
-def _cosines(axes):
-    """Cosines between consecutive rows of a few axes (n, 3), in Python floats."""
-    rows = axes.tolist()
-    norms = [(x * x + y * y + z * z) ** 0.5 for x, y, z in rows]
-    return [(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / (nu * nv) if nu * nv else float("nan")
-            for u, v, nu, nv in zip(rows, rows[1:], norms, norms[1:])]   # nan: zero axes, refused later
 
 
 def _coerce(r, name):

@@ -172,6 +172,29 @@ def test_davenport_degrees_fewer_axes_and_float32(rng):
     np.testing.assert_allclose(got, E.as_euler(q, "zxz", degrees=True), atol=1e-3)
 
 
+def test_as_davenport_takes_obtuse_axes_as_scipy(rng):
+    """scipy's as_davenport tests cos < 1e-7 between consecutive axes (from_davenport tests
+    |cos|): axes at 120° pass, and give scipy's angles."""
+    q = unit(rng, (50,), np.float64)
+    axes = [[1, 0, 0], [-0.5, 0.75 ** 0.5, 0], [0, 0, 1]]
+    for order in ("e", "i"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            np.testing.assert_allclose(E.as_davenport(q, axes, order), sp(q).as_davenport(axes, order), atol=1e-12)
+            np.testing.assert_allclose(Rotation.from_quat(q, scalar_first=True).as_davenport(axes, order),
+                                       sp(q).as_davenport(axes, order), atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e200, 1e308])
+def test_davenport_axes_of_any_length(rng, scale):
+    """The axes' lengths do not matter, also where their squares leave the float range."""
+    axes = np.eye(3)[[2, 0, 1]]
+    angles = rng.uniform(-np.pi, np.pi, (20, 3))
+    want = E.from_davenport(axes, "e", angles)
+    assert_same_rotation(E.from_davenport(axes * scale, "e", angles), want, 1e-15)
+    np.testing.assert_array_equal(E.as_davenport(want, axes * scale, "e"), E.as_davenport(want, axes, "e"))
+
+
 def test_davenport_gimbal_lock_warns():
     axes = np.eye(3)[[2, 0, 2]]
     q = E.from_euler("zxz", [0.3, 0.0, 0.2])
@@ -191,7 +214,8 @@ def test_davenport_gimbal_lock_warns():
     (lambda: E.from_davenport(np.eye(2), "e", [1, 2]), "vectors of length 3"),
     (lambda: E.from_davenport([[0, 0, 0], [0, 1, 0]], "e", [1, 2]), "non-zero axes"),
     (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3)[:2], "e"), "expected 3 axes, got 2"),
-    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), [[1, 0, 0], [-1, 1, 0], [0, 0, 1]], "e"), "orthogonal"),
+    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), [[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e"), "orthogonal"),
+    (lambda: E.from_davenport([[1, 0, 0], [-1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), "orthogonal"),
     (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3), "intrinsic-ish"), "order"),
 ])
 def test_davenport_bad_input(call, match):
