@@ -33,8 +33,9 @@ import numpy as np
 
 from . import _blocks
 from . import _ops
+from . import _scale
 from ._blocks import soa
-from ._kernels import normalize, result_dtype
+from ._kernels import normalize, normalize_block, result_dtype
 from ._trig import atan_unit32, tan
 from ._validate import all_finite
 
@@ -235,13 +236,14 @@ def wide_arcs(A, B, h, O, wide):
     hh = np.broadcast_to(h, s)[at[1:]]
     S = a + b
     D = b - a
-    P = S - (vdot(a, S, 0) / vdot(a, a, 0)) * a
+    a2 = vdot(a, a, 0)
+    P = S - (vdot(a, S, 0) / a2) * a
     pn = np.sqrt(vdot(P, P, 0))
     flat = ~(pn > 0)
     pn[flat] = 1
     ang = np.arctan2(np.sqrt(vdot(D, D, 0)), np.sqrt(vdot(S, S, 0)))
     ang *= 2 * hh
-    res = np.cos(ang) * a + (np.sin(ang) / pn) * P
+    res = np.cos(ang) * a + (np.sin(ang) * (np.sqrt(a2) / pn)) * P   # P at |A|: homogeneous
     if flat.any():
         res[:, flat] = np.where(hh[flat] < 0.5, a[:, flat], b[:, flat])
     O[at] = res.astype(O.dtype, copy=False)
@@ -253,7 +255,27 @@ def slerp_core(A, B, h, O, shortest):
     A, B : (4, *s) arrays (not modified); h : broadcastable to s;
     O : (4, *s) output, may be a strided view, must not overlap A or B.
     With `shortest`, B is replaced by -B where A·B < 0 (ties keep B).
+
+    Pairs whose squares leave the float range (norms beyond about 2**±458, float32 2**±39)
+    are computed again from A and B scaled by 2**-e (e: the exponent of their largest
+    component), the result scaled back: SLERP is homogeneous (two quaternions of norm r give
+    r times the unit result) and the scaling exact.
     """
+    huge_or_tiny = _slerp_rows(A, B, h, O, shortest)
+    if huge_or_tiny is not None:
+        s = O.shape[1:]
+        at = _where(huge_or_tiny)
+        a, b = np.broadcast_to(A, (4,) + s)[at], np.broadcast_to(B, (4,) + s)[at]
+        e = np.frexp(np.maximum(np.abs(a).max(axis=0), np.abs(b).max(axis=0)))[1]
+        part = np.empty(a.shape, O.dtype)
+        _slerp_rows(np.ldexp(a, -e).astype(O.dtype, copy=False), np.ldexp(b, -e).astype(O.dtype, copy=False),
+                    np.broadcast_to(h, s)[at[1:]], part, shortest)
+        O[at] = np.ldexp(part, e)
+    return O
+
+
+def _slerp_rows(A, B, h, O, shortest):
+    """`slerp_core`'s formula; returns where |A|² + |B|² is out of range (None: nowhere)."""
     s = O.shape[1:]
     with _blocks.scratch().frame() as work:
         T = work.rows(8, s, O.dtype)
@@ -266,6 +288,8 @@ def slerp_core(A, B, h, O, shortest):
         ab[:2] += Tv[:, 2]
         ab[:2] += Tv[:, 3]
         a2, b2, sign = ab
+        # |B - A|² + |B + A|² = 2 (|A|² + |B|²), in range for every unit pair
+        out_of_range = None if _scale.fits(np.add(a2, b2, out=sign)) else _scale.outside(sign)
         wide = None
         if shortest:
             sign = hemisphere(A, B, a2, b2, sign)
@@ -278,7 +302,7 @@ def slerp_core(A, B, h, O, shortest):
         np.add(T[:4], T[4:], out=O)
         if wide is not None and wide.any():
             wide_arcs(A, B, h, O, wide)
-    return O
+    return out_of_range
 
 
 def squad_param(h, out=None):
@@ -558,15 +582,7 @@ def _nlerp_block(A, B, h, O, shortest):
     np.multiply(A, w0, out=N)
     np.multiply(B, w1, out=T[4:])
     N += T[4:]
-    np.multiply(N, N, out=T[4:])
-    np.add(T[4], T[5], out=n)
-    n += T[6]
-    n += T[7]
-    if not (n > 0).all():
-        raise ValueError(_ZERO_BLEND)
-    np.sqrt(n, out=n)
-    np.divide(1, n, out=n)
-    np.multiply(N, n, out=O)
+    normalize_block(N, O, _ZERO_BLEND)   # the package's one q / |q|, safe at any magnitude
 
 
 def unit_keys(keys, name="keys", unit=False):

@@ -441,11 +441,13 @@ def dot(p, q):
 _ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quaternion"
 
 
-def _k_normalize(q, o):
-    n = _scale.guarded_sqnorm(q)   # q is the block's scratch copy: rescaled in place if needed
+def normalize_block(q, o, zero=_ZERO_NORMALIZE):
+    """``o = q / |q|`` for a components-first block `q` (a scratch copy: rescaled in place
+    where its squares would over- or underflow); a zero quaternion raises ValueError(`zero`)."""
+    n = _scale.guarded_sqnorm(q)
     np.sqrt(n, out=n)
     if not (n > 0).all():
-        raise ValueError(_ZERO_NORMALIZE)
+        raise ValueError(zero)
     np.divide(q, n, out=o)
 
 
@@ -474,7 +476,7 @@ def normalize(q, out=None):
         return res
     target = np.empty(q.shape, res.dtype)
     with np.errstate(over="ignore"):
-        _blocks.blockwise(_k_normalize, [q], [target], dtype=res.dtype)
+        _blocks.blockwise(normalize_block, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
 
@@ -512,7 +514,7 @@ def _normalize_flat(q, out):
         t += sq[:, 2]
         t += sq[:, 3]
         if not _scale.fits(t):   # extreme magnitudes, zeros or nan: the general kernel
-            _k_normalize(soa(blk).copy(), soa(o))
+            normalize_block(soa(blk).copy(), soa(o))
             return
         np.sqrt(t, t)
         if len(o) <= _blocks.FEW:   # a few: every component in one call (inner loops of 4)

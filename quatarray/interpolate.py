@@ -140,7 +140,8 @@ def nlerp(q0, q1, t, *, shortest=True):
     """
     q0, q1, t = _finite_quat(q0, "q0"), _finite_quat(q1, "q1"), _param(t)
     _pairwise(("q0", "q1"), (q0, q1), t)
-    return QuatArray._wrap(_interp_kernels.nlerp(q0, q1, t, bool(shortest)))
+    with np.errstate(over="ignore"):   # a dot product of huge quaternions: its sign is kept
+        return QuatArray._wrap(_interp_kernels.nlerp(q0, q1, t, bool(shortest)))
 
 
 def slerp(q0, q1, t, *, shortest=True):
@@ -257,7 +258,8 @@ def squad(q0, a, b, q1, t):
     qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
-    return QuatArray._wrap(_interp_kernels.squad(*qs, t))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # huge or tiny: computed again scaled
+        return QuatArray._wrap(_interp_kernels.squad(*qs, t))
 
 
 def bezier(q0, a, b, q1, t):
@@ -290,7 +292,8 @@ def bezier(q0, a, b, q1, t):
     qs = [_finite_quat(x, n) for x, n in zip((q0, a, b, q1), ("q0", "a", "b", "q1"))]
     t = _param(t)
     _pairwise(("q0", "a", "b", "q1"), qs, t)
-    return QuatArray._wrap(_interp_kernels.bezier(*qs, t))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # huge or tiny: computed again scaled
+        return QuatArray._wrap(_interp_kernels.bezier(*qs, t))
 
 
 def _prepared_keys(keys, times, name="keys", times_name="times", unit=False):

@@ -7,6 +7,7 @@ the textbook sin/log/exp forms); slerp tracks against scipy's Slerp.
 """
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -485,6 +486,37 @@ def test_nlerp_is_not_constant_speed_but_on_the_slerp_circle(rng, path):
     # same great circle: a lies in the plane of q0 and the flipped q1
     assert not np.allclose(plain(a), plain(s))
     assert_allclose(nlerp(q0, q1, 0.5), slerp(q0, q1, 0.5), atol=tol(np.float64, 20))
+
+
+_SCALES = {np.float64: [1e-300, 1e-160, 1e150, 1e155, 1e300], np.float32: [1e-35, 1e-20, 1e19, 1e20, 1e35]}
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_pairwise_curves_are_homogeneous_at_any_magnitude(rng, dtype, path):
+    """Quaternions of one norm r give r times the unit result, for r from about 1e-300 to
+    1e300 (float32: 1e-35 to 1e35), where their squares leave the float range; each
+    element as it would be alone, mixed with unit ones in one batch, and no warning."""
+    q0, a, b, q1 = (random_quats(rng, (6,), dtype) for _ in range(4))
+    q1[0] = -q0[0]   # antipodal and orthogonal pairs too
+    q1[1] = [-q0[1, 1], q0[1, 0], -q0[1, 3], q0[1, 2]]
+    t = rng.uniform(-0.2, 1.2, 6).astype(dtype)
+    curves = [(slerp, (q0, q1)), (lambda p, q, h: slerp(p, q, h, shortest=False), (q0, q1)),
+              (squad, (q0, a, b, q1)), (bezier, (q0, a, b, q1))]
+    if dtype == np.float64:   # nlerp's shortest-path sign is a dot product: in range to 1e±150
+        curves.append((nlerp, (q0, q1)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for f, qs in curves:
+            unit = np.asarray(f(*qs, t))
+            for r in _SCALES[dtype] if f is not nlerp else [1e-150, 1e-100, 1e100, 1e150]:
+                r = dtype(r)
+                homogeneous = 1 if f is nlerp else r
+                scaled = [np.concatenate([q * r, q]) for q in qs]   # scaled and unit rows in one batch
+                got = np.asarray(f(*scaled, np.concatenate([t, t])))
+                np.testing.assert_allclose(got[:6] / homogeneous, unit, rtol=0, atol=tol(dtype, 20))
+                np.testing.assert_array_equal(got[6:], unit)
+                alone = np.asarray(f(*(q[2:3] * r for q in qs), t[2:3]))
+                np.testing.assert_array_equal(alone[0], got[2])
 
 
 def test_nlerp_zero_blend_raises(path):
