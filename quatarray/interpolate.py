@@ -13,7 +13,9 @@ Conventions
 -----------
 * Quaternions to interpolate are expected to be unit quaternions (the
   SLERP family is homogeneous: two quaternions of the same norm r give r
-  times the unit result).  `Track` and `Slerp` normalise their keys.
+  times the unit result, for r from about 1e-300 to 1e300, float32 1e-35 to
+  1e35; nlerp normalises, and its shortest-path test is a dot product, in
+  range for r within 1e±150).  `Track` and `Slerp` normalise their keys.
 * ``t`` outside [0, 1] extrapolates along the same curve (no clipping).
 * Keyframe curves: keys are unflipped first (`unflip`), so negating any key
   changes nothing; the outputs follow the sign of the first key.
