@@ -365,7 +365,16 @@ class QuatArray(np.ndarray):
         >>> np.allclose(k.power(2), [-1, 0, 0, 0])
         True
         """
-        return self._wrap(_kernels.power(_raw(self), finite(_real(t, "t"), "t")))
+        if isinstance(t, QuatArray):
+            raise TypeError("expected a real exponent t (scalar or batch-shaped), got a QuatArray")
+        q, t = _raw(self), finite(_real(t, "t"), "t")
+        if np.ndim(t) and t.shape != q.shape[:-1]:
+            try:
+                np.broadcast_shapes(q.shape[:-1], t.shape)
+            except ValueError:
+                raise ValueError(f"expected an exponent t broadcastable to the batch shape {q.shape[:-1]}, "
+                                 f"got shape {t.shape}") from None
+        return self._wrap(_kernels.power(q, t))
 
     def dot(self, other):
         """4-D inner product with `other` (a QuatArray), batch shape.

@@ -219,6 +219,12 @@ def test_power_operator(rng, dtype):
     assert np.float_power(q, 0.5).dtype == np.float64
     with pytest.raises(TypeError, match="expected a QuatArray raised to a real exponent"):
         q ** q
+    # the method: the same values, and its argument named
+    np.testing.assert_array_equal(q.power(t).ndarray, (q ** t).ndarray)
+    with pytest.raises(TypeError, match="expected a real exponent t .* got a QuatArray"):
+        q.power(q)
+    with pytest.raises(ValueError, match=r"exponent t broadcastable to the batch shape \(3, 2\), got shape \(3,\)"):
+        q.power(np.ones(3))
 
 
 def test_conjugate_abs_equality(rng):
