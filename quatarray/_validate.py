@@ -220,6 +220,21 @@ def key_times(times, K, name="times", keys_name="keys"):
     return times
 
 
+def integer(value, name, least):
+    """`value` as an int if it is an integer (not a bool) of at least `least`: a TypeError
+    naming `name` for another type, a ValueError for a smaller one.
+
+    >>> from quatarray._validate import integer
+    >>> integer(3, "points", 2)
+    3
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"expected {name} to be an int >= {least}, got {value!r}")
+    if value < least:
+        raise ValueError(f"expected {name} to be an int >= {least}, got {value!r}")
+    return int(value)
+
+
 def choice(value, name, options):
     """`value` if it is one of the strings `options`, else a ValueError naming `name`.
 

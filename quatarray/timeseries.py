@@ -22,7 +22,7 @@ from . import _reduce
 from . import _timeseries
 from ._array import QuatArray
 from ._rotation import Rotation
-from ._validate import batch_axis, choice, finite, float_array, key_times
+from ._validate import batch_axis, choice, finite, float_array, integer, key_times
 from .interpolate import METHODS as TRACK_METHODS
 from .interpolate import Track
 
@@ -333,8 +333,7 @@ def angular_velocity(times, rotations, *, frame="world", acceleration=False, poi
            [0., 0., 2.]])
     """
     frame = choice(frame, "frame", FRAMES)
-    if isinstance(points, bool) or not isinstance(points, (int, np.integer)) or points < 2:
-        raise ValueError(f"expected points to be an int >= 2, got {points!r}")
+    points = integer(points, "points", 2)
     Q = _orientations(rotations)
     times = key_times(times, Q.shape[0], "times", "rotations")
     T, batch = Q.shape[0], Q.shape[1:-1]
@@ -384,6 +383,7 @@ def minimal_rotation(times, rotations, axis=(0.0, 0.0, 1.0), *, iterations=2):
     >>> bool(np.allclose(m.apply([0, 0, 1]), r.apply([0, 0, 1])))      # the axis is kept
     True
     """
+    iterations = integer(iterations, "iterations", 0)
     Q = _orientations(rotations)
     times = key_times(times, Q.shape[0], "times", "rotations")
     T, batch = Q.shape[0], Q.shape[1:-1]
@@ -392,9 +392,13 @@ def minimal_rotation(times, rotations, axis=(0.0, 0.0, 1.0), *, iterations=2):
     n = np.linalg.norm(a, axis=-1, keepdims=True)
     if not (n > 0).all():
         raise ValueError("expected a non-zero axis, got a zero vector")
-    a = np.broadcast_to(a / n, batch + (3,)).reshape(1, -1, 3)
+    try:
+        a = np.broadcast_to(a / n, batch + (3,)).reshape(1, -1, 3)
+    except ValueError:
+        raise ValueError(f"expected axis of shape (3,) or one that broadcasts to the rotations' batch shape "
+                         f"{batch} + (3,), got {a.shape}") from None
     q = Q.reshape(T, -1, 4).astype(np.float64)
-    for _ in range(int(iterations)):
+    for _ in range(iterations):
         wb = _timeseries.derivatives(times, q, (1,))[0]
         along = np.sum(wb * a, axis=-1)
         dt = np.diff(times)[:, None]
@@ -492,8 +496,7 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     r = rotations if isinstance(rotations, Rotation) else Rotation.from_quat(
         float_array(rotations, "rotations", last=4), scalar_first=True)
     tol = _positive(tol, "tol")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise ValueError(f"expected max_iter to be an int >= 1, got {max_iter!r}")
+    max_iter = integer(max_iter, "max_iter", 1)
     start = r.mean(weights=weights, axis=axis)   # validates weights and axis as the chordal mean does
     q = np.asarray(r._unit_quat(), np.float64)
     if q.ndim == 1:
@@ -563,8 +566,7 @@ def smooth(times, rotations, window, *, order=2):
     Q = _orientations(rotations)
     times = key_times(times, Q.shape[0], "times", "rotations")
     window = _positive(window, "window")
-    if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 0:
-        raise ValueError(f"expected order to be an int >= 0, got {order!r}")
+    order = integer(order, "order", 0)
     T = Q.shape[0]
     dt = float(np.median(np.diff(times)))
     points = max(int(order) + 2, 2 * int(round(window / (2 * dt))) + 1)

@@ -651,10 +651,26 @@ def test_nan_refused_elsewhere():
     (lambda: fill_gaps([0, 1, 2], np.tile([1.0, 0, 0, 0], (3, 1)), -1), "max_gap > 0"),
     (lambda: swing_twist(Rotation.identity(), [0, 0, 0]), "non-zero axis"),
     (lambda: minimal_rotation([0, 1], np.tile([1.0, 0, 0, 0], (2, 1)), axis=[0, 0, 0]), "non-zero axis"),
+    (lambda: minimal_rotation([0, 1], np.tile([1.0, 0, 0, 0], (2, 1)), axis=np.ones((2, 3))),
+     r"axis of shape \(3,\) or one that broadcasts to the rotations' batch shape \(\) \+ \(3,\), got \(2, 3\)"),
+    (lambda: minimal_rotation([0, 1], np.tile([1.0, 0, 0, 0], (2, 1)), iterations=-1), "iterations to be an int >= 0"),
 ])
 def test_series_errors(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda q: minimal_rotation([0, 1], q, iterations=1.7), "iterations"),
+    (lambda q: minimal_rotation([0, 1], q, iterations="2"), "iterations"),
+    (lambda q: minimal_rotation([0, 1], q, iterations=None), "iterations"),
+    (lambda q: angular_velocity([0, 1], q, points=2.0), "points"),
+    (lambda q: geodesic_mean(q, max_iter=True), "max_iter"),
+    (lambda q: smooth([0, 1], q, 1.0, order=1.0), "order"),
+])
+def test_series_counts_must_be_ints(call, name):
+    with pytest.raises(TypeError, match=f"expected {name} to be an int >= "):
+        call(np.tile([1.0, 0, 0, 0], (2, 1)))
 
 
 # ---------------------------------------------------------------------------
