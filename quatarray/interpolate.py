@@ -716,6 +716,7 @@ class Slerp(Track):
         # unit quaternions (only unflipped from here on, see `unit_keys`): the stored ones where
         # known unit, else normalised (a Rotation made with normalize=False may hold anything)
         keys = finite(rotations._unit_quat("rotations"), "rotations")
+        self._given = keys[:-1].copy()   # `rotations`: as given (the curve runs on unflipped keys)
         keys, dots = _scipy_ties(keys)
         self._setup(t, _interp_kernels.unflip(keys, 0, dots), "slerp", "raise", "times", "rotations",
                     prepared=True)
@@ -728,8 +729,9 @@ class Slerp(Track):
 
     @property
     def rotations(self):
-        """The key rotations but the last, a `Rotation` of shape (K - 1, ...) (scipy's attribute)."""
-        return Rotation._wrap(self._keys[:-1].copy())
+        """The key rotations but the last, as given, a `Rotation` of shape (K - 1, ...) (scipy's
+        attribute)."""
+        return Rotation._wrap(self._given.copy())
 
     @property
     def rotvecs(self):

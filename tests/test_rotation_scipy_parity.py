@@ -439,6 +439,10 @@ def test_slerp_like_scipy(times):
         same_as_scipy(lambda R, Slerp, **_: Slerp(times, _random(R, (k,), 1))(at), match=None)
     same_as_scipy(lambda R, Slerp, **_: (lambda s: (s.times, s.timedelta, s.rotations, s.rotvecs))(
         Slerp(times, _random(R, (k,), 1))))
+    # the key rotations as given, signs included (the curve itself follows the short arcs)
+    same_as_scipy(lambda R, Slerp, **_: Slerp(times, _random(R, (k,), 1)).rotations.as_quat())
+    same_as_scipy(lambda R, Slerp, **_: Slerp([0, 1, 2], R.from_quat([[0, 0, 0, 1], [0, 0, 0.6, -0.8],
+                                                                     [0, 0.6, 0, 0.8]])).rotations.as_quat())
 
 
 @pytest.mark.parametrize("keys", [[[0, 0, 0, 1], [0, 0, 1, 0]], [[0, 0, 0, 1], [0, 0, -1, 0]], [[1, 0, 0, 0], [0, 1, 0, 0]],
