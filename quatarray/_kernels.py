@@ -697,6 +697,11 @@ def _k_power(q, t, o):
         ang[zero] = 0.0
     for k in (1, 2, 3):
         np.multiply(q[k], ang, out=o[k])
+    if not all_finite(ang):   # |q|^t overflowed: a zero component of v stays ±0 (not 0 × inf)
+        big = ~np.isfinite(ang)
+        for k in (1, 2, 3):
+            at = big & (q[k] == 0)
+            o[k][at] = np.copysign(0.0, q[k][at]) * np.sign(ang[at])
     neg_real = real & (q[0] < 0)
     if neg_real.any():
         np.copyto(o[1], mag * sn, where=neg_real)

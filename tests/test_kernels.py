@@ -274,6 +274,23 @@ def test_exp_of_huge_vector_parts_and_overflowing_scalars(rng):
             np.testing.assert_array_equal(got[2], 0.0)                          # e^-800 underflows to 0
 
 
+def test_power_whose_magnitude_overflows_keeps_zero_components(rng):
+    """|q|^t beyond the float range gives inf components, and the components of v that are
+    zero stay zero (0 × inf would be NaN), with the product's sign; each row as alone."""
+    q = np.array([[3.0, 4, 0, 0], [1e200, 0, 0, 0], [0.0, 3, -0.0, 4], [0.6, 0.8, 0, 0], [-1e200, 0, 1e190, 0]])
+    t = np.array([1000.0, 2, 1000, 1000, 3])
+    with np.errstate(over="ignore"):
+        got = K.power(q, t)
+        for i in range(len(q)):
+            np.testing.assert_array_equal(K.power(q[i], t[i]).view(np.int64), got[i].view(np.int64))
+    assert not np.isnan(got).any()
+    np.testing.assert_array_equal(got[:, 1:][q[:, 1:] == 0], 0)
+    assert np.isinf(got[:3, 0]).all() and np.isinf(got[[0, 2], 1]).all()
+    np.testing.assert_array_equal(np.signbit(got[2, 2]), np.signbit(-0.0 * np.sign(got[2, 1])))
+    # |q| = 1 does not overflow: the ordinary path
+    np.testing.assert_allclose(got[3], K.exp(1000 * K.log(q[3])), atol=1e-12)
+
+
 # --- special values -------------------------------------------------------------------
 
 def test_log_special_values():
