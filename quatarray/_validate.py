@@ -5,6 +5,7 @@ Messages name the argument, what was expected and what came, e.g.
 """
 
 import math
+import numbers
 
 import numpy as np
 
@@ -31,8 +32,8 @@ def in_memory(x, name):
 def float_array(x, name, last=None, dtype=None):
     """Return `x` as a float32 or float64 ndarray (never copied if already one).
 
-    float32 and float64 are kept; bool and integer input become float64;
-    complex, object, string and other input raise `TypeError`.  With `last`,
+    float32 and float64 are kept; bool, integer and object input holding real numbers
+    (Decimal, Fraction) become float64; complex, string and other input raise `TypeError`.  With `last`,
     the length of the last axis is checked (`ValueError` otherwise).
 
     Examples
@@ -68,6 +69,11 @@ def float_array(x, name, last=None, dtype=None):
             a = a.astype(np.float64)
     elif kind in "biu":
         a = a.astype(np.float64)
+    elif kind == "O":   # Python numbers, Decimal, Fraction (a pandas object column): as float64, as scipy
+        odd = next((v for v in a.flat if not _real_number(v)), a)
+        if odd is not a:
+            raise TypeError(f"expected {name} of real numbers, got an object array holding {type(odd).__name__}")
+        a = a.astype(np.float64)
     else:
         raise TypeError(f"expected {name} of real numbers (float, int or bool), got dtype {a.dtype}")
     if dtype is not None and a.dtype != dtype:
@@ -75,6 +81,12 @@ def float_array(x, name, last=None, dtype=None):
     if last is not None and (a.ndim == 0 or a.shape[-1] != last):
         raise ValueError(f"expected {name} of shape (..., {last}), got {a.shape}")
     return a
+
+
+def _real_number(v):
+    """Whether `v` is a real number: int, float, Fraction, Decimal (registered as a Number
+    only), NumPy's scalars and bool; not None, str or complex."""
+    return isinstance(v, numbers.Real) or (isinstance(v, numbers.Number) and not isinstance(v, numbers.Complex))
 
 
 def quat_array(x, name):

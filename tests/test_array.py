@@ -33,11 +33,21 @@ def test_int_bool_become_float64(data):
     assert QuatArray(data).dtype == np.float64
 
 
-@pytest.mark.parametrize("data,dtype_name", [(np.zeros(4, complex), "complex128"), (np.array([None] * 4), "object"),
-                                             (np.array(["a"] * 4), "<U1")])
+@pytest.mark.parametrize("data,dtype_name", [(np.zeros(4, complex), "dtype complex128"),
+                                             (np.array([None] * 4), "an object array holding NoneType"),
+                                             (np.array([1, 0, 0, 1j], object), "an object array holding complex"),
+                                             (np.array(["a"] * 4), "dtype <U1")])
 def test_non_real_input_is_a_type_error(data, dtype_name):
-    with pytest.raises(TypeError, match=f"expected quat of real numbers .*got dtype {dtype_name}"):
+    with pytest.raises(TypeError, match=f"expected quat of real numbers.* got {dtype_name}"):
         QuatArray(data)
+
+
+def test_object_arrays_of_real_numbers_become_float64():
+    from decimal import Decimal
+    from fractions import Fraction
+    q = QuatArray(np.array([Decimal("0.5"), Fraction(1, 2), 0, np.float32(0.5)], object))
+    assert q.dtype == np.float64
+    np.testing.assert_array_equal(q.ndarray, [0.5, 0.5, 0, 0.5])
 
 
 @pytest.mark.parametrize("shape", [(5, 3), (3,), (4, 5)])
