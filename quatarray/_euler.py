@@ -466,8 +466,10 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
 
 # --- Davenport angles ---------------------------------------------------------------------------
 
-def check_order(order):
+def check_order(order, typed=False):
     """True for extrinsic (``'e'``, ``'extrinsic'``), False for intrinsic (``'i'``, ``'intrinsic'``).
+    `typed`: an order that is not a str is a TypeError (scipy's from_davenport, whose `order`
+    is a typed argument), else a ValueError as any other order (its as_davenport).
 
     >>> from quatarray._euler import check_order
     >>> check_order("e")
@@ -477,6 +479,8 @@ def check_order(order):
         return True
     if order in ("i", "intrinsic"):
         return False
+    if typed and not isinstance(order, str):
+        raise TypeError(f"expected order to be a str, 'e'/'extrinsic' or 'i'/'intrinsic', got {type(order).__name__}")
     raise ValueError(f"order should be 'e'/'extrinsic' for extrinsic sequences or 'i'/'intrinsic' "
                      f"for intrinsic sequences, got {order!r}")
 
@@ -550,7 +554,7 @@ def from_davenport(axes, order, angles, degrees=False):
     >>> np.allclose(q, from_euler("zx", [90, 45], degrees=True))
     True
     """
-    extrinsic = check_order(order)
+    extrinsic = check_order(order, typed=True)
     ax = _unit_axes(axes)
     a = finite(float_array(angles, "angles"), "angles")
     if a.ndim == 0:

@@ -26,6 +26,7 @@ from . import _kernels
 from . import _motion
 from . import _scale
 from ._rotation import Rotation
+from ._validate import batch_shape
 
 __all__ = ["RigidTransform"]
 
@@ -274,16 +275,7 @@ class RigidTransform:
     @staticmethod
     def identity(num=None, *, shape=None):
         """Identity transforms: one, `num` of them, or of batch `shape`."""
-        if num is not None and shape is not None:
-            raise ValueError("Only one of `num` and `shape` can be specified.")
-        if num is None and shape is None:
-            shape = ()
-        elif num is not None:
-            shape = (num,)
-        elif isinstance(shape, (int, np.integer)):
-            shape = (int(shape),)
-        elif not isinstance(shape, tuple):
-            raise ValueError("`shape` must be an int or a tuple of ints or None.")
+        shape = batch_shape(num, shape, joined="and")
         q = np.zeros(shape + (4,))
         q[..., 0] = 1
         return RigidTransform._from_parts(q, np.zeros(shape + (3,)), shape == (), unit=True)

@@ -369,7 +369,7 @@ class Rotation:
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        extrinsic = _euler.check_order(order)
+        extrinsic = _euler.check_order(order, typed=True)
         ax = float_array(axes, "axes")
         if ax.ndim == 0 or ax.shape[-1] != 3:
             raise ValueError("Axes must be vectors of length 3.")
@@ -702,7 +702,7 @@ class Rotation:
         >>> Rotation.identity().single, Rotation.identity(3).shape, Rotation.identity(shape=(2, 5)).shape
         (True, (3,), (2, 5))
         """
-        q = np.zeros(_batch_shape(num, shape) + (4,), dtype)
+        q = np.zeros(batch_shape(num, shape) + (4,), dtype)
         q[..., 0] = 1
         return Rotation._wrap(q, unit=True)
 
@@ -845,7 +845,7 @@ class Rotation:
 
 
 def _random(num=None, rng=None, *, shape=None, legacy=False):
-    size = _batch_shape(num, shape)
+    size = batch_shape(num, shape)
     try:
         if legacy:
             if rng is None:   # NumPy's global RandomState, through its public module functions
@@ -877,14 +877,6 @@ def _random_entry(*args, **kwargs):
         kwargs["rng"] = kwargs.pop("random_state")
     legacy = by_old or by_position or not by_new
     return _random(*args, legacy=legacy, **kwargs)
-
-
-def _batch_shape(num, shape):
-    if num is not None and shape is not None:
-        raise ValueError("Only one of `num` or `shape` can be specified.")
-    if shape is not None and not isinstance(shape, (int, np.integer, tuple)):
-        raise ValueError(f"`shape` must be an int or a tuple of ints or None, got {shape!r}")
-    return batch_shape(num, shape)
 
 
 def _broadcastable(a, b):

@@ -166,15 +166,17 @@ def finite(a, name):
     return a
 
 
-def batch_shape(num, shape):
+def batch_shape(num, shape, joined="or"):
     """scipy's `num` / `shape` arguments as a batch shape: ``(num,)``, `shape`, or ``()``.
+    `joined`: the word scipy's message joins the two with when both are given (``'or'`` in
+    Rotation's, ``'and'`` in RigidTransform's).
 
     >>> from quatarray._validate import batch_shape
     >>> batch_shape(3, None), batch_shape(None, (2, 5)), batch_shape(None, None)
     ((3,), (2, 5), ())
     """
     if num is not None and shape is not None:
-        raise ValueError("Only one of `num` or `shape` can be specified: expected num or shape, got both")
+        raise ValueError(f"Only one of `num` {joined} `shape` can be specified: expected num or shape, got both")
     if num is not None:
         if not isinstance(num, (int, np.integer)):
             # scipy's type error (its `num` is a typed int argument), with our wording's what-came
@@ -186,9 +188,12 @@ def batch_shape(num, shape):
         return ()
     if isinstance(shape, (int, np.integer)):
         shape = (shape,)
-    if not isinstance(shape, tuple) or any(not isinstance(n, (int, np.integer)) or n < 0 for n in shape):
-        raise ValueError(f"`shape` must be an int or a tuple of ints or None: expected a tuple of "
-                         f"non-negative ints, got {shape!r}")
+    if not isinstance(shape, tuple):
+        raise ValueError(f"`shape` must be an int or a tuple of ints or None, got {shape!r}")
+    if any(isinstance(n, bool) or not isinstance(n, (int, np.integer)) for n in shape):   # as scipy: a type
+        raise TypeError(f"expected `shape` a tuple of ints, got {shape!r}")
+    if any(n < 0 for n in shape):
+        raise ValueError(f"expected `shape` of non-negative ints, got {shape!r}")
     return tuple(int(n) for n in shape)
 
 

@@ -223,6 +223,16 @@ def test_davenport_bad_input(call, match):
         call()
 
 
+def test_davenport_order_of_another_type_raises_as_scipy():
+    """scipy's from_davenport takes `order` as a typed str (TypeError), its as_davenport
+    compares it (ValueError)."""
+    for cls in (R, Rotation):
+        with pytest.raises(TypeError):
+            cls.from_davenport(np.eye(3), None, [1, 2, 3])
+        with pytest.raises(ValueError):
+            cls.identity().as_davenport(np.eye(3), 1)
+
+
 def test_negate_works_where_numpys_inplace_negative_does_not():
     """The reason for `_euler._negate`: on NumPy 2.4 (AVX-512 and AVX2 builds alike),
     ``np.negative(x, out=x)`` on a float32 row with a 16-byte stride (a component row of

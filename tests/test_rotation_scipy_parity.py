@@ -375,10 +375,12 @@ def test_create_group_elements_in_scipys_order_and_signs(group, axis):
 
 @pytest.mark.parametrize("args, kwargs", [((), {}), ((0,), {}), ((3,), {}), ((), {"shape": 3}), ((), {"shape": (2, 3)}),
                                           ((), {"shape": ()}), ((), {"shape": (0,)}), ((), {"shape": [2, 3]}),
-                                          ((-1,), {}), ((2,), {"shape": 2}), ((np.int64(2),), {})], ids=repr)
+                                          ((-1,), {}), ((2,), {"shape": 2}), ((np.int64(2),), {}),
+                                          ((), {"shape": (2.0,)}), ((), {"shape": (-1,)}), ((), {"shape": "a"})], ids=repr)
 def test_identity_and_random_shapes_like_scipy(args, kwargs):
     same_as_scipy(lambda R, **_: R.identity(*args, **kwargs), match=None)
     same_as_scipy(lambda R, **_: R.random(*args, **kwargs, rng=1), atol=1e-15)
+    same_as_scipy(lambda RT, **_: RT.identity(*args, **kwargs).as_matrix(), match=None)
 
 
 @pytest.mark.parametrize("seed", ["int", "Generator", "RandomState"])
