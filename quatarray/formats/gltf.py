@@ -238,6 +238,25 @@ def _replaces_input(path, gf):
     return False
 
 
+def check_writable(gf, dst, force):
+    """Refuse, before anything is written, a ``.bin`` beside the output `dst` that would replace an
+    existing file without `force`: a file of the input `gf` (its buffer, an image) or any other.
+
+    Every command that writes a glTF file it read as `gf` (resample, reduce)
+    calls it; `dst` itself follows `quatarray.formats.resample_file`'s rule.
+    """
+    dst = os.fspath(dst)
+    if force or os.path.splitext(dst)[1].lower() != ".gltf" or gf.layout == "embedded":
+        return   # no .bin: a .glb holds its buffer, and an embedded input stays embedded
+    sidecar = _sidecar(dst)
+    if _replaces_input(sidecar, gf):
+        raise FormatError(f"would replace {os.path.basename(sidecar)!r}, a file of the input "
+                          f"{os.path.basename(gf.path)!r}; give {option('force')} to replace it", dst)
+    if os.path.lexists(sidecar):
+        raise FileExistsError(errno.EEXIST, f"exists (the buffer file of the output {os.path.basename(dst)!r}); "
+                                            f"give {option('force')} to replace it", sidecar)
+
+
 def _write_document(dst, doc, data, layout):
     """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it."""
     if os.path.splitext(dst)[1].lower() == ".glb":
@@ -313,13 +332,7 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     (11, 241)
     """
     gf = read_gltf(src)
-    if not force and os.path.splitext(dst)[1].lower() == ".gltf" and gf.layout != "embedded":
-        if _replaces_input(_sidecar(dst), gf):
-            raise FormatError(f"would replace {os.path.basename(_sidecar(dst))!r}, a file of the input "
-                              f"{os.path.basename(gf.path)!r}; give {option('force')} to replace it", dst)
-        if os.path.lexists(_sidecar(dst)):
-            raise FileExistsError(errno.EEXIST, f"exists (the buffer file of the output {os.path.basename(dst)!r}); "
-                                                f"give {option('force')} to replace it", _sidecar(dst))
+    check_writable(gf, dst, force)
     animations = read_animations(gf)
     if not any(animations):
         raise FormatError("no animation samplers to resample", gf.path)
