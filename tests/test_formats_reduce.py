@@ -187,7 +187,8 @@ def test_reduce_gltf_follows_the_buffer_file_rule(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err == (f"quatarray: error: {tmp_path / 'out.bin'}: exists (the buffer file of the output 'out.gltf'); "
                    "give --force to replace it\n")
-    with pytest.raises(FormatError, match="would replace 'data.bin', a file of the input 'scene.gltf'"):
-        reduce_file(src, tmp_path / "data.gltf", "1deg")
+    for force in (False, True):     # the input's buffer: not even with force
+        with pytest.raises(FormatError, match="would replace 'data.bin', the buffer file of the input 'scene.gltf'"):
+            reduce_file(src, tmp_path / "data.gltf", "1deg", force=force)
     assert (tmp_path / "out.bin").read_bytes() == b"keep me" and (tmp_path / "data.bin").read_bytes() == buffer
     assert sorted(os.listdir(tmp_path)) == ["data.bin", "out.bin", "scene.gltf"]

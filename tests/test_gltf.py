@@ -704,25 +704,62 @@ def test_cli_resample_and_conversions(tmp_path, rng):
     assert res.returncode == 2 and "--force" in res.stderr
 
 
-def test_a_gltf_output_does_not_replace_the_inputs_buffer_without_force(tmp_path, rng):
-    # in.gltf keeps its buffer in in_data.bin; out "in_data.gltf" would write its own in_data.bin
+def test_a_gltf_output_never_replaces_the_inputs_buffer(tmp_path, rng):
+    # in.gltf keeps its buffer in in_data.bin; out "in_data.gltf" would write its own in_data.bin, which
+    # --force used to let it replace: the input was left naming a buffer of other bytes
     b, _ = skinned(rng)
     b.save(tmp_path / "in.gltf", "external")
     buffer = tmp_path / "in_data.bin"
     before = buffer.read_bytes()
     dst = tmp_path / "in_data.gltf"
-    res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60)
-    assert res.returncode == 2 and "would replace 'in_data.bin', a file of the input 'in.gltf'" in res.stderr
-    assert "--force" in res.stderr and buffer.read_bytes() == before and not dst.exists()
-    with pytest.raises(cli.FormatError, match="would replace"):
-        resample_gltf(tmp_path / "in.gltf", dst, fps=60)
+    for force in ([], ["--force"]):
+        res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60, *force)
+        assert res.returncode == 2 and res.stderr == (
+            f"quatarray: error: {dst}: would replace 'in_data.bin', the buffer file of the input 'in.gltf'; "
+            "write the output under another name\n")
+        assert buffer.read_bytes() == before and not dst.exists()
+    with pytest.raises(cli.FormatError, match="would replace 'in_data.bin', the buffer file of the input"):
+        resample_gltf(tmp_path / "in.gltf", dst, fps=60, force=True)
     assert buffer.read_bytes() == before
-    # an output elsewhere, or embedded into a .glb, is fine; with force the .bin is replaced
+    # an output elsewhere, or embedded into a .glb, is fine
     assert run("resample", tmp_path / "in.gltf", "-o", tmp_path / "in.glb", "--fps", 60).returncode == 0
-    res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60, "--force")
+    assert sorted(os.listdir(tmp_path)) == ["in.glb", "in.gltf", "in_data.bin"]
+
+
+def test_the_input_written_over_itself_rewrites_its_buffer_file(tmp_path):
+    # scene.gltf keeps its buffer in scene.bin, the name its output's buffer takes: with --force the
+    # two are rewritten together, and the file reads back
+    keyframes_to_gltf(tmp_path / "arm.glb", read_csv(example_path("arm.csv")))
+    src = tmp_path / "scene.gltf"
+    resample_gltf(tmp_path / "arm.glb", src, fps=10)
+    before = src.read_bytes(), (tmp_path / "scene.bin").read_bytes()
+    res = run("resample", src, "-o", src, "--fps", 60)
+    assert res.returncode == 2
+    assert res.stderr == f"quatarray: error: {src}: is the input file; give --force to replace it\n"
+    with pytest.raises(cli.FormatError, match="would replace 'scene.bin', the buffer file of the input 'scene.gltf'; "
+                                               "give force=True to replace it"):
+        resample_gltf(src, src, fps=60)
+    assert (src.read_bytes(), (tmp_path / "scene.bin").read_bytes()) == before
+    res = run("resample", src, "-o", src, "--fps", 60, "--force")
     assert res.returncode == 0, res.stderr
-    assert buffer.read_bytes() != before
-    np.testing.assert_array_equal(read_accessor(read_gltf(dst), 0), read_accessor(read_gltf(tmp_path / "in.glb"), 0))
+    doc, data = load(src)
+    assert doc["buffers"][0]["uri"] == "scene.bin" and len(channel_output(doc, data, 0, 0, "rotation")[0]) == 241
+    assert sorted(os.listdir(tmp_path)) == ["arm.glb", "scene.bin", "scene.gltf"]
+
+
+@pytest.mark.parametrize("image, dst", [("scene.bin", "scene.gltf"), ("tex.bin", "tex.gltf")])
+def test_an_image_of_the_input_is_never_replaced(tmp_path, rng, image, dst):
+    # an image file named as the output's buffer file would be: refused with --force, also writing in place
+    b, _ = skinned(rng)
+    b.g.images = [pygltflib.Image(uri=image, mimeType="image/png")]
+    b.save(tmp_path / "scene.gltf", "external")
+    (tmp_path / image).write_bytes(b"a picture")
+    res = run("resample", tmp_path / "scene.gltf", "-o", tmp_path / dst, "--fps", 60, "--force")
+    assert res.returncode == 2 and res.stderr == (
+        f"quatarray: error: {tmp_path / dst}: would replace {image!r}, an image of the input 'scene.gltf'; "
+        "write the output under another name\n")
+    assert (tmp_path / image).read_bytes() == b"a picture"
+    assert sorted(os.listdir(tmp_path)) == sorted({"scene.gltf", "scene_data.bin", image})
 
 
 def _malformed(tmp_path, rng, how):

@@ -216,45 +216,48 @@ def _sidecar(dst):
 
 
 def _input_files(gf):
-    """The files a glTF input is made of: itself and the files its buffers and images name."""
+    """(what, path) of the files a glTF input is made of: itself, and the files its buffers and images name."""
     folder = os.path.dirname(os.path.abspath(gf.path))
-    files = [gf.path]
-    items = [x for key in ("buffers", "images") if isinstance(gf.json.get(key), list) for x in gf.json[key]]
-    for item in items:
-        uri = item.get("uri") if isinstance(item, dict) else None
-        if isinstance(uri, str) and not uri.startswith("data:") and len(urllib.parse.urlsplit(uri).scheme) <= 1:
-            files.append(os.path.join(folder, urllib.parse.unquote(uri)))
-    return files
+    yield "the input", gf.path
+    for key, what in (("buffers", "the buffer file"), ("images", "an image")):
+        for item in gf.json.get(key, []):
+            uri = item.get("uri")
+            if isinstance(uri, str) and not uri.startswith("data:") and len(urllib.parse.urlsplit(uri).scheme) <= 1:
+                yield what, os.path.join(folder, urllib.parse.unquote(uri))
 
 
-def _replaces_input(path, gf):
-    """Whether writing `path` would replace one of the input's files."""
-    for file in _input_files(gf):
-        try:
-            if os.path.samefile(path, file):
-                return True
-        except OSError:
-            pass
-    return False
+def _same_file(a, b):
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def check_writable(gf, dst, force):
-    """Refuse, before anything is written, a ``.bin`` beside the output `dst` that would replace an
-    existing file without `force`: a file of the input `gf` (its buffer, an image) or any other.
+    """Refuse, before anything is written, a ``.bin`` beside the output `dst` that would replace a
+    file it may not.
 
-    Every command that writes a glTF file it read as `gf` (resample, reduce)
-    calls it; `dst` itself follows `quatarray.formats.resample_file`'s rule.
+    A file of the input `gf` never: the input would lose its buffer or an
+    image.  The one exception is writing the input over itself with `force`,
+    where its buffer file is rewritten together with it.  Any other existing
+    file only with `force`.  Every command that writes a glTF file it read as
+    `gf` (resample, reduce) calls it; `dst` itself follows
+    `quatarray.formats.resample_file`'s rule.
     """
     dst = os.fspath(dst)
-    if force or os.path.splitext(dst)[1].lower() != ".gltf" or gf.layout == "embedded":
+    if os.path.splitext(dst)[1].lower() != ".gltf" or gf.layout == "embedded":
         return   # no .bin: a .glb holds its buffer, and an embedded input stays embedded
     sidecar = _sidecar(dst)
-    if _replaces_input(sidecar, gf):
-        raise FormatError(f"would replace {os.path.basename(sidecar)!r}, a file of the input "
-                          f"{os.path.basename(gf.path)!r}; give {option('force')} to replace it", dst)
-    if os.path.lexists(sidecar):
+    clashes = {what for what, file in _input_files(gf) if _same_file(sidecar, file)}
+    in_place = clashes == {"the buffer file"} and _same_file(dst, gf.path)
+    if clashes and not (in_place and force):
+        what = " and ".join(sorted(clashes))
+        fix = f"give {option('force')} to replace it" if in_place else "write the output under another name"
+        raise FormatError(f"would replace {os.path.basename(sidecar)!r}, {what} of the input "
+                          f"{os.path.basename(gf.path)!r}; {fix}", dst)
+    if os.path.lexists(sidecar) and not force:
         raise FileExistsError(errno.EEXIST, f"exists (the buffer file of the output {os.path.basename(dst)!r}); "
-                                            f"give {option('force')} to replace it", sidecar)
+                              f"give {option('force')} to replace it", sidecar)
 
 
 def _write_document(dst, doc, data, layout):
@@ -309,11 +312,12 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         (glTF defines no extrapolation).
     force : bool, default False
         Allow the ``.bin`` file a ``.gltf`` output writes beside it to
-        replace an existing file; without it, a file of the input (its
-        buffer, an image) is a `FormatError` and any other existing file a
-        `FileExistsError`, before anything is written.  `dst` itself is
-        replaced (`quatarray.formats.resample_file` refuses an existing `dst`
-        without `force`).
+        replace an existing file; without it, an existing one is a
+        `FileExistsError`, before anything is written.  A file of the input
+        (its buffer, an image) is a `FormatError` even with `force`, except
+        the input's buffer file when `dst` is the input itself.  `dst` itself
+        is replaced (`quatarray.formats.resample_file` refuses an existing
+        `dst` without `force`).
 
     Returns
     -------

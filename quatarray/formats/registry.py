@@ -251,7 +251,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         written exactly.
     force : bool
         Replace an existing `dst` (atomically), also when it is `src`, and
-        let a ``.gltf`` output's ``.bin`` replace an existing file.  A Zarr
+        let a ``.gltf`` output's ``.bin`` replace an existing file (never a
+        file of the input, unless `dst` is the input itself and the file its
+        buffer: the two are rewritten together).  A Zarr
         store, written chunk by chunk while its input is read, is never
         written over its input.
     scheduler, progress
@@ -270,8 +272,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     ------
     FormatError
         An unknown extension, or an unreadable input or times file (the
-        message names the file and line), or `dst` is `src` (or a ``.gltf``
-        output's ``.bin`` a file of the input) without `force`.
+        message names the file and line), or `dst` is `src` without
+        `force`, or a ``.gltf`` output's ``.bin`` would replace a file of
+        the input.
     FileExistsError
         `dst` (or a ``.gltf`` output's ``.bin``) exists, without `force`.
     ValueError
