@@ -368,6 +368,29 @@ def test_write_into_missing_folder_names_the_target(tmp_path, rng):
     assert info.value.filename == str(path)
 
 
+@pytest.mark.parametrize("name", ["k" * 251 + ".csv", "x" + "\u00e9" * 125 + ".csv", "\u4e2d" * 83 + "kk.csv"],
+                         ids=["ascii", "two-byte", "three-byte"])
+def test_longest_file_names_are_written(tmp_path, rng, monkeypatch, name):
+    # 255 bytes, the most a file name may have: ".{name}.{random}.part" did not fit from 241 bytes on
+    # ("File name too long"); the temporary's name holds the target's cut at a character
+    assert len(name.encode("utf-8")) == 255
+    temporaries, replace = [], os.replace
+
+    def recording(src, dst):
+        temporaries.append(os.path.basename(src))
+        replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", recording)
+    kf = Keyframes(np.arange(3.0), smooth_keys(rng, 3))
+    write_csv(tmp_path / name, kf)
+    assert os.listdir(tmp_path) == [name]
+    np.testing.assert_array_equal(read_csv(tmp_path / name).times, kf.times)
+    (tmp,) = temporaries
+    assert len(tmp.encode("utf-8")) <= 255 and tmp.startswith(".") and tmp.endswith(".part")
+    kept = tmp[1:-len(".12345678.part")]
+    assert name.startswith(kept) and len(kept.encode("utf-8")) >= 235
+
+
 def test_format_error_text():
     assert str(FormatError("bad", "a.csv", 3)) == "a.csv:3: bad"
     assert str(FormatError("bad", "a.csv")) == "a.csv: bad"

@@ -11,6 +11,22 @@ import tempfile
 
 __all__ = ["atomic_write"]
 
+_NAME_MAX = 255   # bytes in a file name (ext4, XFS, APFS, tmpfs; NTFS's 255 UTF-16 units are never fewer)
+_RANDOM = 8       # the characters mkstemp puts between its prefix and suffix
+
+
+def _temporary(path, suffix):
+    """mkstemp beside `path`, named ``.{name}.{random}{suffix}`` after `path`'s name, which is cut (at a
+    character, so a UTF-8 name stays UTF-8) where the whole would not fit in a file name."""
+    folder, name = os.path.split(os.path.abspath(path))
+    room = _NAME_MAX - len(f"..{suffix}") - _RANDOM
+    while len(os.fsencode(name)) > room:
+        name = name[:-1]
+    try:
+        return tempfile.mkstemp(dir=folder, prefix=f".{name}.", suffix=suffix)
+    except OSError as exc:  # name the file asked for, not the temporary one
+        raise type(exc)(exc.errno, exc.strerror, path) from None
+
 
 @contextlib.contextmanager
 def atomic_write(path, binary=False, newline="\n"):
@@ -31,11 +47,7 @@ def atomic_write(path, binary=False, newline="\n"):
         mask = os.umask(0)
         os.umask(mask)
         mode = 0o666 & ~mask
-    folder = os.path.dirname(os.path.abspath(path))
-    try:
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
-    except OSError as exc:  # name the file asked for, not the temporary one
-        raise type(exc)(exc.errno, exc.strerror, path) from None
+    fd, tmp = _temporary(path, ".part")
     try:
         os.chmod(tmp, mode)  # mkstemp makes 0600
         try:
