@@ -6,6 +6,7 @@ spec's interpolation formulas written out again below, one query at a time.
 """
 
 import base64
+import errno
 import json
 import os
 import shutil
@@ -745,6 +746,41 @@ def test_the_input_written_over_itself_rewrites_its_buffer_file(tmp_path):
     doc, data = load(src)
     assert doc["buffers"][0]["uri"] == "scene.bin" and len(channel_output(doc, data, 0, 0, "rotation")[0]) == 241
     assert sorted(os.listdir(tmp_path)) == ["arm.glb", "scene.bin", "scene.gltf"]
+
+
+@pytest.mark.parametrize("links", [True, False], ids=["hard links", "no hard links"])
+@pytest.mark.parametrize("error", [OSError(errno.ENOSPC, "No space left on device"), KeyboardInterrupt()],
+                         ids=["disk full", "interrupted"])
+def test_a_gltf_and_its_buffer_file_are_replaced_together(tmp_path, monkeypatch, error, links):
+    # the input written over itself: scene.bin is renamed into place, then scene.gltf; when that second
+    # rename fails, scene.bin is put back (from a hard link, or a copy, to the old file) -- it used to stay
+    # the new buffer under the old .gltf, which then read other bytes than it was written for
+    keyframes_to_gltf(tmp_path / "arm.glb", read_csv(example_path("arm.csv")))
+    src = tmp_path / "scene.gltf"
+    resample_gltf(tmp_path / "arm.glb", src, fps=10)
+    os.remove(tmp_path / "arm.glb")
+    before = {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)}
+    renamed, replace = [], os.replace
+
+    def failing_second(a, b):
+        renamed.append(os.path.basename(b))
+        if len(renamed) == 2:
+            raise error
+        replace(a, b)
+
+    def no_link(*args, **kwargs):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(os, "replace", failing_second)
+    if not links:
+        monkeypatch.setattr(os, "link", no_link)
+    with pytest.raises(type(error)) as info:
+        resample_gltf(src, src, fps=60, force=True)
+    assert renamed == ["scene.bin", "scene.gltf", "scene.bin"]     # the third puts the old scene.bin back
+    if isinstance(error, OSError):
+        assert info.value.filename == str(src)
+    assert sorted(before) == ["scene.bin", "scene.gltf"]
+    assert {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)} == before   # nothing left
 
 
 @pytest.mark.parametrize("image, dst", [("scene.bin", "scene.gltf"), ("tex.bin", "tex.gltf")])

@@ -32,7 +32,7 @@ import urllib.parse
 
 import numpy as np
 
-from .atomic import atomic_write
+from .atomic import atomic_files
 from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
 from .gltf_sampler import resample_sampler
 from .keyframes import fps_times
@@ -261,25 +261,27 @@ def check_writable(gf, dst, force):
 
 
 def _write_document(dst, doc, data, layout):
-    """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it."""
+    """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it
+    (the .bin and the .gltf replaced together: if either fails, both are left as they were)."""
     if os.path.splitext(dst)[1].lower() == ".glb":
         text = _json_bytes(doc, separators=(",", ":"))
         text += b" " * (-len(text) % 4)
         chunks = struct.pack("<II", len(text), JSON_CHUNK) + text
         if data:
             chunks += struct.pack("<II", len(data), BIN_CHUNK) + data
-        with atomic_write(dst, binary=True) as f:
-            f.write(struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks)
-        return
-    if data and layout == "embedded":
-        doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
-    elif data:
-        name = os.path.basename(_sidecar(dst))
-        doc["buffers"][0]["uri"] = urllib.parse.quote(name)
-        with atomic_write(_sidecar(dst), binary=True) as f:
-            f.write(data)
-    with atomic_write(dst, binary=True) as f:
-        f.write(_json_bytes(doc, indent=2) + b"\n")
+        files = {dst: struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks}
+    else:
+        files = {}
+        if data and layout == "embedded":
+            doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
+        elif data:
+            doc["buffers"][0]["uri"] = urllib.parse.quote(os.path.basename(_sidecar(dst)))
+            files[_sidecar(dst)] = data
+        files[dst] = _json_bytes(doc, indent=2) + b"\n"
+    with atomic_files() as staged:
+        for path, content in files.items():
+            with staged.open(path, binary=True) as f:
+                f.write(content)
 
 
 # --------------------------------------------------------------------------- resampling
