@@ -9,6 +9,7 @@ import base64
 import errno
 import json
 import os
+import re
 import shutil
 import struct
 import subprocess
@@ -24,6 +25,7 @@ from quatarray.formats import keyframes_to_gltf, resample_gltf  # noqa: E402
 from quatarray.formats.gltf_read import read_accessor, read_gltf  # noqa: E402
 from quatarray.formats.gltf_sampler import evaluate_sampler  # noqa: E402
 from quatarray.formats import example_path, read_csv  # noqa: E402
+from quatarray.formats.reduce import reduce_file  # noqa: E402
 from quatarray.interpolate import Track  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -928,6 +930,57 @@ def test_references_inside_images_and_extensions_are_renumbered(tmp_path, rng):
     assert inst != 3 and prim["attributes"]["POSITION"] != 4          # both moved down past the old animation data
 
 
+def _with_extension(doc, name):
+    """`doc` using extension `name`, with what it holds as the extension's spec has it."""
+    view = len(doc["bufferViews"]) - 1
+    if name == "EXT_structural_metadata":     # a property table's values are a buffer view
+        doc["extensions"] = {name: {
+            "schema": {"classes": {"part": {"properties": {"mass": {"type": "SCALAR", "componentType": "FLOAT32"}}}}},
+            "propertyTables": [{"class": "part", "count": 1, "properties": {"mass": {"values": view}}}]}}
+    elif name == "EXT_meshopt_compression":   # a buffer view's compressed bytes are in another buffer
+        doc["bufferViews"][view]["extensions"] = {name: {
+            "buffer": 0, "byteLength": 4, "byteStride": 4, "count": 1, "mode": "ATTRIBUTES"}}
+    elif name == "KHR_materials_emissive_strength":
+        doc["materials"] = [{"extensions": {name: {"emissiveStrength": 2.0}}}]
+    elif name == "MSFT_texture_dds":
+        doc["images"] = [{"uri": "t.dds"}]
+        doc["textures"] = [{"extensions": {name: {"source": 0}}}]
+    doc["extensionsUsed"] = [name]
+    return doc
+
+
+@pytest.mark.parametrize("name", ["EXT_structural_metadata", "EXT_meshopt_compression", "CESIUM_primitive_outline"])
+def test_an_extension_that_may_hold_moved_indices_is_refused(tmp_path, rng, capsys, name):
+    # writing renumbers accessors and buffer views: an extension whose indices into them the writer does
+    # not renumber would be left pointing at other data, as these were (used, not required)
+    b, _ = skinned(rng)
+    src = tmp_path / "in.gltf"
+    doc = _with_extension(b.save(src, "embedded"), name)
+    src.write_text(json.dumps(doc))
+    message = (f"{src}: extensionsUsed lists {name!r}: it may hold indices of accessors, buffer views or buffers, "
+               "which writing the file back renumbers (supported: EXT_mesh_gpu_instancing, ")
+    assert cli.main(["resample", str(src), "-o", str(tmp_path / "out.glb"), "--fps", "10"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {message}") and err.endswith(", KHR_materials_*)\n")
+    with pytest.raises(cli.FormatError, match=re.escape(message)):
+        reduce_file(src, tmp_path / "out.gltf", "1deg")
+    assert os.listdir(tmp_path) == ["in.gltf"]
+
+
+@pytest.mark.parametrize("name", ["KHR_materials_emissive_strength", "MSFT_texture_dds", "KHR_animation_pointer"])
+def test_an_extension_without_such_indices_is_written_back(tmp_path, rng, name):
+    # used and required: one list says what is read right and written back intact
+    b, _ = skinned(rng)
+    src = tmp_path / "in.gltf"
+    doc_in = _with_extension(b.save(src, "embedded"), name)
+    doc_in["extensionsRequired"] = [name]
+    src.write_text(json.dumps(doc_in))
+    resample_gltf(src, tmp_path / "out.gltf", fps=10)
+    doc, _ = load(tmp_path / "out.gltf")
+    keep = ("accessors", "bufferViews", "buffers", "animations", "meshes", "skins")
+    assert without(doc, *keep) == without(doc_in, *keep) and doc["extensionsRequired"] == [name]
+
+
 def test_cli_times_file_and_message(tmp_path, rng):
     b, animations = skinned(rng)
     b.save(tmp_path / "in.glb")
@@ -967,6 +1020,7 @@ def test_text_that_utf8_cannot_hold_stays_escaped(tmp_path, rng, name):
     (["meshes", 0, "primitives", 0, "attributes", "POSITION"], [1], "a reference to accessor [1]"),
     (["nodes", 4, "extensions"], [], "nodes[4].extensions: expected an object"),
     (["extensionsRequired"], "KHR_texture_transform", "extensionsRequired: expected an array of strings"),
+    (["extensionsUsed"], {"KHR_texture_transform": 1}, "extensionsUsed: expected an array of strings"),
 ])
 def test_wrong_json_shapes_are_format_errors(tmp_path, rng, capsys, where, value, match):
     b, _ = skinned(rng)

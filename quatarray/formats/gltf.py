@@ -8,6 +8,9 @@ buffer.  Every other object and property -- nodes, meshes, skins, materials,
 images, ``extras``, extensions -- is written back as it was, with accessor and
 buffer-view indices renumbered where the compaction moved them (core
 properties, ``KHR_draco_mesh_compression`` and ``EXT_mesh_gpu_instancing``).
+A file using another extension that may hold such indices (say
+``EXT_structural_metadata``, ``EXT_meshopt_compression``) is refused: its
+data would be left pointing at what moved.
 The file is read and written as JSON here, not through pygltflib's object
 model (the issue asked for pygltflib): a load-and-save with pygltflib 1.16.5
 drops core properties -- a node's default morph ``weights``, a mesh's empty
@@ -33,7 +36,8 @@ import urllib.parse
 import numpy as np
 
 from .atomic import atomic_files
-from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
+from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, check_extensions, read_animations,
+                        read_gltf)
 from .gltf_sampler import resample_sampler
 from .keyframes import fps_times
 from .text import FormatError, check_size, option
@@ -140,9 +144,12 @@ def write_gltf(dst, gf, animations):
         to leave that animation's samplers as they are.
 
     Accessors and buffer views that only the replaced samplers used are
-    dropped; everything else is copied into one compact buffer.
+    dropped; everything else is copied into one compact buffer.  A file
+    using an extension not in `quatarray.formats.gltf_read.SUPPORTED_EXTENSIONS`
+    is a `FormatError`.
     """
     dst = os.fspath(dst)
+    _check_extensions(gf)
     doc = copy.deepcopy(gf.json)
     old_accessors = doc.get("accessors", [])
     def swapped(i, new):   # whether sampler i of an animation is replaced
@@ -233,9 +240,16 @@ def _same_file(a, b):
         return False
 
 
+def _check_extensions(gf):
+    check_extensions(gf.json.get("extensionsUsed", []), "extensionsUsed lists", gf.path,
+                     ": it may hold indices of accessors, buffer views or buffers, which writing the file back "
+                     "renumbers")
+
+
 def check_writable(gf, dst, force):
-    """Refuse, before anything is written, a ``.bin`` beside the output `dst` that would replace a
-    file it may not.
+    """Refuse, before anything is computed or written, what `write_gltf` may not write: a file using an
+    extension it cannot write back, or a ``.bin`` beside the output `dst` that would replace a file it
+    may not.
 
     A file of the input `gf` never: the input would lose its buffer or an
     image.  The one exception is writing the input over itself with `force`,
@@ -244,6 +258,7 @@ def check_writable(gf, dst, force):
     `gf` (resample, reduce) calls it; `dst` itself follows
     `quatarray.formats.resample_file`'s rule.
     """
+    _check_extensions(gf)
     dst = os.fspath(dst)
     if os.path.splitext(dst)[1].lower() != ".gltf" or gf.layout == "embedded":
         return   # no .bin: a .glb holds its buffer, and an embedded input stays embedded
