@@ -40,7 +40,7 @@ from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, check_ex
                         read_gltf)
 from .gltf_sampler import resample_sampler
 from .keyframes import fps_times
-from .text import FormatError, check_size, option
+from .text import FormatError, check_size, option, same_file
 
 __all__ = ["write_gltf", "resample_gltf", "keyframes_to_gltf"]
 
@@ -233,13 +233,6 @@ def _input_files(gf):
                 yield what, os.path.join(folder, urllib.parse.unquote(uri))
 
 
-def _same_file(a, b):
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
 def _check_extensions(gf):
     check_extensions(gf.json.get("extensionsUsed", []), "extensionsUsed lists", gf.path,
                      ": it may hold indices of accessors, buffer views or buffers, which writing the file back "
@@ -263,8 +256,8 @@ def check_writable(gf, dst, force):
     if os.path.splitext(dst)[1].lower() != ".gltf" or gf.layout == "embedded":
         return   # no .bin: a .glb holds its buffer, and an embedded input stays embedded
     sidecar = _sidecar(dst)
-    clashes = {what for what, file in _input_files(gf) if _same_file(sidecar, file)}
-    in_place = clashes == {"the buffer file"} and _same_file(dst, gf.path)
+    clashes = {what for what, file in _input_files(gf) if same_file(sidecar, file)}
+    in_place = clashes == {"the buffer file"} and same_file(dst, gf.path)
     if clashes and not (in_place and force):
         what = " and ".join(sorted(clashes))
         fix = f"give {option('force')} to replace it" if in_place else "write the output under another name"
