@@ -1,5 +1,7 @@
 """Keyframe files with fewer keys (quatarray.formats.reduce) and the ``quatarray reduce`` command."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -164,3 +166,29 @@ def test_gltf_rotation_samplers_reduced(tmp_path):
         [c["target"] for c in before.json["animations"][0]["channels"]]
     with pytest.raises(ValueError, match="expected method 'slerp'"):
         reduce_file(dense, tmp_path / "x.glb", tol, method="squad")
+
+
+def _gltf_with_buffer_file(tmp_path, name, buffer):
+    """The arm example as `name` (.gltf) keeping its buffer in the file `buffer` beside it."""
+    keyframes_to_gltf(tmp_path / "arm.glb", read_csv(example_path("arm.csv")))
+    resample_file(tmp_path / "arm.glb", tmp_path / buffer.replace(".bin", ".gltf"), fps=60)   # writes the .bin
+    os.replace(tmp_path / buffer.replace(".bin", ".gltf"), tmp_path / name)
+    os.remove(tmp_path / "arm.glb")
+    return tmp_path / name
+
+
+def test_reduce_gltf_follows_the_buffer_file_rule(tmp_path, capsys):
+    """quatarray reduce writes a .gltf's .bin under resample's rule: an existing .bin beside the output,
+    or a file of the input, is refused without --force (reduce replaced both without a word)."""
+    src = _gltf_with_buffer_file(tmp_path, "scene.gltf", "data.bin")
+    buffer = (tmp_path / "data.bin").read_bytes()
+    (tmp_path / "out.bin").write_bytes(b"keep me")
+    assert main(["reduce", str(src), "-o", str(tmp_path / "out.gltf"), "--tolerance", "1deg"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"quatarray: error: {tmp_path / 'out.bin'}: exists (the buffer file of the output 'out.gltf'); "
+                   "give --force to replace it\n")
+    for force in (False, True):     # the input's buffer: not even with force
+        with pytest.raises(FormatError, match="would replace 'data.bin', the buffer file of the input 'scene.gltf'"):
+            reduce_file(src, tmp_path / "data.gltf", "1deg", force=force)
+    assert (tmp_path / "out.bin").read_bytes() == b"keep me" and (tmp_path / "data.bin").read_bytes() == buffer
+    assert sorted(os.listdir(tmp_path)) == ["data.bin", "out.bin", "scene.gltf"]

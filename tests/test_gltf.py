@@ -6,8 +6,10 @@ spec's interpolation formulas written out again below, one query at a time.
 """
 
 import base64
+import errno
 import json
 import os
+import re
 import shutil
 import struct
 import subprocess
@@ -23,6 +25,7 @@ from quatarray.formats import keyframes_to_gltf, resample_gltf  # noqa: E402
 from quatarray.formats.gltf_read import read_accessor, read_gltf  # noqa: E402
 from quatarray.formats.gltf_sampler import evaluate_sampler  # noqa: E402
 from quatarray.formats import example_path, read_csv  # noqa: E402
+from quatarray.formats.reduce import reduce_file  # noqa: E402
 from quatarray.interpolate import Track  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -704,25 +707,97 @@ def test_cli_resample_and_conversions(tmp_path, rng):
     assert res.returncode == 2 and "--force" in res.stderr
 
 
-def test_a_gltf_output_does_not_replace_the_inputs_buffer_without_force(tmp_path, rng):
-    # in.gltf keeps its buffer in in_data.bin; out "in_data.gltf" would write its own in_data.bin
+def test_a_gltf_output_never_replaces_the_inputs_buffer(tmp_path, rng):
+    # in.gltf keeps its buffer in in_data.bin; out "in_data.gltf" would write its own in_data.bin, which
+    # --force used to let it replace: the input was left naming a buffer of other bytes
     b, _ = skinned(rng)
     b.save(tmp_path / "in.gltf", "external")
     buffer = tmp_path / "in_data.bin"
     before = buffer.read_bytes()
     dst = tmp_path / "in_data.gltf"
-    res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60)
-    assert res.returncode == 2 and "would replace 'in_data.bin', a file of the input 'in.gltf'" in res.stderr
-    assert "--force" in res.stderr and buffer.read_bytes() == before and not dst.exists()
-    with pytest.raises(cli.FormatError, match="would replace"):
-        resample_gltf(tmp_path / "in.gltf", dst, fps=60)
+    for force in ([], ["--force"]):
+        res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60, *force)
+        assert res.returncode == 2 and res.stderr == (
+            f"quatarray: error: {dst}: would replace 'in_data.bin', the buffer file of the input 'in.gltf'; "
+            "write the output under another name\n")
+        assert buffer.read_bytes() == before and not dst.exists()
+    with pytest.raises(cli.FormatError, match="would replace 'in_data.bin', the buffer file of the input"):
+        resample_gltf(tmp_path / "in.gltf", dst, fps=60, force=True)
     assert buffer.read_bytes() == before
-    # an output elsewhere, or embedded into a .glb, is fine; with force the .bin is replaced
+    # an output elsewhere, or embedded into a .glb, is fine
     assert run("resample", tmp_path / "in.gltf", "-o", tmp_path / "in.glb", "--fps", 60).returncode == 0
-    res = run("resample", tmp_path / "in.gltf", "-o", dst, "--fps", 60, "--force")
+    assert sorted(os.listdir(tmp_path)) == ["in.glb", "in.gltf", "in_data.bin"]
+
+
+def test_the_input_written_over_itself_rewrites_its_buffer_file(tmp_path):
+    # scene.gltf keeps its buffer in scene.bin, the name its output's buffer takes: with --force the
+    # two are rewritten together, and the file reads back
+    keyframes_to_gltf(tmp_path / "arm.glb", read_csv(example_path("arm.csv")))
+    src = tmp_path / "scene.gltf"
+    resample_gltf(tmp_path / "arm.glb", src, fps=10)
+    before = src.read_bytes(), (tmp_path / "scene.bin").read_bytes()
+    res = run("resample", src, "-o", src, "--fps", 60)
+    assert res.returncode == 2
+    assert res.stderr == f"quatarray: error: {src}: is the input file; give --force to replace it\n"
+    with pytest.raises(cli.FormatError, match="would replace 'scene.bin', the buffer file of the input 'scene.gltf'; "
+                                               "give force=True to replace it"):
+        resample_gltf(src, src, fps=60)
+    assert (src.read_bytes(), (tmp_path / "scene.bin").read_bytes()) == before
+    res = run("resample", src, "-o", src, "--fps", 60, "--force")
     assert res.returncode == 0, res.stderr
-    assert buffer.read_bytes() != before
-    np.testing.assert_array_equal(read_accessor(read_gltf(dst), 0), read_accessor(read_gltf(tmp_path / "in.glb"), 0))
+    doc, data = load(src)
+    assert doc["buffers"][0]["uri"] == "scene.bin" and len(channel_output(doc, data, 0, 0, "rotation")[0]) == 241
+    assert sorted(os.listdir(tmp_path)) == ["arm.glb", "scene.bin", "scene.gltf"]
+
+
+@pytest.mark.parametrize("links", [True, False], ids=["hard links", "no hard links"])
+@pytest.mark.parametrize("error", [OSError(errno.ENOSPC, "No space left on device"), KeyboardInterrupt()],
+                         ids=["disk full", "interrupted"])
+def test_a_gltf_and_its_buffer_file_are_replaced_together(tmp_path, monkeypatch, error, links):
+    # the input written over itself: scene.bin is renamed into place, then scene.gltf; when that second
+    # rename fails, scene.bin is put back (from a hard link, or a copy, to the old file) -- it used to stay
+    # the new buffer under the old .gltf, which then read other bytes than it was written for
+    keyframes_to_gltf(tmp_path / "arm.glb", read_csv(example_path("arm.csv")))
+    src = tmp_path / "scene.gltf"
+    resample_gltf(tmp_path / "arm.glb", src, fps=10)
+    os.remove(tmp_path / "arm.glb")
+    before = {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)}
+    renamed, replace = [], os.replace
+
+    def failing_second(a, b):
+        renamed.append(os.path.basename(b))
+        if len(renamed) == 2:
+            raise error
+        replace(a, b)
+
+    def no_link(*args, **kwargs):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(os, "replace", failing_second)
+    if not links:
+        monkeypatch.setattr(os, "link", no_link)
+    with pytest.raises(type(error)) as info:
+        resample_gltf(src, src, fps=60, force=True)
+    assert renamed == ["scene.bin", "scene.gltf", "scene.bin"]     # the third puts the old scene.bin back
+    if isinstance(error, OSError):
+        assert info.value.filename == str(src)
+    assert sorted(before) == ["scene.bin", "scene.gltf"]
+    assert {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)} == before   # nothing left
+
+
+@pytest.mark.parametrize("image, dst", [("scene.bin", "scene.gltf"), ("tex.bin", "tex.gltf")])
+def test_an_image_of_the_input_is_never_replaced(tmp_path, rng, image, dst):
+    # an image file named as the output's buffer file would be: refused with --force, also writing in place
+    b, _ = skinned(rng)
+    b.g.images = [pygltflib.Image(uri=image, mimeType="image/png")]
+    b.save(tmp_path / "scene.gltf", "external")
+    (tmp_path / image).write_bytes(b"a picture")
+    res = run("resample", tmp_path / "scene.gltf", "-o", tmp_path / dst, "--fps", 60, "--force")
+    assert res.returncode == 2 and res.stderr == (
+        f"quatarray: error: {tmp_path / dst}: would replace {image!r}, an image of the input 'scene.gltf'; "
+        "write the output under another name\n")
+    assert (tmp_path / image).read_bytes() == b"a picture"
+    assert sorted(os.listdir(tmp_path)) == sorted({"scene.gltf", "scene_data.bin", image})
 
 
 def _malformed(tmp_path, rng, how):
@@ -855,6 +930,57 @@ def test_references_inside_images_and_extensions_are_renumbered(tmp_path, rng):
     assert inst != 3 and prim["attributes"]["POSITION"] != 4          # both moved down past the old animation data
 
 
+def _with_extension(doc, name):
+    """`doc` using extension `name`, with what it holds as the extension's spec has it."""
+    view = len(doc["bufferViews"]) - 1
+    if name == "EXT_structural_metadata":     # a property table's values are a buffer view
+        doc["extensions"] = {name: {
+            "schema": {"classes": {"part": {"properties": {"mass": {"type": "SCALAR", "componentType": "FLOAT32"}}}}},
+            "propertyTables": [{"class": "part", "count": 1, "properties": {"mass": {"values": view}}}]}}
+    elif name == "EXT_meshopt_compression":   # a buffer view's compressed bytes are in another buffer
+        doc["bufferViews"][view]["extensions"] = {name: {
+            "buffer": 0, "byteLength": 4, "byteStride": 4, "count": 1, "mode": "ATTRIBUTES"}}
+    elif name == "KHR_materials_emissive_strength":
+        doc["materials"] = [{"extensions": {name: {"emissiveStrength": 2.0}}}]
+    elif name == "MSFT_texture_dds":
+        doc["images"] = [{"uri": "t.dds"}]
+        doc["textures"] = [{"extensions": {name: {"source": 0}}}]
+    doc["extensionsUsed"] = [name]
+    return doc
+
+
+@pytest.mark.parametrize("name", ["EXT_structural_metadata", "EXT_meshopt_compression", "CESIUM_primitive_outline"])
+def test_an_extension_that_may_hold_moved_indices_is_refused(tmp_path, rng, capsys, name):
+    # writing renumbers accessors and buffer views: an extension whose indices into them the writer does
+    # not renumber would be left pointing at other data, as these were (used, not required)
+    b, _ = skinned(rng)
+    src = tmp_path / "in.gltf"
+    doc = _with_extension(b.save(src, "embedded"), name)
+    src.write_text(json.dumps(doc))
+    message = (f"{src}: extensionsUsed lists {name!r}: it may hold indices of accessors, buffer views or buffers, "
+               "which writing the file back renumbers (supported: EXT_mesh_gpu_instancing, ")
+    assert cli.main(["resample", str(src), "-o", str(tmp_path / "out.glb"), "--fps", "10"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"quatarray: error: {message}") and err.endswith(", KHR_materials_*)\n")
+    with pytest.raises(cli.FormatError, match=re.escape(message)):
+        reduce_file(src, tmp_path / "out.gltf", "1deg")
+    assert os.listdir(tmp_path) == ["in.gltf"]
+
+
+@pytest.mark.parametrize("name", ["KHR_materials_emissive_strength", "MSFT_texture_dds", "KHR_animation_pointer"])
+def test_an_extension_without_such_indices_is_written_back(tmp_path, rng, name):
+    # used and required: one list says what is read right and written back intact
+    b, _ = skinned(rng)
+    src = tmp_path / "in.gltf"
+    doc_in = _with_extension(b.save(src, "embedded"), name)
+    doc_in["extensionsRequired"] = [name]
+    src.write_text(json.dumps(doc_in))
+    resample_gltf(src, tmp_path / "out.gltf", fps=10)
+    doc, _ = load(tmp_path / "out.gltf")
+    keep = ("accessors", "bufferViews", "buffers", "animations", "meshes", "skins")
+    assert without(doc, *keep) == without(doc_in, *keep) and doc["extensionsRequired"] == [name]
+
+
 def test_cli_times_file_and_message(tmp_path, rng):
     b, animations = skinned(rng)
     b.save(tmp_path / "in.glb")
@@ -894,6 +1020,7 @@ def test_text_that_utf8_cannot_hold_stays_escaped(tmp_path, rng, name):
     (["meshes", 0, "primitives", 0, "attributes", "POSITION"], [1], "a reference to accessor [1]"),
     (["nodes", 4, "extensions"], [], "nodes[4].extensions: expected an object"),
     (["extensionsRequired"], "KHR_texture_transform", "extensionsRequired: expected an array of strings"),
+    (["extensionsUsed"], {"KHR_texture_transform": 1}, "extensionsUsed: expected an array of strings"),
 ])
 def test_wrong_json_shapes_are_format_errors(tmp_path, rng, capsys, where, value, match):
     b, _ = skinned(rng)

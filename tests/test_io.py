@@ -1,5 +1,6 @@
 """CSV and NPZ keyframe files, query times, atomic writes (quatarray.formats)."""
 
+import errno
 import os
 import re
 
@@ -366,6 +367,66 @@ def test_write_into_missing_folder_names_the_target(tmp_path, rng):
     with pytest.raises(FileNotFoundError) as info:
         write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3)))
     assert info.value.filename == str(path)
+
+
+@pytest.mark.parametrize("name", ["k" * 251 + ".csv", "x" + "\u00e9" * 125 + ".csv", "\u4e2d" * 83 + "kk.csv"],
+                         ids=["ascii", "two-byte", "three-byte"])
+def test_longest_file_names_are_written(tmp_path, rng, monkeypatch, name):
+    # 255 bytes, the most a file name may have: ".{name}.{random}.part" did not fit from 241 bytes on
+    # ("File name too long"); the temporary's name holds the target's cut at a character
+    assert len(name.encode("utf-8")) == 255
+    temporaries, replace = [], os.replace
+
+    def recording(src, dst):
+        temporaries.append(os.path.basename(src))
+        replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", recording)
+    kf = Keyframes(np.arange(3.0), smooth_keys(rng, 3))
+    write_csv(tmp_path / name, kf)
+    assert os.listdir(tmp_path) == [name]
+    np.testing.assert_array_equal(read_csv(tmp_path / name).times, kf.times)
+    (tmp,) = temporaries
+    assert len(tmp.encode("utf-8")) <= 255 and tmp.startswith(".") and tmp.endswith(".part")
+    kept = tmp[1:-len(".12345678.part")]
+    assert name.startswith(kept) and len(kept.encode("utf-8")) >= 235
+
+
+def test_files_written_together_are_replaced_together(tmp_path, monkeypatch):
+    # new.txt does not exist yet, old.txt does; the third rename fails: the first two are undone
+    from quatarray.formats.atomic import atomic_files
+    (tmp_path / "old.txt").write_text("old")
+    os.chmod(tmp_path / "old.txt", 0o640)
+    names = ["new.txt", "old.txt", "last.txt"]
+    renamed, replace = [], os.replace
+
+    def failing_third(a, b):
+        renamed.append(os.path.basename(b))
+        if len(renamed) == 3:
+            raise PermissionError(errno.EACCES, "Permission denied")
+        replace(a, b)
+
+    monkeypatch.setattr(os, "replace", failing_third)
+    with pytest.raises(PermissionError) as info, atomic_files() as files:
+        for name in names:
+            with files.open(tmp_path / name) as f:
+                f.write(name * 2)
+    assert info.value.filename == str(tmp_path / "last.txt")
+    assert renamed == names + ["old.txt"]          # old.txt put back; new.txt removed
+    assert os.listdir(tmp_path) == ["old.txt"] and (tmp_path / "old.txt").read_text() == "old"
+    assert os.stat(tmp_path / "old.txt").st_mode & 0o777 == 0o640
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(RuntimeError, match="stop"), atomic_files() as files:   # an error inside: nothing renamed
+        with files.open(tmp_path / "new.txt") as f:
+            f.write("new")
+        raise RuntimeError("stop")
+    assert os.listdir(tmp_path) == ["old.txt"]
+    with atomic_files() as files:
+        for name in names:
+            with files.open(tmp_path / name) as f:
+                f.write(name * 2)
+    assert {name: (tmp_path / name).read_text() for name in os.listdir(tmp_path)} == {n: n * 2 for n in names}
+    assert os.stat(tmp_path / "old.txt").st_mode & 0o777 == 0o640
 
 
 def test_format_error_text():

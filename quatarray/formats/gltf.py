@@ -8,6 +8,9 @@ buffer.  Every other object and property -- nodes, meshes, skins, materials,
 images, ``extras``, extensions -- is written back as it was, with accessor and
 buffer-view indices renumbered where the compaction moved them (core
 properties, ``KHR_draco_mesh_compression`` and ``EXT_mesh_gpu_instancing``).
+A file using another extension that may hold such indices (say
+``EXT_structural_metadata``, ``EXT_meshopt_compression``) is refused: its
+data would be left pointing at what moved.
 The file is read and written as JSON here, not through pygltflib's object
 model (the issue asked for pygltflib): a load-and-save with pygltflib 1.16.5
 drops core properties -- a node's default morph ``weights``, a mesh's empty
@@ -32,11 +35,12 @@ import urllib.parse
 
 import numpy as np
 
-from .atomic import atomic_write
-from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, read_animations, read_gltf)
+from .atomic import atomic_files
+from .gltf_read import (BIN_CHUNK, FLOAT, GLB_MAGIC, JSON_CHUNK, SIZES, check_extensions, read_animations,
+                        read_gltf)
 from .gltf_sampler import resample_sampler
 from .keyframes import fps_times
-from .text import FormatError, check_size, option
+from .text import FormatError, check_size, option, same_file
 
 __all__ = ["write_gltf", "resample_gltf", "keyframes_to_gltf"]
 
@@ -140,9 +144,12 @@ def write_gltf(dst, gf, animations):
         to leave that animation's samplers as they are.
 
     Accessors and buffer views that only the replaced samplers used are
-    dropped; everything else is copied into one compact buffer.
+    dropped; everything else is copied into one compact buffer.  A file
+    using an extension not in `quatarray.formats.gltf_read.SUPPORTED_EXTENSIONS`
+    is a `FormatError`.
     """
     dst = os.fspath(dst)
+    _check_extensions(gf)
     doc = copy.deepcopy(gf.json)
     old_accessors = doc.get("accessors", [])
     def swapped(i, new):   # whether sampler i of an animation is replaced
@@ -216,48 +223,73 @@ def _sidecar(dst):
 
 
 def _input_files(gf):
-    """The files a glTF input is made of: itself and the files its buffers and images name."""
+    """(what, path) of the files a glTF input is made of: itself, and the files its buffers and images name."""
     folder = os.path.dirname(os.path.abspath(gf.path))
-    files = [gf.path]
-    items = [x for key in ("buffers", "images") if isinstance(gf.json.get(key), list) for x in gf.json[key]]
-    for item in items:
-        uri = item.get("uri") if isinstance(item, dict) else None
-        if isinstance(uri, str) and not uri.startswith("data:") and len(urllib.parse.urlsplit(uri).scheme) <= 1:
-            files.append(os.path.join(folder, urllib.parse.unquote(uri)))
-    return files
+    yield "the input", gf.path
+    for key, what in (("buffers", "the buffer file"), ("images", "an image")):
+        for item in gf.json.get(key, []):
+            uri = item.get("uri")
+            if isinstance(uri, str) and not uri.startswith("data:") and len(urllib.parse.urlsplit(uri).scheme) <= 1:
+                yield what, os.path.join(folder, urllib.parse.unquote(uri))
 
 
-def _replaces_input(path, gf):
-    """Whether writing `path` would replace one of the input's files."""
-    for file in _input_files(gf):
-        try:
-            if os.path.samefile(path, file):
-                return True
-        except OSError:
-            pass
-    return False
+def _check_extensions(gf):
+    check_extensions(gf.json.get("extensionsUsed", []), "extensionsUsed lists", gf.path,
+                     ": it may hold indices of accessors, buffer views or buffers, which writing the file back "
+                     "renumbers")
+
+
+def check_writable(gf, dst, force):
+    """Refuse, before anything is computed or written, what `write_gltf` may not write: a file using an
+    extension it cannot write back, or a ``.bin`` beside the output `dst` that would replace a file it
+    may not.
+
+    A file of the input `gf` never: the input would lose its buffer or an
+    image.  The one exception is writing the input over itself with `force`,
+    where its buffer file is rewritten together with it.  Any other existing
+    file only with `force`.  Every command that writes a glTF file it read as
+    `gf` (resample, reduce) calls it; `dst` itself follows
+    `quatarray.formats.resample_file`'s rule.
+    """
+    _check_extensions(gf)
+    dst = os.fspath(dst)
+    if os.path.splitext(dst)[1].lower() != ".gltf" or gf.layout == "embedded":
+        return   # no .bin: a .glb holds its buffer, and an embedded input stays embedded
+    sidecar = _sidecar(dst)
+    clashes = {what for what, file in _input_files(gf) if same_file(sidecar, file)}
+    in_place = clashes == {"the buffer file"} and same_file(dst, gf.path)
+    if clashes and not (in_place and force):
+        what = " and ".join(sorted(clashes))
+        fix = f"give {option('force')} to replace it" if in_place else "write the output under another name"
+        raise FormatError(f"would replace {os.path.basename(sidecar)!r}, {what} of the input "
+                          f"{os.path.basename(gf.path)!r}; {fix}", dst)
+    if os.path.lexists(sidecar) and not force:
+        raise FileExistsError(errno.EEXIST, f"exists (the buffer file of the output {os.path.basename(dst)!r}); "
+                              f"give {option('force')} to replace it", sidecar)
 
 
 def _write_document(dst, doc, data, layout):
-    """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it."""
+    """Write the document and its one buffer `data`: GLB, or .gltf with a data URI or a .bin beside it
+    (the .bin and the .gltf replaced together: if either fails, both are left as they were)."""
     if os.path.splitext(dst)[1].lower() == ".glb":
         text = _json_bytes(doc, separators=(",", ":"))
         text += b" " * (-len(text) % 4)
         chunks = struct.pack("<II", len(text), JSON_CHUNK) + text
         if data:
             chunks += struct.pack("<II", len(data), BIN_CHUNK) + data
-        with atomic_write(dst, binary=True) as f:
-            f.write(struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks)
-        return
-    if data and layout == "embedded":
-        doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
-    elif data:
-        name = os.path.basename(_sidecar(dst))
-        doc["buffers"][0]["uri"] = urllib.parse.quote(name)
-        with atomic_write(_sidecar(dst), binary=True) as f:
-            f.write(data)
-    with atomic_write(dst, binary=True) as f:
-        f.write(_json_bytes(doc, indent=2) + b"\n")
+        files = {dst: struct.pack("<4sII", GLB_MAGIC, 2, 12 + len(chunks)) + chunks}
+    else:
+        files = {}
+        if data and layout == "embedded":
+            doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode("ascii")
+        elif data:
+            doc["buffers"][0]["uri"] = urllib.parse.quote(os.path.basename(_sidecar(dst)))
+            files[_sidecar(dst)] = data
+        files[dst] = _json_bytes(doc, indent=2) + b"\n"
+    with atomic_files() as staged:
+        for path, content in files.items():
+            with staged.open(path, binary=True) as f:
+                f.write(content)
 
 
 # --------------------------------------------------------------------------- resampling
@@ -290,11 +322,12 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         (glTF defines no extrapolation).
     force : bool, default False
         Allow the ``.bin`` file a ``.gltf`` output writes beside it to
-        replace an existing file; without it, a file of the input (its
-        buffer, an image) is a `FormatError` and any other existing file a
-        `FileExistsError`, before anything is written.  `dst` itself is
-        replaced (`quatarray.formats.resample_file` refuses an existing `dst`
-        without `force`).
+        replace an existing file; without it, an existing one is a
+        `FileExistsError`, before anything is written.  A file of the input
+        (its buffer, an image) is a `FormatError` even with `force`, except
+        the input's buffer file when `dst` is the input itself.  `dst` itself
+        is replaced (`quatarray.formats.resample_file` refuses an existing
+        `dst` without `force`).
 
     Returns
     -------
@@ -313,13 +346,7 @@ def resample_gltf(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     (11, 241)
     """
     gf = read_gltf(src)
-    if not force and os.path.splitext(dst)[1].lower() == ".gltf" and gf.layout != "embedded":
-        if _replaces_input(_sidecar(dst), gf):
-            raise FormatError(f"would replace {os.path.basename(_sidecar(dst))!r}, a file of the input "
-                              f"{os.path.basename(gf.path)!r}; give {option('force')} to replace it", dst)
-        if os.path.lexists(_sidecar(dst)):
-            raise FileExistsError(errno.EEXIST, f"exists (the buffer file of the output {os.path.basename(dst)!r}); "
-                                                f"give {option('force')} to replace it", _sidecar(dst))
+    check_writable(gf, dst, force)
     animations = read_animations(gf)
     if not any(animations):
         raise FormatError("no animation samplers to resample", gf.path)

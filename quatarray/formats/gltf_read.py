@@ -37,17 +37,26 @@ _NAMES = {5120: "BYTE", 5121: "UNSIGNED_BYTE", 5122: "SHORT", 5123: "UNSIGNED_SH
 MAX_DEPTH = 128
 _PATH_TYPES = {"rotation": "VEC4", "translation": "VEC3", "scale": "VEC3", "weights": "SCALAR"}
 
-#: Extensions a file may require: none of them changes animation data, and the
-#: buffer-view / accessor references of those that hold any are renumbered.
+#: Extensions a file may use or require.  None of them changes how animation data is read, and none
+#: holds an index into accessors, buffer views or buffers, which writing the file back renumbers --
+#: except KHR_draco_mesh_compression and EXT_mesh_gpu_instancing, whose indices the writer renumbers
+#: too.  The indices they hold otherwise (images, textures, materials, nodes) never move.  With them,
+#: every ``KHR_materials_*`` extension (materials hold texture indices only).
 SUPPORTED_EXTENSIONS = frozenset({
     "KHR_mesh_quantization", "KHR_texture_transform", "KHR_texture_basisu", "KHR_lights_punctual",
-    "KHR_materials_variants", "KHR_xmp_json_ld", "KHR_draco_mesh_compression", "EXT_mesh_gpu_instancing",
-    "EXT_texture_webp", "EXT_texture_avif", "KHR_node_visibility",
+    "KHR_materials_variants", "KHR_xmp_json_ld", "KHR_animation_pointer", "KHR_node_visibility",
+    "KHR_draco_mesh_compression", "EXT_mesh_gpu_instancing", "EXT_texture_webp", "EXT_texture_avif",
+    "MSFT_texture_dds",
 })
 
 
-def _supported(name):
-    return name in SUPPORTED_EXTENSIONS or name.startswith("KHR_materials_")
+def check_extensions(names, what, path, why=""):
+    """A `FormatError` ``{what} {name!r}{why} (supported: ...)`` for the first of `names` that is not
+    supported (see `SUPPORTED_EXTENSIONS`)."""
+    unsupported = [e for e in names if not (e in SUPPORTED_EXTENSIONS or e.startswith("KHR_materials_"))]
+    if unsupported:
+        raise FormatError(f"{what} {unsupported[0]!r}{why} (supported: {', '.join(sorted(SUPPORTED_EXTENSIONS))}, "
+                          "KHR_materials_*)", path)
 
 
 @dataclasses.dataclass
@@ -191,10 +200,7 @@ def read_gltf(path):
     if not (isinstance(version, str) and version.startswith("2.")):
         raise FormatError(f"expected glTF asset.version 2.x, got {version!r}", path)
     _check_shapes(doc, path)
-    unsupported = [e for e in doc.get("extensionsRequired", []) if not _supported(e)]
-    if unsupported:
-        raise FormatError(f"unsupported required extension {unsupported[0]!r} (supported: "
-                          f"{', '.join(sorted(SUPPORTED_EXTENSIONS))}, KHR_materials_*)", path)
+    check_extensions(doc.get("extensionsRequired", []), "unsupported required extension", path)
     folder = os.path.dirname(os.path.abspath(path))
     buffers, layouts = [], set()
     for i, buf in enumerate(doc.get("buffers", [])):
@@ -255,9 +261,10 @@ def _check_shapes(doc, path):
     """The JSON shapes of everything read or renumbered: arrays of objects, objects where objects go."""
     for key in ("accessors", "bufferViews", "buffers", "animations", "meshes", "skins", "nodes", "images"):
         _objects(doc, key, "", path)
-    required = doc.get("extensionsRequired", [])
-    if not (isinstance(required, list) and all(isinstance(e, str) for e in required)):
-        raise FormatError(f"extensionsRequired: expected an array of strings, got {json.dumps(required)[:60]}", path)
+    for key in ("extensionsUsed", "extensionsRequired"):
+        names = doc.get(key, [])
+        if not (isinstance(names, list) and all(isinstance(e, str) for e in names)):
+            raise FormatError(f"{key}: expected an array of strings, got {json.dumps(names)[:60]}", path)
     for a, anim in enumerate(doc.get("animations", [])):
         _objects(anim, "samplers", f"animations[{a}].", path)
         for c, channel in enumerate(_objects(anim, "channels", f"animations[{a}].", path)):

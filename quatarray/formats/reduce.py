@@ -102,12 +102,13 @@ def _reduce_bvh(src, dst, kind_in, kind_out, tolerance, method, request):
 
 
 def _reduce_gltf(src, dst, kind_in, kind_out, tolerance, method, request):
-    from .gltf import write_gltf
+    from .gltf import check_writable, write_gltf
     from .gltf_read import read_animations, read_gltf
     if method != "slerp":
         raise ValueError(f"glTF rotation samplers interpolate LINEAR, which is slerp: expected method "
                          f"'slerp', got {method!r}")
     gf = read_gltf(src)
+    check_writable(gf, dst, request.force)
     nodes = gf.json.get("nodes", [])
     rows, new = [], []
     for a, samplers in enumerate(read_animations(gf)):
@@ -154,8 +155,9 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     scalar_last : bool
         CSV components are ``x, y, z, w``.
     force : bool
-        Replace an existing `dst`, also when it is `src` (atomically), as
-        `resample_file`: without it an existing `dst` is refused.
+        Replace an existing `dst`, also when it is `src` (atomically), and
+        let a ``.gltf`` output's ``.bin`` replace an existing file, as
+        `resample_file`: without it an existing `dst` or ``.bin`` is refused.
 
     Returns
     -------

@@ -17,7 +17,7 @@ import numpy as np
 
 from . import bvh, csv, gltf, npz, zarr
 from .keyframes import fps_times, read_times, resample_keyframes
-from .text import FormatError, TextStyle, echo, not_a_store, option, refuse_existing
+from .text import FormatError, TextStyle, echo, not_a_store, option, refuse_existing, same_file
 
 __all__ = ["Format", "FORMATS", "format_of", "resample_file"]
 
@@ -192,13 +192,6 @@ def formats_of(src, dst):
     return kind_in, kind_out
 
 
-def _same_file(src, dst):
-    try:
-        return os.path.samefile(src, dst)
-    except OSError:
-        return False
-
-
 def check_output(src, dst, kind_out, force):
     """The overwrite rule, for every command that writes a file: an existing `dst` only with `force`;
     `dst` equal to `src` only with `force` and only where the format replaces its input atomically;
@@ -207,7 +200,7 @@ def check_output(src, dst, kind_out, force):
         if FORMATS[kind_out].directory:
             raise not_a_store(dst, FORMATS[kind_out].name)
         raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(dst))
-    if _same_file(src, dst):
+    if same_file(src, dst):
         if not FORMATS[kind_out].replaces_input:
             raise FormatError(f"is the input; {FORMATS[kind_out].name} outputs are written while the input is "
                               "read, so they cannot replace it: write elsewhere, then rename", dst)
@@ -251,7 +244,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         written exactly.
     force : bool
         Replace an existing `dst` (atomically), also when it is `src`, and
-        let a ``.gltf`` output's ``.bin`` replace an existing file.  A Zarr
+        let a ``.gltf`` output's ``.bin`` replace an existing file (never a
+        file of the input, unless `dst` is the input itself and the file its
+        buffer: the two are rewritten together).  A Zarr
         store, written chunk by chunk while its input is read, is never
         written over its input.
     scheduler, progress
@@ -270,8 +265,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     ------
     FormatError
         An unknown extension, or an unreadable input or times file (the
-        message names the file and line), or `dst` is `src` (or a ``.gltf``
-        output's ``.bin`` a file of the input) without `force`.
+        message names the file and line), or `dst` is `src` without
+        `force`, or a ``.gltf`` output's ``.bin`` would replace a file of
+        the input.
     FileExistsError
         `dst` (or a ``.gltf`` output's ``.bin``) exists, without `force`.
     ValueError

@@ -10,6 +10,8 @@
 - `echo`: a value quoted in a message, cut to about 60 characters;
 - `option`: an option named as the caller spells it (``--force`` on the
   command line, ``force=True`` in Python; `command_line` switches).
+- `refuse_existing`, `same_file`: the overwrite rule's wording and its test
+  of whether an output is the input.
 
 `FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
 shared inside the package.
@@ -111,6 +113,14 @@ def refuse_existing(exists, name, force):
     only with `force`."""
     if exists and not force:
         raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(name))
+
+
+def same_file(a, b):
+    """Whether paths `a` and `b` are one existing file (False if either is missing)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def not_a_store(name, store):
