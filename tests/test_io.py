@@ -575,6 +575,15 @@ def test_fps_grid_reaches_a_last_key_rounded_at_clock_times():
     assert len(fps_times(t0, t0 + 20.0 - 1 / 400, 200)) == 4000  # half a frame short is really short
 
 
+def test_fps_grid_lands_on_every_key_at_clock_times():
+    """Keys at 100 Hz written with two decimals at absolute times: the own-rate grid lands on
+    every key (each grid time is within the times' own rounding of its key, 2.4e-7 s, more
+    than a millionth of a frame)."""
+    keys = np.round(1403636579.76 + np.arange(200) / 100, 2)
+    t = fps_times(keys[0], keys[-1], 100, onto=keys)
+    np.testing.assert_array_equal(t, keys)
+
+
 def test_style_measured_in_blocks_of_lines_is_the_same(tmp_path, monkeypatch, rng):
     """Looking at a file 64 bytes of whole lines at a time finds the same decimals as in one go."""
     rows = ["time,a.w,a.x,a.y,a.z"] + [f"{k / 7:.{k % 3 + 1}f},{w:.6f},0,{x:.3f},1.5e-7"

@@ -76,9 +76,9 @@ def fps_times(t0, t1, fps, per_frame=1, onto=None):
 
     A last sample past `t1` by no more than rounding (a millionth of a frame,
     or the rounding of `t0` and `t1` themselves) is moved onto `t1`, and with
-    `onto` (key times, increasing) a sample within a millionth of a frame of a
-    key time is moved onto it, so that it is that key, not an interpolation
-    one rounding away.  More frames than `quatarray.formats.text.MAX_VALUES` / `per_frame`
+    `onto` (key times, increasing) a sample within that rounding of a key time
+    is moved onto it, so that it is that key, not an interpolation one
+    rounding away.  More frames than `quatarray.formats.text.MAX_VALUES` / `per_frame`
     (values per output frame) raise ValueError before anything is allocated.
 
     Examples
@@ -96,9 +96,16 @@ def fps_times(t0, t1, fps, per_frame=1, onto=None):
         onto = np.asarray(onto, np.float64)
         right = np.minimum(np.searchsorted(onto, t), len(onto) - 1)
         near = np.where(np.abs(onto[right] - t) <= np.abs(onto[right - 1] - t), right, np.maximum(right - 1, 0))
-        snap = np.abs(onto[near] - t) <= 1e-6 / fps
+        snap = np.abs(onto[near] - t) <= _rounding(t0, t1, fps) / fps
         t[snap] = onto[near[snap]]
     return t
+
+
+def _rounding(t0, t1, fps):
+    """What "within rounding" allows of a frame time, in frames: a millionth of a frame, plus
+    the rounding of the times themselves (absolute clock times such as 1403636579.76 s
+    carry 2.4e-7 s each, more than a millionth of a frame at 100 fps)."""
+    return 1e-6 + 8 * np.finfo(np.float64).eps * max(abs(t0), abs(t1)) * fps
 
 
 def fps_steps(t0, t1, fps):
@@ -114,9 +121,7 @@ def fps_steps(t0, t1, fps):
         raise ValueError(f"expected fps > 0, got {fps}")
     with np.errstate(over="ignore"):
         span = (t1 - t0) * fps
-        # within rounding: a millionth of a frame, plus the rounding of long spans and of large
-        # times (absolute clock times such as 1403636579.76 s carry 2.4e-7 s each)
-        slack = 1e-6 + 1e-12 * span + 8 * np.finfo(np.float64).eps * max(abs(t0), abs(t1)) * fps
+        slack = _rounding(t0, t1, fps) + 1e-12 * span   # (and the rounding of long spans)
         last = np.floor(span + slack)
     if not last < 2.0**62:   # the frame count of --fps 1e308 is no integer numpy can hold
         raise ValueError(f"a rate of {fps:g} fps over {t1 - t0:g} s asks for {float(span):.3g} frames; the limit "
