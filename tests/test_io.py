@@ -74,6 +74,17 @@ def test_csv_names_default_from_batch(tmp_path, rng):
     np.testing.assert_array_equal(back.keys, keys.reshape(3, 4, 4))
 
 
+@pytest.mark.parametrize("names, match", [(("Arm", "arm"), "differ other than in case"), (("a", ""), "non-empty"),
+                                          (("a", "b\nc"), "no line break"), ((" sp ", "b"), "spaces at either end")])
+def test_csv_refuses_names_it_could_not_read_back(tmp_path, rng, names, match):
+    path = tmp_path / "k.csv"
+    with pytest.raises(ValueError, match=match):
+        write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3, (2,)), names))
+    assert not path.exists()
+    write_csv(path, Keyframes(np.arange(3.0), smooth_keys(rng, 3, (2,)), ("Arm", "arm.2")))   # these read back
+    assert read_csv(path).names == ("Arm", "arm.2")
+
+
 def test_csv_reads_shipped_example():
     kf = read_csv(qio.example_path("arm.csv"))
     assert kf.keys.shape == (len(kf.times), len(kf.names), 4)

@@ -67,6 +67,21 @@ def _csv_columns(header, path):
     return times[0], names, cols, scalar_last
 
 
+def _check_names(names):
+    """Track names that `read_csv` reads back as written: a ValueError for one it could not
+    (empty, with a line break or spaces at either end, or equal to another but for case:
+    the header is matched case-insensitively)."""
+    seen = {}
+    for name in names:
+        if not isinstance(name, str) or not name or name != name.strip() or "\n" in name or "\r" in name:
+            raise ValueError(f"expected track names a CSV header reads back (non-empty, no line break, no "
+                             f"spaces at either end), got {name!r}")
+        other = seen.setdefault(name.casefold(), name)
+        if other is not name:
+            raise ValueError(f"expected track names that differ other than in case (a CSV header's are "
+                             f"matched case-insensitively), got {other!r} and {name!r}")
+
+
 def _delimiter(header):
     """The separator of a CSV file from its header line: comma, else tab, else semicolon."""
     return next((d for d in (",", "\t", ";") if d in header), ",")
@@ -193,6 +208,7 @@ def write_csv(path, keyframes, *, scalar_last=None):
         names = ("q",) if keys.ndim == 2 else tuple(f"q{j}" for j in range(flat.shape[1]))
     if len(names) != flat.shape[1]:
         raise ValueError(f"expected {flat.shape[1]} track names, got {len(names)}")
+    _check_names(names)
     style = keyframes.style or TextStyle()
     if scalar_last is None:
         scalar_last = style.scalar_last
