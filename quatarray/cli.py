@@ -53,7 +53,8 @@ def demo(outdir=".", *, fps=120, file=None):
     scalar-last orientation log ``demo_imu.csv``, and ``demo_arm.glb``: the
     arm's tracks as a glTF animation of a joint chain) to try ``quatarray
     resample`` on.  Returns the path of ``demo.png``, or None
-    without matplotlib.
+    without matplotlib.  These six names are the demo's own: a rerun replaces
+    them (each atomically), unlike the outputs of ``resample`` and ``reduce``.
     """
     file = sys.stdout if file is None else file
     os.makedirs(outdir, exist_ok=True)
@@ -242,7 +243,8 @@ def build_parser():
 
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",
                             description="Resample a shipped example track with slerp, squad and Bezier, print "
-                                        "what was done and plot the angular speed to DIR/demo.png.")
+                                        "what was done and plot the angular speed to DIR/demo.png, beside the "
+                                        "example inputs demo_*; a rerun replaces these files of the demo's own.")
     p.add_argument("-o", "--output", metavar="DIR", default=".", help="folder for demo.png (default: .)")
     p.set_defaults(run=_run_demo)
     return parser
