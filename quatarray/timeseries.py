@@ -512,8 +512,8 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     if not (total > 0).all():
         raise ValueError("expected weights with a positive sum along the averaged axes, got a zero sum")
     mu0 = np.asarray(start._unit_quat(), np.float64).reshape(kshape + (4,))
-    mu, it, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
-    if step > tol:
+    mu, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
+    if step is not None:
         raise ValueError(f"expected the geodesic mean to converge within max_iter={max_iter} iterations "
                          f"to tol={tol!r}, got a last step of {step!r} rad")
     return _wrap_rotation(_convert.canonical(mu), r.dtype)

@@ -1,8 +1,8 @@
 """The same element gives the same bits whatever the batch around it.
 
 For every method of `QuatArray`, `Rotation`, `Slerp`, `RotationSpline`, `RigidTransform`,
-the interpolation functions and `Track`, in float32 and float64: element i of a batch
-equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
+the interpolation functions, `Track` and `geodesic_mean`, in float32 and float64: element i
+of a batch equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
 inside the batch split into blocks of two elements run on two threads.  The batches mix
 random rotations with near-identity, near-half-turn and gimbal-lock rotations, and (where
 the method accepts any magnitude) quaternions scaled by extreme powers of two.  A float64
@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 import quatarray
 from quatarray import (QuatArray, RigidTransform, Rotation, RotationSpline, Slerp, Track, _blocks, _interp_spline,
-                       bezier, lerp, nlerp, slerp, squad)
+                       bezier, geodesic_mean, lerp, nlerp, slerp, squad)
 
 KINDS = ("random", "identity", "half turn", "gimbal xyz", "gimbal zyz")
 
@@ -485,3 +485,44 @@ def test_spline_tracks_iterate_as_alone(dtype, k, monkeypatch):
         partial = _counting(monkeypatch, _interp_spline, "_put_tracks")
         _interp_spline.coefficients(times, keys_batch)
         assert partial, "some tracks refactorise Newton's Jacobian where others keep it"
+
+
+def _iterations(q, weights):
+    """The fewest iterations with which `geodesic_mean` of q (n, 4) converges."""
+    for m in range(1, 101):
+        try:
+            geodesic_mean(q, weights, max_iter=m)
+            return m
+        except ValueError:
+            pass
+    raise AssertionError("did not converge")
+
+
+@DTYPE
+@pytest.mark.parametrize("weighted", [False], ids=["unweighted"])
+@pytest.mark.parametrize("groups_first", [False, True], ids=["groups last", "groups first"])
+def test_geodesic_mean_groups_iterate_as_alone(dtype, weighted, groups_first):
+    """Groups of `geodesic_mean(axis=...)` whose Karcher iterations take different numbers
+    of steps (equal rotations, a tight cluster, wide spreads) give each the bits of the group
+    alone and as a batch of one: each stops on its own step, not on the largest of the batch.
+    (The means are iterated in float64: a float32 result rounds away the differences, below
+    `tol`, that a batch-wide stop made.)"""
+    rng = np.random.default_rng(4)
+    spreads = np.array([0.0, 1e-3, 0.1, 0.6, 1.2, 0.3])
+    n = 25
+    rv = rng.normal(size=(n, len(spreads), 3)) * spreads[:, None] + rng.normal(size=(1, len(spreads), 3))
+    q = QuatArray.from_rotvec(rv).view(np.ndarray).astype(dtype)
+    w = rng.uniform(0.1, 1.0, (n, len(spreads))) if weighted else None
+    steps = [_iterations(q[:, j], None if w is None else w[:, j]) for j in range(len(spreads))]
+    assert len(set(steps)) >= 3, steps   # the premise: the groups stop at different steps
+    if groups_first:   # the groups on axis 0, two axes of them; the averaged axis last
+        got = geodesic_mean(q.transpose(1, 0, 2).reshape(2, 3, n, 4), axis=-1,
+                            weights=None if w is None else w.T.reshape(2, 3, n))
+        got = got.as_quat(scalar_first=True).reshape(len(spreads), 4)
+    else:
+        got = geodesic_mean(q, w, axis=0).as_quat(scalar_first=True)
+    for j in range(len(spreads)):
+        wj = None if w is None else w[:, j]
+        _same(got[j], geodesic_mean(q[:, j], wj).as_quat(scalar_first=True), f"group {j} alone")
+        _same(got[j], geodesic_mean(q[:, j:j + 1], None if w is None else w[:, j:j + 1], axis=0)
+              .as_quat(scalar_first=True)[0], f"group {j} as a batch of one")
