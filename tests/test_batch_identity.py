@@ -499,7 +499,7 @@ def _iterations(q, weights):
 
 
 @DTYPE
-@pytest.mark.parametrize("weighted", [False], ids=["unweighted"])
+@pytest.mark.parametrize("weighted", [False, True], ids=["unweighted", "weighted"])
 @pytest.mark.parametrize("groups_first", [False, True], ids=["groups last", "groups first"])
 def test_geodesic_mean_groups_iterate_as_alone(dtype, weighted, groups_first):
     """Groups of `geodesic_mean(axis=...)` whose Karcher iterations take different numbers
