@@ -314,7 +314,16 @@ def _solve_rates(dt, rates, rotvecs):
     to 1e300, and ratios between neighbours as large, neither overflow nor
     lose the diagonal dominance the solve relies on.  The solution is
     scipy's; only the rounding differs.
+
+    Every decision (stop, switch to Newton's method, refactorise) is taken per
+    track, so each track of a batch takes the steps it takes alone: its bits do
+    not depend on the tracks beside it.
     """
+    given = rotvecs.shape
+    if rotvecs.ndim > 2:   # one track axis (axis 1), along which tracks leave the iteration
+        rotvecs = rotvecs.reshape(len(rotvecs), -1, 3)
+        rates = rates.reshape(rotvecs.shape)
+        dt = dt.reshape(len(dt), 1)
     dtype = rotvecs.dtype
     first = rates[0].copy()
     a = rate_to_rotvec_dot(rotvecs)
@@ -335,38 +344,86 @@ def _solve_rates(dt, rates, rotvecs):
     b0[0] -= 2 * wh[0] * _mv(a_inv[0], first)
     b0[-1] -= 2 * wk[-1] * _mv(a[-1], rates[-1])
     tol = TOL[np.dtype(dtype)]
-    levels = block_tridiagonal_factor(lower, diag, upper)
-    steps = []
-    settled = False
-    with np.errstate(over="ignore", invalid="ignore"):   # a diverging iteration: Newton's below
-        for _ in range(MAX_ITER):
-            # the quadratic term of the rate after each segment, over its spacing: h Q(ṙ) = Q(h ṙ) / h
-            rotvecs_dot = _mv(a[:-1], rates[:-1]) * dtb[:-1]
-            rhs = b0 - wh * (acceleration_term(rotvecs[:-1], rotvecs_dot) / dtb[:-1])
-            new = block_tridiagonal_apply(levels, rhs)
-            delta = np.abs(new - rates[:-1])
-            rates[:-1] = new
-            if np.all(delta < tol * (1 + np.abs(new))):
-                settled = True
-                break
-            steps.append(float(delta.max()))
-            if len(steps) >= 2:
-                # the steps shrink by about this ratio each time: where the steps left to scipy's
-                # MAX_ITER cannot bring them below the tolerance, or they grow, stop here
-                ratio = steps[-1] / steps[-2]
-                if not (ratio < 1 and steps[-1] * ratio ** (MAX_ITER - len(steps)) <= tol):
-                    break
-        if not settled:
-            # scipy's fixed point does not settle in MAX_ITER steps (large rotations between
-            # keys; at uneven spacings it diverges): Newton's method on the same equations, to
-            # the spline scipy's iteration would converge to; from where the iteration got if it
-            # was closing in (Newton then needs a step or two fewer), else from the linear solution
-            closing = steps[-1] < steps[0] and np.isfinite(rates).all()
-            start = rates[:-1] if closing else block_tridiagonal_apply(levels, b0)
-            rates[:-1] = _newton(lower, upper, b0, a, wh, dtb, rotvecs, start, tol)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # a diverging iteration: Newton's below
+        newton = _fixed_point(block_tridiagonal_factor(lower, diag, upper), a, wh, dtb, rotvecs, b0, rates, tol)
+        if newton.all() and newton.size:   # every track (one alone has no track axis to index)
+            rates[:-1] = _newton(lower, upper, b0, a, wh, dtb, rotvecs, rates[:-1], tol)
+        elif newton.any():
+            rates[:-1, newton] = _newton(lower[:, newton], upper[:, newton], b0[:, newton], a[:, newton], wh, dtb,
+                                         rotvecs[:, newton], rates[:-1, newton], tol)
     rotvecs_dot = _mv(a, rates)
     rates = np.concatenate([first[None], rates[:-1]])
-    return rates, rotvecs_dot
+    return rates.reshape(given), rotvecs_dot.reshape(given)
+
+
+def _tracks(levels, keep):
+    """The `block_tridiagonal_factor` `levels` of the tracks `keep` (a mask over the track
+    axis, axis 1; the last level's dense inverses hold the tracks on axis 0)."""
+    return [tuple(m[:, keep] for m in level) for level in levels[:-1]] + [levels[-1][keep]]
+
+
+def _put_tracks(levels, keep, new):
+    """Write the factorisation `new` of the tracks `keep` into `levels`, in place."""
+    for level, level_new in zip(levels[:-1], new[:-1]):
+        for m, m_new in zip(level, level_new):
+            m[:, keep] = m_new
+    levels[-1][keep] = new[-1]
+
+
+def _fixed_point(levels, a, wh, dtb, rotvecs, b0, rates, tol):
+    """scipy's fixed-point iteration on the quadratic term, on `rates` (n, tracks, 3) or
+    one track's (n, 3), in place.
+
+    Each track iterates until it settles, or until its steps show that the iteration will
+    not settle in scipy's `MAX_ITER` steps; those tracks are marked for Newton's method, and
+    their rates set to its start: where the iteration got if it was closing in (Newton then
+    needs a step or two fewer), else the linear solution.  A track that leaves is dropped
+    from the arrays (`levels` is its factorisation), so it takes no step more than alone.
+    Returns the mask (tracks,) or () of the tracks for Newton's method.  One track has no
+    track axis (its decisions are 0-d; it never leaves alone, so is never indexed).
+    """
+    newton = np.zeros(rates.shape[1:-1], bool)
+    if newton.size == 0:   # an empty batch
+        return newton
+    track = np.arange(newton.size).reshape(newton.shape)   # the working tracks' places in `rates`
+    work, b = rates, b0
+    for it in range(1, MAX_ITER + 1):
+        # the quadratic term of the rate after each segment, over its spacing: h Q(ṙ) = Q(h ṙ) / h
+        rotvecs_dot = _mv(a[:-1], work[:-1]) * dtb[:-1]
+        rhs = b - wh * (acceleration_term(rotvecs[:-1], rotvecs_dot) / dtb[:-1])
+        new = block_tridiagonal_apply(levels, rhs)
+        delta = np.abs(new - work[:-1])
+        work[:-1] = new
+        settled = np.all(delta < tol * (1 + np.abs(new)), axis=(0, -1))
+        size = np.max(delta, axis=(0, -1))
+        if it == 1:
+            first = size
+            leave = settled.copy()
+        else:
+            # the steps shrink by about this ratio each time: where the steps left to scipy's
+            # MAX_ITER cannot bring them below the tolerance, or they grow, stop here
+            ratio = size / last
+            leave = settled | ~((ratio < 1) & (size * ratio ** (MAX_ITER - it) <= tol))
+        if it == MAX_ITER:
+            leave = np.ones_like(settled)
+        if leave.any():
+            # where scipy's fixed point does not settle in MAX_ITER steps (large rotations between
+            # keys; at uneven spacings it diverges): Newton's method on the same equations, to
+            # the spline scipy's iteration would converge to
+            failed = leave & ~settled
+            linear = failed & ~((size < first) & np.isfinite(work).all(axis=(0, -1)))
+            if linear.any():
+                np.copyto(work[:-1], block_tridiagonal_apply(levels, b), where=linear[..., None])
+            newton.reshape(-1)[track[failed]] = True
+            if work is not rates:
+                rates[:, track[leave]] = work[:, leave]
+            if leave.all():
+                break
+            keep = ~leave
+            track, work, a, rotvecs, b = track[keep], work[:, keep], a[:, keep], rotvecs[:, keep], b[:, keep]
+            levels, first, size = _tracks(levels, keep), first[keep], size[keep]
+        last = size
+    return newton
 
 
 NEWTON_ITER = 30
@@ -374,36 +431,53 @@ NEWTON_ITER = 30
 
 def _newton(lower, upper, b0, a, wh, dtb, rotvecs, x, tol):
     """Solve ``lower x₋ + 4 x + upper x₊ + wh Q(r, h A x) / h = b0`` (the scaled rate
-    equations of `_solve_rates`) by Newton's method from `x`: the quadratic term's
-    derivative is block diagonal, so each step is one block-tridiagonal solve.
+    equations of `_solve_rates`; x (n, tracks, 3), or one track's (n, 3)) by Newton's method
+    from `x`: the quadratic term's derivative is block diagonal, so each step is one
+    block-tridiagonal solve.
 
-    The Jacobian is factorised again only when the last step did not shrink to at most
+    A track's Jacobian is factorised again only when its last step did not shrink to at most
     `REFRESH` of the one before (near the solution the previous factorisation keeps the
     convergence fast, and the factorisation is most of a step's cost); the iteration stops
-    on the same test, at the same solution to the tolerance.
+    on the same test, at the same solution to the tolerance.  Both decisions are the
+    track's own, and a track that has converged is dropped from the arrays.
 
     Raises ValueError if it does not converge (no spline through such keys at such times)."""
     eye4 = 4 * np.eye(3, dtype=x.dtype)
     h, r, av = dtb[:-1], rotvecs[:-1], a[:-1]
-    levels, last = None, np.inf
+    out = track = None   # made when a first track converges before the others
+    levels, refresh, last = None, None, np.inf
     for _ in range(NEWTON_ITER):
         d = _mv(av, x) * h
         f = 4 * x + wh * (acceleration_term(r, d) / h) - b0
         f[1:] += _mv(lower[1:], x[:-1])
         f[:-1] += _mv(upper[:-1], x[1:])
-        if levels is None:
+        if levels is None or refresh.all():
             jac = eye4 + wh[..., None] * (acceleration_jacobian(r, d) @ av)
             levels = block_tridiagonal_factor(lower, jac, upper)
+        elif refresh.any():
+            jac = eye4 + wh[..., None] * (acceleration_jacobian(r[:, refresh], d[:, refresh]) @ av[:, refresh])
+            _put_tracks(levels, refresh, block_tridiagonal_factor(lower[:, refresh], jac, upper[:, refresh]))
         step = block_tridiagonal_apply(levels, f)
         x = x - step
-        if not np.isfinite(x).all():
+        if not np.isfinite(x).all():   # that track fails alone too: so does the batch
             break
-        if np.all(np.abs(step) < tol * (1 + np.abs(x))):
-            return x
-        size = float(np.abs(step).max())
-        if not size <= REFRESH * last:
-            levels = None
+        size = np.abs(step)
+        done = np.all(size < tol * (1 + np.abs(x)), axis=(0, -1))
+        size = np.max(size, axis=(0, -1))
+        refresh = ~(size <= REFRESH * last)
         last = size
+        if done.any():
+            if out is None:
+                if done.all():   # all at once (one track alone always)
+                    return x
+                out, track = np.empty_like(x), np.arange(x.shape[1])   # track: the places in `out`
+            out[:, track[done]] = x[:, done]
+            if done.all():
+                return out
+            keep = ~done
+            track, x, r, av, b0, lower, upper = (track[keep], x[:, keep], r[:, keep], av[:, keep], b0[:, keep],
+                                                 lower[:, keep], upper[:, keep])
+            levels, refresh, last = _tracks(levels, keep), refresh[keep], last[keep]
     raise ValueError("expected keys and times that a C² rotation spline can join: its rate equations "
                      "have no solution that Newton's method finds (large rotations between keys at very "
                      "uneven time spacings; scipy's iteration diverges there too)")

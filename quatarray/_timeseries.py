@@ -143,17 +143,35 @@ def swing_twist(q, axis):
 def karcher(q, w, start, tol, max_iter):
     """Weighted geodesic mean over axis -2 of q (..., n, 4) with weights w (..., n)
     (summing to 1), from `start` (..., 4): mu <- mu exp(Σ w log(mu* q)) until the
-    step's angle is below `tol`.  Returns (mean, iterations, last step)."""
-    mu = start
-    step = np.inf
-    for it in range(1, max_iter + 1):
+    step's angle is below `tol`.  Each mean stops on its own step and is then dropped
+    from the arrays, so it takes the steps it takes alone, whatever the others in the
+    batch.  Returns (mean, None), or (mean, the largest last step) where a mean did not
+    converge within `max_iter` steps."""
+    shape = start.shape
+    mu, out, group = start, None, None
+    if mu.ndim > 1:   # one axis of means, along which they leave the iteration
+        mu = mu.reshape(-1, 4)
+        q, w = q.reshape(mu.shape[:1] + q.shape[-2:]), w.reshape(mu.shape[:1] + w.shape[-1:])
+    for _ in range(max_iter):
         r = _convert.as_rotvec(_kernels.multiply(_kernels.conjugate(mu)[..., None, :], q))
         v = np.sum(w[..., None] * r, axis=-2)
         mu = _kernels.normalize(_kernels.multiply(mu, _convert.from_rotvec(v)))
-        step = float(np.sqrt(np.sum(v * v, axis=-1)).max()) if v.size else 0.0
-        if step <= tol:
-            return mu, it, step
-    return mu, max_iter, step
+        step = np.sqrt(np.sum(v * v, axis=-1))
+        done = step <= tol
+        if done.all() and out is None:   # all at once (one mean alone always)
+            return mu.reshape(shape), None
+        if done.any():
+            if out is None:
+                out, group = np.empty_like(mu), np.arange(len(mu))   # group: the means' places in `out`
+            out[group[done]] = mu[done]
+            if done.all():
+                return out.reshape(shape), None
+            keep = ~done
+            group, mu, q, w = group[keep], mu[keep], q[keep], w[keep]
+    if out is not None:
+        out[group] = mu
+        mu = out
+    return mu.reshape(shape), float(step.max())
 
 
 def smooth(times, q, points, order, passes=2):

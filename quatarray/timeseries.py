@@ -510,13 +510,15 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     w = np.ones(batch) if weights is None else np.broadcast_to(np.asarray(weights, np.float64), batch)
     kshape = tuple(batch[a] for a in keep)
     qm = q.transpose(order + (nb,)).reshape(kshape + (-1, 4))
-    wm = w.transpose(order).reshape(kshape + (-1,))
+    # contiguous, one group a row: NumPy sums a strided axis in another order than a
+    # contiguous one, so each group's total weight is summed as the group's alone is
+    wm = np.ascontiguousarray(w.transpose(order).reshape(kshape + (-1,)))
     total = wm.sum(axis=-1, keepdims=True)
     if not (total > 0).all():
         raise ValueError("expected weights with a positive sum along the averaged axes, got a zero sum")
     mu0 = np.asarray(start._unit_quat(), np.float64).reshape(kshape + (4,))
-    mu, it, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
-    if step > tol:
+    mu, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
+    if step is not None:
         raise ValueError(f"expected the geodesic mean to converge within max_iter={max_iter} iterations "
                          f"to tol={tol!r}, got a last step of {step!r} rad")
     return _wrap_rotation(_convert.canonical(mu), r.dtype)

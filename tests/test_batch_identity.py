@@ -1,8 +1,8 @@
 """The same element gives the same bits whatever the batch around it.
 
 For every method of `QuatArray`, `Rotation`, `Slerp`, `RotationSpline`, `RigidTransform`,
-the interpolation functions and `Track`, in float32 and float64: element i of a batch
-equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
+the interpolation functions, `Track` and `geodesic_mean`, in float32 and float64: element i
+of a batch equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
 inside the batch split into blocks of two elements run on two threads.  The batches mix
 random rotations with near-identity, near-half-turn and gimbal-lock rotations, and (where
 the method accepts any magnitude) quaternions scaled by extreme powers of two.  A float64
@@ -18,8 +18,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import quatarray
-from quatarray import (QuatArray, RigidTransform, Rotation, RotationSpline, Slerp, Track, _blocks, bezier, lerp,
-                       nlerp, slerp, squad)
+from quatarray import (QuatArray, RigidTransform, Rotation, RotationSpline, Slerp, Track, _blocks, _interp_spline,
+                       bezier, geodesic_mean, lerp, nlerp, slerp, squad)
 
 KINDS = ("random", "identity", "half turn", "gimbal xyz", "gimbal zyz")
 
@@ -411,3 +411,118 @@ def test_interpolants_at_their_key_count_thresholds(dtype, k):
         for i in range(len(at)):
             _same(_raw(f(at[i])), whole[i], f"{name} at {at[i]}: alone")
             _same(_raw(f(at[i:i + 1]))[0], whole[i], f"{name} at {at[i]}: batch of one")
+
+
+#: Batches of k tracks: the seed of the key times, and for each track (size of the random
+#: rotation-vector steps between keys, seed): equal keys (the spline's fixed point settles at
+#: its first step), gentle turns (a few steps), larger ones (up to scipy's ten steps) and
+#: large turns at uneven spacings (Newton's method, from where the fixed point got or from the
+#: linear solution); at 40 keys (past the solve's dense base case) some tracks refactorise
+#: Newton's Jacobian at a step where others keep it.  The times' seeds are ones where float32
+#: keys too gave other bits in the batch when the batch iterated as one (in float32 the
+#: extra steps' changes mostly round away).
+SPLINE_TRACKS = {5: (6, [(0.0, 0), (0.02, 0), (0.3, 0), (0.8, 0), (0.8, 1), (1.5, 0), (2.5, 1)]),
+                 40: (69, [(0.0, 0), (0.02, 0), (0.3, 0), (0.3, 1), (0.8, 2), (2.5, 0)])}
+
+
+def _spline_tracks(k):
+    """Key times (k,) at uneven spacings and keys (k, tracks, 4) of `SPLINE_TRACKS[k]`."""
+    seed_times, tracks = SPLINE_TRACKS[k]
+    times = np.cumsum(np.r_[0, 10 ** np.random.default_rng(seed_times).uniform(-1.5, 0.5, k - 1)])
+    walks = [np.cumsum(np.random.default_rng(100 * k + seed).normal(scale=scale, size=(k, 3)), axis=0)
+             for scale, seed in tracks]
+    return times, QuatArray.from_rotvec(np.stack(walks, axis=1)).view(np.ndarray)
+
+
+def _counting(monkeypatch, module, name):
+    """Replace `module.name` by a wrapper counting its calls; returns the count (a list)."""
+    calls = []
+    real = getattr(module, name)
+
+    def counted(*args, **kwargs):
+        calls.append(name)
+        return real(*args, **kwargs)
+    monkeypatch.setattr(module, name, counted)
+    return calls
+
+
+@DTYPE
+@pytest.mark.parametrize("k", sorted(SPLINE_TRACKS))
+def test_spline_tracks_iterate_as_alone(dtype, k, monkeypatch):
+    """Tracks of one batch whose rate equations take different work (`SPLINE_TRACKS`) give,
+    as coefficients, evaluated and as rates, each the bits of the track alone and as a batch
+    of one: each track stops its fixed point, switches to Newton's method, stops it and
+    refactorises its Jacobian on its own steps, not on the batch's largest."""
+    times, keys = _spline_tracks(k)
+    keys = keys.astype(dtype)
+    n = keys.shape[1]
+    newton = _counting(monkeypatch, _interp_spline, "_newton")
+    # the premise: the tracks alone take different paths (some Newton's method, some not)
+    alone = []
+    for j in range(n):
+        newton.clear()
+        alone.append((_interp_spline.coefficients(times, keys[:, j]), bool(newton)))
+    assert not alone[0][1] and not alone[1][1], "equal keys and gentle turns settle in the fixed point"
+    assert sum(used for _, used in alone) >= 2, "some tracks need Newton's method"
+    batch = (2, 3) if n == 6 else (n,)   # a batch of more than one axis too
+    keys_batch = keys.reshape((k,) + batch + (4,))
+    coeff = _interp_spline.coefficients(times, keys_batch).reshape(4, k - 1, n, 3)
+    for j, (want, _) in enumerate(alone):
+        _same(coeff[:, :, j], want, f"coefficients of track {j}")
+        _same(_interp_spline.coefficients(times, keys[:, j:j + 1])[:, :, 0], want, f"track {j} as a batch of one")
+    at = np.concatenate([times, (times[1:] + times[:-1]) / 2, [times[0] - 0.5, times[-1] + 0.5]])
+    track = Track(times, keys_batch, method="spline", extrapolate="extend")
+    spline = RotationSpline(times, Rotation.from_quat(keys_batch, scalar_first=True))
+    got = [_raw(track(at)).reshape(len(at), n, 4), _raw(track.angular_velocity(at)).reshape(len(at), n, 3),
+           _raw(spline(at)).reshape(len(at), n, 4), _raw(spline(at, 1)).reshape(len(at), n, 3)]
+    for j in range(n):
+        track_j = Track(times, keys[:, j], method="spline", extrapolate="extend")
+        spline_j = RotationSpline(times, Rotation.from_quat(keys[:, j], scalar_first=True))
+        for name, g, want in zip(["Track", "Track angular_velocity", "RotationSpline", "RotationSpline rate"], got,
+                                 [track_j(at), track_j.angular_velocity(at), spline_j(at), spline_j(at, 1)]):
+            _same(g[:, j], _raw(want), f"{name}, track {j}")
+    if k > _interp_spline.DENSE + 1:   # the premise at 40 keys
+        partial = _counting(monkeypatch, _interp_spline, "_put_tracks")
+        _interp_spline.coefficients(times, keys_batch)
+        assert partial, "some tracks refactorise Newton's Jacobian where others keep it"
+
+
+def _iterations(q, weights):
+    """The fewest iterations with which `geodesic_mean` of q (n, 4) converges."""
+    for m in range(1, 101):
+        try:
+            geodesic_mean(q, weights, max_iter=m)
+            return m
+        except ValueError:
+            pass
+    raise AssertionError("did not converge")
+
+
+@DTYPE
+@pytest.mark.parametrize("weighted", [False, True], ids=["unweighted", "weighted"])
+@pytest.mark.parametrize("groups_first", [False, True], ids=["groups last", "groups first"])
+def test_geodesic_mean_groups_iterate_as_alone(dtype, weighted, groups_first):
+    """Groups of `geodesic_mean(axis=...)` whose Karcher iterations take different numbers
+    of steps (equal rotations, a tight cluster, wide spreads) give each the bits of the group
+    alone and as a batch of one: each stops on its own step, not on the largest of the batch.
+    (The means are iterated in float64: a float32 result rounds away the differences, below
+    `tol`, that a batch-wide stop made.)"""
+    rng = np.random.default_rng(4)
+    spreads = np.array([0.0, 1e-3, 0.1, 0.6, 1.2, 0.3])
+    n = 25
+    rv = rng.normal(size=(n, len(spreads), 3)) * spreads[:, None] + rng.normal(size=(1, len(spreads), 3))
+    q = QuatArray.from_rotvec(rv).view(np.ndarray).astype(dtype)
+    w = rng.uniform(0.1, 1.0, (n, len(spreads))) if weighted else None
+    steps = [_iterations(q[:, j], None if w is None else w[:, j]) for j in range(len(spreads))]
+    assert len(set(steps)) >= 3, steps   # the premise: the groups stop at different steps
+    if groups_first:   # the groups on axis 0, two axes of them; the averaged axis last
+        got = geodesic_mean(q.transpose(1, 0, 2).reshape(2, 3, n, 4), axis=-1,
+                            weights=None if w is None else w.T.reshape(2, 3, n))
+        got = got.as_quat(scalar_first=True).reshape(len(spreads), 4)
+    else:
+        got = geodesic_mean(q, w, axis=0).as_quat(scalar_first=True)
+    for j in range(len(spreads)):
+        wj = None if w is None else w[:, j]
+        _same(got[j], geodesic_mean(q[:, j], wj).as_quat(scalar_first=True), f"group {j} alone")
+        _same(got[j], geodesic_mean(q[:, j:j + 1], None if w is None else w[:, j:j + 1], axis=0)
+              .as_quat(scalar_first=True)[0], f"group {j} as a batch of one")
