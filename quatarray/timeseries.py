@@ -533,9 +533,13 @@ def smooth(times, rotations, window, *, order=2):
 
     Each sample is replaced by the value at its time of the least-squares
     polynomial of degree `order` fitted to the rotation vectors
-    ``log(c* q_j)`` of the samples within `window` seconds around it, about
-    a centre c re-set to the previous estimate (two passes): a
-    Savitzky-Golay filter on the rotation group.  The hemisphere plays no
+    ``log(c* q_j)`` of the n samples nearest it in index, about a centre c
+    re-set to the previous estimate (two passes): a Savitzky-Golay filter on
+    the rotation group.  n is the odd number of samples that `window` spans
+    at the median spacing of `times` (at least order + 2): for evenly spaced
+    samples, those within `window` around each; where the spacing is uneven,
+    a fit takes as many samples, however far apart (resample a log with gaps
+    onto an even grid first, e.g. with `fill_gaps` and `Track`).  The hemisphere plays no
     part (log takes the short way round), and the output follows the sign
     of the input.  For equally spaced samples and order 2 the half-power
     cutoff is near 0.6 / `window` (Hz for seconds).
@@ -545,8 +549,8 @@ def smooth(times, rotations, window, *, order=2):
     times : array_like, shape (T,)
     rotations : Rotation, shape (T, ...), or quaternions (T, ..., 4)
     window : float
-        Width of the fit in units of `times` (> 0); it spans at least
-        order + 2 samples.
+        Width of the fit in units of `times` (> 0), as a number of samples at
+        the median spacing; at least order + 2 samples.
     order : int, default 2
 
     Returns
