@@ -91,7 +91,7 @@ def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
         except ValueError:   # the message with the index in the whole batch
             _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name=name)
             raise
-        c = c.reshape(kshape + (-1, 4))
+        c = c.reshape(kshape + (prod(c.shape[len(kshape):-1]), 4))   # (no -1: kshape may hold a 0)
         wc = c if wt is None else c * wt[sl].reshape(kshape + (-1, 1))
         part = np.matmul(np.swapaxes(wc, -1, -2), c)
         if acc is None:

@@ -120,7 +120,7 @@ def integrate(times, omega, initial, method, frame, points=6, substeps=2):
     dq = _convert.from_rotvec(phi)
     if dq.ndim == 4:   # the parts of each step, composed in time order
         n = dq.shape[1]
-        P = accumulate(dq.reshape((-1,) + dq.shape[2:]), frame)[::n]
+        P = accumulate(dq.reshape((dq.shape[0] * n,) + dq.shape[2:]), frame)[::n]   # (no -1: B may be 0)
     else:
         P = accumulate(dq, frame)
     q = _kernels.multiply(P, initial[None]) if frame == "world" else _kernels.multiply(initial[None], P)

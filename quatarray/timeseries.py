@@ -508,11 +508,11 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     keep = tuple(a for a in range(nb) if a not in axes)
     order = keep + axes
     w = np.ones(batch) if weights is None else np.broadcast_to(np.asarray(weights, np.float64), batch)
-    kshape = tuple(batch[a] for a in keep)
-    qm = q.transpose(order + (nb,)).reshape(kshape + (-1, 4))
+    kshape, n = tuple(batch[a] for a in keep), prod(batch[a] for a in axes)   # (n, not -1: kshape may hold a 0)
+    qm = q.transpose(order + (nb,)).reshape(kshape + (n, 4))
     # contiguous, one group a row: NumPy sums a strided axis in another order than a
     # contiguous one, so each group's total weight is summed as the group's alone is
-    wm = np.ascontiguousarray(w.transpose(order).reshape(kshape + (-1,)))
+    wm = np.ascontiguousarray(w.transpose(order).reshape(kshape + (n,)))
     total = wm.sum(axis=-1, keepdims=True)
     if not (total > 0).all():
         raise ValueError("expected weights with a positive sum along the averaged axes, got a zero sum")

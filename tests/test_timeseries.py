@@ -374,6 +374,16 @@ def test_empty_batch():
     assert track.batch_shape == (0,) and len(track) == 2 and err.shape == (0,)
 
 
+@pytest.mark.parametrize("method", ["magnus", "constant"])
+def test_empty_batches_of_the_series_functions(method):
+    """No tracks (or no groups to average) give empty results of the right shape."""
+    from quatarray import geodesic_mean, integrate_angular_velocity
+    assert integrate_angular_velocity([0.0, 1, 2], np.zeros((3, 0, 3)), method=method).shape == (3, 0)
+    assert geodesic_mean(np.zeros((0, 3, 4)), axis=1).shape == (0,)
+    assert geodesic_mean(np.zeros((3, 0, 4)), axis=0).shape == (0,)
+    assert Rotation.identity(shape=(0, 3)).mean(axis=1).shape == (0,)
+
+
 @pytest.mark.parametrize("args, kwargs, match", [
     (([0, 2, 1], np.tile([1.0, 0, 0, 0], (3, 1)), 0.1), {}, "times in strictly increasing order"),
     (([0, 1, 1], np.tile([1.0, 0, 0, 0], (3, 1)), 0.1), {}, "times in strictly increasing order"),
