@@ -25,7 +25,8 @@ partial file.
 from .bvh import Joint, Motion, read_bvh, resample_motion, write_bvh
 from .csv import read_csv, write_csv
 from .gltf import keyframes_to_gltf, resample_gltf
-from .keyframes import Keyframes, example_path, fps_steps, fps_times, read_times, resample_keyframes
+from .keyframes import (Keyframes, example_path, fps_steps, fps_times, keys_at_key_times, read_times,
+                        resample_keyframes, snap_to_keys)
 from .npz import read_npz, write_npz
 from .registry import FORMATS, Format, format_of, resample_file
 from .text import FormatError, NonUnitKeyWarning, TextStyle
@@ -34,7 +35,7 @@ from .zarr import read_zarr, resample_zarr, write_zarr
 __all__ = [
     "FormatError", "NonUnitKeyWarning", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
     "Joint", "Motion", "read_bvh", "write_bvh", "resample_motion", "resample_gltf", "keyframes_to_gltf",
-    "read_zarr", "write_zarr", "resample_zarr", "read_times", "fps_times", "fps_steps", "resample_keyframes",
-    "example_path",
+    "read_zarr", "write_zarr", "resample_zarr", "read_times", "fps_times", "fps_steps", "snap_to_keys",
+    "resample_keyframes", "keys_at_key_times", "example_path",
     "Format", "FORMATS", "format_of", "resample_file",
 ]

@@ -8,7 +8,8 @@ import numpy as np
 from ..interpolate import Track
 from .text import MAX_VALUES, FormatError, TextStyle, check_numbers, check_query, check_size, load_table, row_line
 
-__all__ = ["Keyframes", "read_times", "fps_times", "fps_steps", "resample_keyframes", "example_path"]
+__all__ = ["Keyframes", "read_times", "fps_times", "fps_steps", "snap_to_keys", "keys_at_key_times",
+           "resample_keyframes", "example_path"]
 
 _TRACK_BLOCK = 1 << 18  # keys interpolated per block of tracks
 
@@ -92,7 +93,14 @@ def fps_times(t0, t1, fps, per_frame=1, onto=None):
     n = fps_steps(t0, t1, fps)
     check_size(n + 1, per_frame, f"a rate of {fps:g} fps over {t1 - t0:g} s")
     t = np.minimum(t0 + np.arange(n + 1) / fps, t1)
-    if onto is not None and len(onto) and len(t):
+    return t if onto is None else snap_to_keys(t, onto, t0, t1, fps)
+
+
+def snap_to_keys(t, onto, t0, t1, fps):
+    """The grid times `t` (of `fps_times`, any part of its grid) with each time within
+    rounding of a key time of `onto` (increasing) moved onto it: a copy."""
+    t = np.array(t, np.float64)
+    if len(onto) and t.size:
         onto = np.asarray(onto, np.float64)
         right = np.minimum(np.searchsorted(onto, t), len(onto) - 1)
         near = np.where(np.abs(onto[right] - t) <= np.abs(onto[right - 1] - t), right, np.maximum(right - 1, 0))
@@ -163,13 +171,24 @@ def resample_keyframes(keyframes, t, *, method="slerp", extrapolate="raise"):
     for j in range(0, flat.shape[1], step):
         track = Track(times, flat[:, j:j + step], method=method, extrapolate=extrapolate)
         out[:, j:j + step] = np.asarray(track(t))
+    copied = keys_at_key_times(times, flat, t, out)
+    return Keyframes(t, out.reshape((len(t),) + keys.shape[1:]), keyframes.names, keyframes.style, copied)
+
+
+def keys_at_key_times(times, keys, t, out):
+    """Where a query time equals a key time, the key itself as read into `out` (the curve's
+    value there, rows of `t`), on the curve's side (negated where the curve has the other
+    sign): a curve normalises its keys, and a file's keys hold a few decimals, so the curve
+    at a key is the key but for about one of its last digits.  `keys` (K, ..., 4); returns the
+    mask of the rows replaced.  Every path that writes a resampled file runs it (in memory,
+    and on each chunk of queries in `quatarray.formats.zarr`)."""
     at = np.minimum(np.searchsorted(times, t), len(times) - 1)
     copied = times[at] == t
-    if copied.any():   # the key itself, on the side of the curve
-        key = flat[at[copied]]
+    if copied.any():
+        key = keys[at[copied]]
         flip = (np.einsum("...i,...i->...", out[copied], key) < 0)[..., None]
         out[copied] = np.where(flip, -key + 0.0, key)   # + 0.0: a flipped 0 is 0, not -0
-    return Keyframes(t, out.reshape((len(t),) + keys.shape[1:]), keyframes.names, keyframes.style, copied)
+    return copied
 
 
 def example_path(name):

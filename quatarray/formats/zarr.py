@@ -10,8 +10,13 @@ anything zarr opens: a local path, or a URL (``memory://``, ``s3://``,
 `resample_zarr` (Zarr → Zarr) reads the keys into memory when small (one
 `Track` for every chunk of queries), else keeps them as a Dask array
 chunked along the tracks.  Query times come from ``fps`` (generated
-lazily) or a times file (a Zarr store or array holding ``times``, read
-chunk by chunk, or a text file).
+lazily, a frame within rounding of a key time put on it, as `fps_times`
+does) or a times file (a Zarr store or array holding ``times``, read
+chunk by chunk, or a text file).  With the keys in memory, a query at a
+key time gives the key as stored (`keys_at_key_times`), as the in-memory
+formats do: a store resampled at its own times comes back as it is.  Keys
+kept as a Dask array (beyond `MEMORY_KEYS`) give the curve there, which is
+the key normalised (within an ulp of a unit key).
 
 Converting to or from the in-memory formats (CSV, NPZ) goes through
 `read_zarr` and `write_zarr`: the whole track is in memory then, as those
@@ -60,7 +65,7 @@ from functools import partial
 import numpy as np
 
 from .._validate import float_array
-from .keyframes import Keyframes, fps_steps, read_times
+from .keyframes import Keyframes, fps_steps, keys_at_key_times, read_times, snap_to_keys
 from .text import FormatError, check_arrays, check_query, check_size, echo, not_a_store, refuse_existing
 
 __all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
@@ -364,6 +369,7 @@ class _Queries:
     def __init__(self, key_times, fps, times, loc):
         self.fps, self.array = fps, None
         if fps is not None:
+            self.key_times = np.asarray(key_times, np.float64)
             self.t0, self.t1 = float(key_times[0]), float(key_times[-1])
             self.size = fps_steps(self.t0, self.t1, fps) + 1   # the same count and values as fps_times
             return
@@ -379,7 +385,9 @@ class _Queries:
         import dask.array as da
         if self.fps is not None:
             k = da.arange(start, stop, chunks=rows, dtype=np.float64)
-            return da.minimum(self.t0 + k / self.fps, self.t1)
+            # as `fps_times` (the grid in memory): a frame within rounding of a key is the key's time
+            return da.minimum(self.t0 + k / self.fps, self.t1).map_blocks(
+                snap_to_keys, onto=self.key_times, t0=self.t0, t1=self.t1, fps=self.fps, dtype=np.float64)
         if self.array is not None:
             return _dask(self.array, "times", self.where, (rows,), start, stop).astype(np.float64)
         return da.from_array(self.memory[start:stop], chunks=rows)
@@ -615,7 +623,9 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     n = queries.size
     window = rows * WINDOW_CHUNKS
     if keys.nbytes <= MEMORY_KEYS:
-        interpolate = partial(qd.evaluate, Track(key_times, keys.compute(), method=method, extrapolate=extrapolate))
+        kmem = keys.compute()
+        interpolate = partial(qd.evaluate, _CurveAndKeys(
+            Track(key_times, kmem, method=method, extrapolate=extrapolate), np.asarray(key_times, np.float64), kmem))
     else:
         interpolate = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)
     dtype = interpolate(queries.window(0, min(n, 1), 1)).dtype     # lazy: nothing computed
@@ -637,6 +647,20 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
             run(da.store([t, out], [zt, zk], regions=[(region,), (region,) + (slice(None),) * (len(batch) + 1)],
                          lock=False, compute=False))
     return len(key_times), n
+
+
+class _CurveAndKeys:
+    """A `Track` whose value at a key time is the key as stored (`keys_at_key_times`), as the
+    in-memory resampling gives it: a chunk of queries at a time, with the keys in memory."""
+
+    def __init__(self, track, times, keys):
+        self.track, self.times, self.keys = track, times, keys
+
+    def __call__(self, t):
+        out = np.asarray(self.track(t))
+        t = np.asarray(t, np.float64)
+        keys_at_key_times(self.times, self.keys, t, out)
+        return out
 
 
 @contextlib.contextmanager
