@@ -27,8 +27,8 @@ import warnings
 
 import numpy as np
 
-from .formats import (FORMATS, FormatError, NonUnitKeyWarning, example_path, format_of, fps_times, read_bvh,
-                      read_csv, resample_file, resample_motion, write_bvh, write_csv, write_npz)
+from .formats import (FORMATS, FormatError, NonUnitKeyWarning, NotCarriedWarning, example_path, format_of, fps_times,
+                      read_bvh, read_csv, resample_file, resample_motion, write_bvh, write_csv, write_npz)
 from .formats.atomic import atomic_write
 from .formats.reduce import parse_tolerance, reduce_file
 from .formats.text import command_line, echo
@@ -308,6 +308,7 @@ def main(argv=None):
     try:
         with _exit_on_sigterm(), command_line(), warnings.catch_warnings():
             warnings.simplefilter("always", NonUnitKeyWarning)
+            warnings.simplefilter("always", NotCarriedWarning)
             warnings.showwarning = _show_warning
             return args.run(args)
     except FormatError as exc:

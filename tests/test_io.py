@@ -3,6 +3,7 @@
 import errno
 import os
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -259,6 +260,31 @@ def test_npz_errors_name_file(tmp_path, case):
     with pytest.raises(FormatError, match=pattern) as info:
         read_npz(path)
     assert info.value.path == str(path) and info.value.line is None
+
+
+def test_npz_and_zarr_data_besides_the_keyframes_is_named(tmp_path, rng, capsys):
+    """Arrays (and Zarr attributes) other than the keyframes are not read: a warning names them,
+    on the command line one line (an output written from the file lacks them)."""
+    from quatarray.cli import main
+    keys = smooth_keys(rng, 3, (2,))
+    np.savez(tmp_path / "x.npz", times=np.arange(3.0), keys=keys, fps=30, meta=np.arange(3))
+    with pytest.warns(qio.NotCarriedWarning, match=r"x.npz: holds arrays besides the keyframes \('fps', 'meta'\)"):
+        kf = read_npz(tmp_path / "x.npz")
+    np.testing.assert_array_equal(kf.keys, keys)
+    assert main(["resample", str(tmp_path / "x.npz"), "-o", str(tmp_path / "y.npz"), "--fps", "2"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("quatarray: warning:") == 1 and "('fps', 'meta')" in err
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_npz(tmp_path / "y.npz")   # what quatarray writes holds only the keyframes
+    zarr = pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    qio.write_zarr(str(tmp_path / "s.zarr"), kf)
+    group = zarr.open_group(str(tmp_path / "s.zarr"))
+    group.attrs["subject"] = "S1"
+    group["extra"] = np.arange(2.0)
+    with pytest.warns(qio.NotCarriedWarning) as caught:
+        qio.read_zarr(str(tmp_path / "s.zarr"))
+    assert sorted(str(w.message).split("(")[1].split(")")[0] for w in caught) == ["'extra'", "'subject'"]
 
 
 def test_npz_not_an_archive(tmp_path):

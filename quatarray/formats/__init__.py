@@ -29,11 +29,11 @@ from .keyframes import (Keyframes, example_path, fps_steps, fps_times, keys_at_k
                         resample_keyframes, snap_to_keys)
 from .npz import read_npz, write_npz
 from .registry import FORMATS, Format, format_of, resample_file
-from .text import FormatError, NonUnitKeyWarning, TextStyle
+from .text import FormatError, NonUnitKeyWarning, NotCarriedWarning, TextStyle
 from .zarr import read_zarr, resample_zarr, write_zarr
 
 __all__ = [
-    "FormatError", "NonUnitKeyWarning", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
+    "FormatError", "NonUnitKeyWarning", "NotCarriedWarning", "TextStyle", "Keyframes", "read_csv", "write_csv", "read_npz", "write_npz",
     "Joint", "Motion", "read_bvh", "write_bvh", "resample_motion", "resample_gltf", "keyframes_to_gltf",
     "read_zarr", "write_zarr", "resample_zarr", "read_times", "fps_times", "fps_steps", "snap_to_keys",
     "resample_keyframes", "keys_at_key_times", "example_path",

@@ -9,7 +9,7 @@ import numpy as np
 from .._validate import float_array
 from .atomic import atomic_write
 from .keyframes import Keyframes
-from .text import FormatError, check_arrays
+from .text import FormatError, check_arrays, not_carried
 
 __all__ = ["read_npz", "write_npz"]
 
@@ -57,6 +57,7 @@ def read_npz(path):
         missing = [a for a in ("times", "keys") if a not in archive.files]
         if missing:
             raise FormatError(f"missing array {missing[0]!r} (found {', '.join(archive.files) or 'none'})", name)
+        not_carried("arrays", set(archive.files) - {"times", "keys", "names"}, name)
         arrays = {}
         for a in ("times", "keys", "names"):
             if a not in archive.files:

@@ -336,6 +336,20 @@ def check_numbers(times, keys, path, where):
         raise FormatError(f"{at}zero quaternion (cannot be a rotation)", path, line)
 
 
+class NotCarriedWarning(UserWarning):
+    """A file holds data besides the keyframes (other arrays of an NPZ archive, other arrays or
+    attributes of a Zarr store), which quatarray does not read: a file written from it lacks them."""
+
+
+def not_carried(what, extra, path):
+    """Warn (`NotCarriedWarning`) that `extra`, named data of the file at `path` besides the
+    keyframes (`what`: 'arrays', 'attributes'), is neither read nor written."""
+    if extra:
+        warnings.warn(str(FormatError(
+            f"holds {what} besides the keyframes ({', '.join(map(repr, sorted(extra)))}), which are not read: "
+            "a file written from it does not have them", path)), NotCarriedWarning, stacklevel=3)
+
+
 class NonUnitKeyWarning(UserWarning):
     """Keys whose norm differs from 1 by more than their written precision explains (they are normalised)."""
 

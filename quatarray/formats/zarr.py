@@ -66,7 +66,8 @@ import numpy as np
 
 from .._validate import float_array
 from .keyframes import Keyframes, fps_steps, keys_at_key_times, read_times, snap_to_keys
-from .text import FormatError, check_arrays, check_query, check_size, echo, not_a_store, refuse_existing
+from .text import (FormatError, check_arrays, check_query, check_size, echo, not_a_store, not_carried,
+                   refuse_existing)
 
 __all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
 
@@ -253,6 +254,8 @@ def _open(loc):
     if keys.ndim < 2 or keys.shape[0] != len(times) or keys.shape[-1] != 4:
         raise FormatError(f"expected keys of shape ({len(times)}, ..., 4) to match times, got {keys.shape}",
                           loc.name)
+    not_carried("arrays or groups", set(group.keys()) - {"times", "keys"}, loc.name)
+    not_carried("attributes", set(group.attrs.keys()) - {"names"}, loc.name)
     names = group.attrs.get("names")
     count = int(np.prod(keys.shape[1:-1]))
     if names is not None:
