@@ -3,6 +3,7 @@
 import errno
 import os
 import re
+import stat
 import warnings
 
 import numpy as np
@@ -427,6 +428,21 @@ def test_longest_file_names_are_written(tmp_path, rng, monkeypatch, name):
     assert len(tmp.encode("utf-8")) <= 255 and tmp.startswith(".") and tmp.endswith(".part")
     kept = tmp[1:-len(".12345678.part")]
     assert name.startswith(kept) and len(kept.encode("utf-8")) >= 235
+
+
+def test_atomic_writes_reach_the_disk_before_the_rename(tmp_path, monkeypatch):
+    """The temporary file is synced before it is renamed, and its folder after: after a crash
+    the name holds the old file or the whole new one, never an empty one."""
+    from quatarray.formats import atomic
+    events = []
+    fsync, replace = os.fsync, os.replace
+    monkeypatch.setattr(os, "fsync", lambda fd: events.append(("fsync", stat.S_ISDIR(os.fstat(fd).st_mode)))
+                        or fsync(fd))
+    monkeypatch.setattr(os, "replace", lambda a, b: events.append(("replace", None)) or replace(a, b))
+    with atomic.atomic_write(tmp_path / "a.txt") as f:
+        f.write("new")
+    assert events == [("fsync", False), ("replace", None), ("fsync", True)]
+    assert (tmp_path / "a.txt").read_text() == "new"
 
 
 def test_files_written_together_are_replaced_together(tmp_path, monkeypatch):

@@ -59,6 +59,21 @@ def _backup(path):
     return backup
 
 
+def _sync_folder(folder):
+    """The renames in `folder` on disk (POSIX: fsync of the directory; where a directory cannot be
+    opened or synced, as on Windows, its file system orders the rename itself)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
 class _Staged:
     """The files of an `atomic_files` block: (temporary, path) of each file written, in order."""
 
@@ -85,6 +100,8 @@ class _Staged:
                       os.fdopen(fd, "w", encoding="utf-8", errors="surrogateescape", newline=newline)) as f:
                     fd = None
                     yield f
+                    f.flush()
+                    os.fsync(f.fileno())   # on disk before it is renamed: a crash then leaves the old file or the new
             except OSError as exc:   # a full disk (errno 28) while writing or closing names no file: name it
                 if exc.filename is not None or exc.errno is None:
                     raise
@@ -112,6 +129,8 @@ class _Staged:
             for tmp, path in self.files:
                 with _naming(path):
                     os.replace(tmp, path)
+            for folder in {os.path.dirname(os.path.abspath(path)) for _, path in self.files}:
+                _sync_folder(folder)
         except BaseException:
             if self.files and os.path.lexists(self.files[-1][0]):   # not committed
                 for i, ((tmp, path), backup) in enumerate(zip(self.files, backups)):
