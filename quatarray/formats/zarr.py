@@ -616,8 +616,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     loc_in, loc_out = where["src"], where["dst"]
     for what, loc in (("input", loc_in), ("times store", where.get("times"))):
         if loc is not None and loc.key() == loc_out.key():
-            raise ValueError(f"{loc_out.name}: is the {what}; Zarr outputs are written while the {what} is "
-                             "read, so they cannot replace it (even when forced): write elsewhere, then rename")
+            raise FormatError(f"is the {what}; Zarr outputs are written while the {what} is read, so they "
+                              "cannot replace it (even when forced): write elsewhere, then rename", loc_out.name)
     key_times, keys, names = _read(loc_in)
     check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
