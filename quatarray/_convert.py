@@ -1133,7 +1133,11 @@ def magnitude(q, unit=False):
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
         angle = _angle_floats(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
-        return np.array(angle) if q.ndim == 1 else np.array([angle])   # (4,) or (1, 4) here
+        if q.ndim == 1:
+            return np.array(angle)
+        out = np.empty(1)   # q is (1, 4): an element assigned costs half of np.array([angle])
+        out[0] = angle
+        return out
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)
         out = np.empty(len(q), q.dtype)
         _blockwise_unit(_k_magnitude, q, out[:, None], unit)
