@@ -9,7 +9,7 @@ import numpy as np
 
 from . import _kernels
 
-__all__ = ["apply", "compose", "inverse"]
+__all__ = ["apply", "apply_matrix", "compose", "inverse"]
 
 
 def apply(q, t, v, inverse=False, unit=False):
@@ -42,3 +42,17 @@ def inverse(q, t, unit=False):
     qi = _kernels.conjugate(q)
     ti = np.asarray(_kernels.rotate(qi, t, unit=unit))
     return qi, np.negative(ti, out=ti) if ti.flags.writeable else -ti
+
+
+def apply_matrix(m, v, inverse):
+    """``R v + t`` with R, t the blocks of the 4 x 4 matrices `m` as they are (``Rᵀ (v - t)``, scipy's
+    inverse of a rigid matrix, with `inverse`), broadcasting: for transforms kept with
+    ``normalize=False``, whose R need not be a rotation.  Each sum in column order, element by
+    element: the same bits for any batch."""
+    r, t = m[..., :3, :3], m[..., :3, 3]
+    if inverse:
+        r, v = np.swapaxes(r, -1, -2), v - t
+    p = r * v[..., None, :].astype(r.dtype, copy=False)
+    out = p[..., 0] + p[..., 1]
+    out += p[..., 2]
+    return out if inverse else out + t

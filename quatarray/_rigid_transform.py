@@ -11,8 +11,9 @@ copies it on later calls.
 
 The one exception is scipy's ``RigidTransform(matrix, normalize=False)``:
 scipy then keeps the matrix exactly as given (with ``copy=False`` sharing
-its memory), so such a transform keeps the matrix and reads its rotation
-and translation from it whenever they are needed.
+its memory), so such a transform keeps the matrix, applies it as it is (its
+block need not be a rotation) and reads its rotation and translation from it
+whenever they are needed.
 
 The maths lives in `_motion` (apply, compose, invert), `_convert` and
 `_dualquat`; this module validates, wraps and keeps scipy's messages.
@@ -357,10 +358,13 @@ class RigidTransform:
             except ValueError:
                 raise ValueError("operands could not be broadcast together with transforms of shape "
                                  f"{self.shape} and vectors of shape {v.shape}") from None
-        if q.shape == (4,) and v.shape == (3,):
+        if self._m is not None:   # normalize=False kept the matrix: applied as given, as scipy does
+            out = _motion.apply_matrix(self._m, v, inverse)
+        elif q.shape == (4,) and v.shape == (3,):
             out = _kernels.rotate(q, v - t if inverse else v, inverse=inverse, unit=self._unit)
             return out if inverse else out + t
-        out = _motion.apply(q, t, v, inverse, self._unit)
+        else:
+            out = _motion.apply(q, t, v, inverse, self._unit)
         if self._single and v.ndim == 1:
             return out
         if self._single and out.ndim == 1:

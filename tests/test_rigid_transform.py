@@ -140,6 +140,28 @@ def test_normalize_false_keeps_the_matrix_and_copy_false_shares_it():
     np.testing.assert_array_equal(many.as_matrix()[1, :3, 3], [5, 0, 0])
 
 
+def test_normalize_false_applies_its_matrix_as_given():
+    """A kept matrix whose block is not a rotation acts as that matrix (scipy's ``apply``), in
+    float64 and float32, each row as alone, inverse as scipy's ``Rᵀ (v - t)``."""
+    rng = np.random.default_rng(4)
+    m = np.tile(np.eye(4), (6, 1, 1))
+    m[:, :3, :3] += rng.normal(scale=0.05, size=(6, 3, 3))
+    m[:, :3, 3] = rng.normal(size=(6, 3))
+    v = rng.normal(size=(6, 3))
+    for dtype in (np.float64, np.float32):
+        tf = RigidTransform(m.astype(dtype), normalize=False)
+        got = tf.apply(v.astype(dtype))
+        assert got.dtype == dtype
+        tol = 8 * np.finfo(dtype).eps
+        np.testing.assert_allclose(got, np.einsum("nij,nj->ni", m[:, :3, :3], v) + m[:, :3, 3], atol=tol)
+        np.testing.assert_allclose(got, st.RigidTransform(m, normalize=False).apply(v), atol=tol)
+        np.testing.assert_allclose(tf.apply(v.astype(dtype), inverse=True),
+                                   st.RigidTransform(m, normalize=False).apply(v, inverse=True), atol=10 * tol)
+        for i in range(6):
+            np.testing.assert_array_equal(RigidTransform(m[i].astype(dtype), normalize=False).apply(v[i].astype(dtype)),
+                                          got[i])
+
+
 def test_pickle_iteration_and_inputs_unchanged():
     import pickle
     ours, ref, rng = _pair(np.float64)
