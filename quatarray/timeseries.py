@@ -517,7 +517,7 @@ def geodesic_mean(rotations, weights=None, axis=None, *, tol=1e-12, max_iter=100
     if not (total > 0).all():
         raise ValueError("expected weights with a positive sum along the averaged axes, got a zero sum")
     mu0 = np.asarray(start._unit_quat(), np.float64).reshape(kshape + (4,))
-    mu, step = _timeseries.karcher(qm, wm / total, mu0, tol, int(max_iter))
+    mu, step = _timeseries.karcher(qm, wm / total, mu0, tol, max_iter)
     if step is not None:
         raise ValueError(f"expected the geodesic mean to converge within max_iter={max_iter} iterations "
                          f"to tol={tol!r}, got a last step of {step!r} rad")
@@ -575,8 +575,8 @@ def smooth(times, rotations, window, *, order=2):
     order = integer(order, "order", 0)
     T = Q.shape[0]
     dt = float(np.median(np.diff(times)))
-    points = max(int(order) + 2, 2 * int(round(window / (2 * dt))) + 1)
-    q = _timeseries.smooth(times, Q.reshape(T, -1, 4).astype(np.float64), points, int(order))
+    points = max(order + 2, 2 * int(round(window / (2 * dt))) + 1)
+    q = _timeseries.smooth(times, Q.reshape(T, -1, 4).astype(np.float64), points, order)
     given = _given_quats(rotations).reshape(T, -1, 4)
     q = q * np.where(np.sum(q * given, axis=-1, keepdims=True) < 0, -1.0, 1.0)   # the input's signs
     return _wrap_rotation(q.reshape(Q.shape), Q.dtype)

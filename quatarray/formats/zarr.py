@@ -627,8 +627,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     window = rows * WINDOW_CHUNKS
     if keys.nbytes <= MEMORY_KEYS:
         kmem = keys.compute()
-        interpolate = partial(qd.evaluate, _CurveAndKeys(
-            Track(key_times, kmem, method=method, extrapolate=extrapolate), np.asarray(key_times, np.float64), kmem))
+        track = Track(key_times, kmem, method=method, extrapolate=extrapolate)
+        interpolate = partial(qd.evaluate, _CurveAndKeys(track, kmem))
     else:
         interpolate = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)
     dtype = interpolate(queries.window(0, min(n, 1), 1)).dtype     # lazy: nothing computed
@@ -656,8 +656,13 @@ class _CurveAndKeys:
     """A `Track` whose value at a key time is the key as stored (`keys_at_key_times`), as the
     in-memory resampling gives it: a chunk of queries at a time, with the keys in memory."""
 
-    def __init__(self, track, times, keys):
-        self.track, self.times, self.keys = track, times, keys
+    def __init__(self, track, keys):
+        self.track, self.keys = track, keys
+
+    @property
+    def times(self):
+        """The key times (float64), the track's."""
+        return self.track.times
 
     def __call__(self, t):
         out = np.asarray(self.track(t))
