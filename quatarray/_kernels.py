@@ -609,13 +609,18 @@ def _log_parts(q):
     for a negative real quaternion (|v| = 0, w < 0) the axis is taken as x
     (θ = π).  Blocks of extreme magnitude are rescaled in place first by
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
-    rescaled q, which is what the callers multiply."""
+    rescaled q, which is what the callers multiply.  The last item is None, or,
+    for a block with vectors that are zero or below the range, the mask of the rows
+    whose scale is a limit (`_small_vectors`)."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
     w = q[0]
     _scale.sum_squares(q, vv, 1)
     np.multiply(w, w, out=n2)
     n2 += vv                              # w² + |v|², as the one-quaternion path
-    e = _scale.guard(q, n2)
+    e = v0 = None
+    if not _scale.fits(n2):               # extreme magnitudes: the vectors kept, whose axes
+        v0 = q[1:].copy()                 # a rescale may lose (`_small_vectors`)
+        e = _scale.guard(q, n2)
     if e is not None:                     # q was rescaled: |v|² again
         _scale.sum_squares(q, vv, 1)
         np.multiply(w, w, out=n2)
@@ -632,22 +637,46 @@ def _log_parts(q):
     if unit:
         np.copyto(ln, d, where=n2 == 1)
     ln *= 0.5
-    vn = np.sqrt(vv, out=vv)
+    # one reduction instead of a mask and a test when no vector is zero or below the range
+    few = vv.min() < _scale.LOW[vv.dtype]
+    vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
     arctan2(vn, w, out=theta)
     np.divide(theta, vn, out=scale)
-    if vn.min() == 0:   # one reduction instead of a mask and a test when none (vn >= 0)
-        lim = vn == 0
-        scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
-    return ln, theta, vn, scale, e
+    lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
+    return ln, theta, vn, scale, e, lim
+
+
+def _small_vectors(q, vn, theta, scale, v0):
+    """`_log_parts`' fixes for a block with vectors that are zero or whose |v|² underflowed
+    (their |v| already taken by scaling): returns the mask of the rows whose scale θ/|v|
+    takes its limit, 1/w for w > 0 (θ = 0 or below the normal range: v = 0, or |v| / w
+    tiny) and 0 for a zero or negative real q (whose callers choose the axis).  Where
+    w < 0 and |v|² is below the range (θ = π in the float format), only the axis v/|v|
+    matters: v and |v| are replaced in place (q is a scratch copy) by the vector as given,
+    `v0` (q's own, or the one before a rescale that may have lost its digits), scaled by a
+    power of two to |v| near 1, so that the axis is v0's and θ/|v| and sin(tθ)/|v| do
+    not overflow, nor their products with |q|^t."""
+    w = q[0]
+    axis = (w < 0) & (vn < _scale.LOW[vn.dtype] ** 0.5) & (np.max(np.abs(v0), axis=0) > 0)
+    if axis.any():
+        v = v0[:, axis]
+        _, e = np.frexp(np.max(np.abs(v), axis=0))
+        v = np.ldexp(v, -e)
+        q[1:, axis] = v
+        vn[axis] = np.sqrt(_scale.sum_squares(v, np.empty(v.shape[1:], v.dtype)))
+    np.divide(theta, vn, out=scale, where=axis)
+    lim = ((vn == 0) | (theta < np.finfo(vn.dtype).tiny)) & ~axis
+    scale[lim] = np.where(w > 0, 1.0 / w, 0.0)[lim]
+    return lim
 
 
 def _k_log(q, o):
-    ln, theta, vn, scale, e = _log_parts(q)
+    ln, theta, vn, scale, e, lim = _log_parts(q)
     np.multiply(q[1:], scale, out=o[1:])
     np.copyto(o[0], ln)
     if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
         o[0] += e * np.log(o.dtype.type(2))
-    if vn.min() == 0:   # a real quaternion in the block: the negative ones get θ = π about x
+    if lim is not None:   # a real quaternion in the block: the negative ones get θ = π about x
         np.copyto(o[1], np.pi, where=(vn == 0) & (q[0] < 0))
 
 
@@ -671,40 +700,45 @@ def log(q):
 
 def _k_power(q, t, o):
     t = t[0]
-    ln, theta, vn, scale, e = _log_parts(q)
+    ln, theta, vn, scale, e, lim = _log_parts(q)
     mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
     np.multiply(t, ln, out=mag)
     np.exp(mag, out=mag)
     if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
         mag *= np.exp2(t * e)
-    real = vn == 0
-    zero = real & (q[0] == 0)
-    if zero.any():
-        np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
+    real = zero = None   # (masks only for a block with real quaternions or vectors below the range)
+    if lim is not None:
+        real = vn == 0
+        zero = real & (q[0] == 0)
+        if zero.any():
+            np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
     np.multiply(t, theta, out=ang)
     # sin and cos, not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2
     # (principal roots of negative reals)
     np.cos(ang, out=c)
     np.sin(ang, out=sn)
     np.multiply(mag, c, out=o[0])
-    # sin(tθ) / |v|  (the axis is v/|v|); at |v| = 0 its limit is t·scale
-    if real.any():
-        np.copyto(ang, np.where(real, t * scale, sn / np.where(real, 1, vn)))
+    # sin(tθ) / |v|  (the axis is v/|v|); where θ is 0 or below the range its limit t·scale
+    f = ang
+    if lim is not None:
+        np.copyto(f, np.where(lim, t * scale, sn / np.where(real, 1, vn)))
     else:
-        np.divide(sn, vn, out=ang)
-    ang *= mag
-    if zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
+        np.divide(sn, vn, out=f)
+    ang = np.multiply(f, mag, out=c)   # (c is free: the real part is written)
+    if zero is not None and zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         ang[zero] = 0.0
     for k in (1, 2, 3):
         np.multiply(q[k], ang, out=o[k])
-    if not all_finite(ang):   # |q|^t overflowed: a zero component of v stays ±0 (not 0 × inf)
-        big = ~np.isfinite(ang)
+    if not all_finite(ang):   # sin(tθ)/|v| · |q|^t overflowed: v's share first (|v_k| <= |v|),
+        big = ~np.isfinite(ang)   # and a component lost to 0 × inf stays ±0, not NaN
         for k in (1, 2, 3):
-            at = big & (q[k] == 0)
-            o[k][at] = np.copysign(0.0, q[k][at]) * np.sign(ang[at])
-    neg_real = real & (q[0] < 0)
-    if neg_real.any():
-        np.copyto(o[1], mag * sn, where=neg_real)
+            vk = q[k][big] * f[big]
+            ok = np.multiply(vk, mag[big])
+            o[k][big] = np.where(np.isnan(ok), np.copysign(0.0, vk) * np.sign(mag[big]), ok)
+    if real is not None:
+        neg_real = real & (q[0] < 0)
+        if neg_real.any():
+            np.copyto(o[1], mag * sn, where=neg_real)
 
 
 def power(q, t):

@@ -1,6 +1,7 @@
 """Raw-array quaternion algebra: values against independent formulas and scipy,
 algebraic identities (hypothesis), dtypes, layouts and broadcasting."""
 
+import math
 import warnings
 
 import numpy as np
@@ -289,6 +290,79 @@ def test_power_whose_magnitude_overflows_keeps_zero_components(rng):
     np.testing.assert_array_equal(np.signbit(got[2, 2]), np.signbit(-0.0 * np.sign(got[2, 1])))
     # |q| = 1 does not overflow: the ordinary path
     np.testing.assert_allclose(got[3], K.exp(1000 * K.log(q[3])), atol=1e-12)
+
+
+def _polar_reference(q, t=None):
+    """log q (t None) or q**t from Python's math.hypot and math.atan2: the angle
+    θ = atan2(|v|, w) and the axis v / |v| of v scaled by a power of two (exact) to |v|
+    near 1, so that neither loses digits however small v is; None for a real q or |q|^t
+    out of range."""
+    w, *v = (float(c) for c in q)
+    if not any(v):
+        return None
+    e = math.frexp(max(map(abs, v)))[1]
+    v = [math.ldexp(c, -e) for c in v]
+    h = math.hypot(*v)
+    try:
+        ws = math.ldexp(w, -e)
+    except OverflowError:
+        ws = math.copysign(math.inf, w)
+    theta, n = math.atan2(h, ws), math.hypot(w, math.ldexp(h, e))
+    axis = [c / h for c in v]
+    if t is None:   # θ v/|v|; v/w where |v|/w is below double precision (θ/|v| = 1/w)
+        vector = ([float(c) / w for c in q[1:]] if w > 0 and h < 2.0 ** -60 * ws
+                  else [theta * a for a in axis])
+        return np.array([math.log(n)] + vector)
+    mag = math.exp(t * math.log(n)) if t * math.log(n) < 709 else math.inf
+    if not 0 < mag < 1e300:
+        return None
+    return np.array([mag * math.cos(t * theta)] + [mag * math.sin(t * theta) * a for a in axis])
+
+
+def _tiny_vector_quats():
+    """Quaternions whose |v|² underflows (or whose rescale to a safe |q|² would lose v):
+    w of either sign, from 1e-130 to 1e230, v from 1e-320 to 1e-100."""
+    rows = []
+    for ew in (-130, -40, 0, 60, 140, 230):
+        for ev in (-320, -301, -250, -200, -150, -100):
+            q = np.array([7 * 10.0 ** ew, 3 * 10.0 ** ev, -2 * 10.0 ** ev, 10.0 ** ev])
+            if math.hypot(*q[1:]) < 10.0 ** ew:
+                rows += [q, -q, q[[0, 2, 3, 1]]]
+    return np.array(rows)
+
+
+def test_log_of_tiny_vectors_keeps_their_axis():
+    """A vector part whose squares underflow still gives the log its axis: θ v/|v| with
+    θ = π for w < 0, not the negative real's x axis; each row as alone."""
+    q = _tiny_vector_quats()
+    got = K.log(q)
+    for i, row in enumerate(q):
+        ref = _polar_reference(row)   # (θ below the normal range: a few steps of its grid)
+        np.testing.assert_allclose(got[i], ref, rtol=4e-16, atol=4 * np.finfo(float).smallest_subnormal)
+        np.testing.assert_array_equal(K.log(row).view(np.int64), got[i].view(np.int64))
+    np.testing.assert_allclose(K.log(np.array([-1.0, 0, 1e-200, 0])), [0, 0, np.pi, 0], rtol=4e-16)
+    np.testing.assert_allclose(K.log(np.array([-1, 0, 1e-30, 0], np.float32)), [0, 0, np.pi, 0], rtol=1e-7)
+
+
+@pytest.mark.parametrize("t", [0.5, -0.5, 2.0, 1.3, 3.7])
+def test_power_of_tiny_vectors_keeps_their_axis_and_gives_no_nan(t):
+    """q**t for vectors below the range: the axis v/|v| kept (θ = π for w < 0), no
+    spurious overflow of sin(tθ)/|v| · |q|^t, and no NaN where |q|^t itself overflows."""
+    q = _tiny_vector_quats()
+    with np.errstate(over="ignore"):
+        got = K.power(q, t)
+        for i, row in enumerate(q):
+            np.testing.assert_array_equal(K.power(row, t).view(np.int64), got[i].view(np.int64))
+    assert not np.isnan(got).any()
+    checked = 0
+    for row, g in zip(q, got):
+        ref = _polar_reference(row, t)
+        if ref is not None:   # error relative to the largest component: |q|^t's
+            assert np.max(np.abs(g - ref)) <= 1e-13 * np.max(np.abs(ref)), (row, g, ref)
+            checked += 1
+    assert checked > len(q) // 2
+    np.testing.assert_allclose(K.power(np.array([-1.0, 0, 1e-200, 0]), 0.5), [0, 0, 1, 0], atol=1e-16)
+    np.testing.assert_allclose(K.power(np.array([-1, 0, 1e-30, 0], np.float32), 0.5), [0, 0, 1, 0], atol=1e-7)
 
 
 # --- special values -------------------------------------------------------------------
