@@ -245,22 +245,20 @@ def _negated(t):
 def _plan(formula):
     """`formula` (nine entries of q's rotation matrix, e.g. `_unit_matrix`) traced, and laid
     out for stacked rows: (traced entries, gather, scale).  The off-diagonal entries must be
-    sums of two products and the diagonal ones sums of two such pairs.  Row k of the 30
-    products ``P = q.take(gather)[:30] * (q.take(gather)[30:] * scale)`` is, for k < 9, the
-    first term of entry k, for 9 <= k < 18 the second term of entry k - 9 (off the
-    diagonal; the diagonal's rows there are filled in later), rows 18-23 are the first
-    terms of the diagonal's pairs and rows 24-29 their second terms, so that
-    ``P[18:24] + P[24:30]`` are the pairs and, with those in rows 0, 4, 8, 9, 13, 17, ``P[:9] + P[9:18]``
-    is the matrix: one NumPy call per stage."""
+    sums of two products and the diagonal ones sums of two such pairs.  Of the 30 products
+    ``P = q.take(gather)[:30] * (q.take(gather)[30:] * scale)``, rows 0-8 hold the first
+    term of each entry (the first term of its first pair on the diagonal), rows 12-20 the
+    second (the first term of its second pair), and rows 24-29 the diagonal pairs' second
+    terms, in the order of ``P[0:24:4]`` = rows 0, 4, 8, 12, 16, 20 (rows 9-11 and 21-23 are
+    spare).  So ``P[0:24:4] += P[24:30]`` sums the pairs, and ``P[0:9] + P[12:21]`` is the
+    matrix: one NumPy call per stage, each on evenly spaced rows."""
     traced = formula(*(_Traced(None, k) for k in range(4)))
     entries = [_signed_terms(e) for e in traced]
     if not all(type(e[0]) is (list if k in _DIAG else tuple) for k, e in enumerate(entries)):
         raise ValueError("the matrix formula must give two-term off-diagonal and four-term diagonal entries")
-    spare = (0, 0, 1)   # a finite product in the diagonal's rows until its pairs are written
-    first = [spare if k in _DIAG else e[0] for k, e in enumerate(entries)]
-    second = [spare if k in _DIAG else e[1] for k, e in enumerate(entries)]
-    diagonal = [entries[k][i][j] for j in (0, 1) for i in (0, 1) for k in _DIAG]
-    terms = first + second + diagonal
+    spare = (0, 0, 1)   # a finite product in the rows no stage reads
+    terms = [[e[i][0] if k in _DIAG else e[i] for k, e in enumerate(entries)] + [spare] * 3 for i in (0, 1)]
+    terms = terms[0] + terms[1] + [entries[k][i][1] for i in (0, 1) for k in _DIAG]
     gather = np.array([t[0] for t in terms] + [t[1] for t in terms])
     return traced, gather, tuple(float(t[2]) for t in terms)
 
@@ -272,14 +270,15 @@ _UNIT_ENTRIES, *_UNIT_PLAN = _plan(_unit_matrix)
 def _unit_rows(q, o):
     """The matrix entries of the unit quaternions whose components are the rows of `q`
     (4, n), as `_unit_matrix` computes them, into `o` (9, n) (any strides), by `_UNIT_PLAN`:
-    four ufunc calls on contiguous rows, one sum on strided rows and one copy, whatever n."""
+    five ufunc calls (a gather, two products and two sums, the last into `o`), whatever n."""
     n = q.shape[1]
     g = q.take(_UNIT_PLAN[0], axis=0)   # (60, n): the products' factors
     f, d = g[:30], g[30:]
     np.multiply(d, _unit_scale_rows(g.dtype, n), out=d)
     p = np.multiply(f, d, out=f)
-    p[:18].reshape(2, 9, n)[:, ::4] = np.add(p[18:24], p[24:30], out=p[18:24]).reshape(2, 3, n)
-    o[...] = np.add(p[:9], p[9:18], out=p[:9])
+    pairs = p[0:24:4]
+    np.add(pairs, p[24:], out=pairs)
+    np.add(p[0:9], p[12:21], out=o)
 
 
 def _matrix(w, x, y, z, s, o, t):
@@ -401,12 +400,16 @@ def as_matrix(q, unit=False):
         ndim = q.ndim
         w, x, y, z = q.tolist() if ndim == 1 else q.tolist()[0]
         return np.fromiter(_unit_matrix(w, x, y, z), _F64, 9).reshape(_MATRIX_SHAPE[ndim])
+    if unit and q.ndim == 2 and 0 < len(q) <= _blocks.VIEWS_MAX:
+        # a Rotation's few (up to where the block engine's copies start to pay, at about the
+        # same size as for its other kernels): the plan's calls on the storage, read in place
+        out = np.empty((len(q), 3, 3), q.dtype)
+        _unit_rows(q.T, out.reshape(-1, 9).T)
+        return out
     q = quat_array(q, "quat")
     out = np.empty(q.shape[:-1] + (3, 3), q.dtype)
     flat = q.reshape(-1, 4)
     if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:
-        # a few (up to where the block engine's copies start to pay, at about the same
-        # size as for its other kernels): the plan's calls on the storage, read in place
         _unit_rows(flat.T, out.reshape(-1, 9).T)
         return out
     _blockwise(_k_as_matrix, [flat], [out.reshape(-1, 9)], unit=unit)
