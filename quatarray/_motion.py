@@ -56,3 +56,13 @@ def apply_matrix(m, v, inverse):
     out = p[..., 0] + p[..., 1]
     out += p[..., 2]
     return out if inverse else out + t
+
+
+def invert_matrix(m):
+    """scipy's inverse of rigid matrices `m` (..., 4, 4) taken as they are: ``[Rᵀ, -Rᵀ t]``, with
+    -Rᵀ t as `apply_matrix`'s ``Rᵀ (0 - t)``, so that a kept transform and its inverse agree."""
+    out = np.zeros_like(m)
+    out[..., :3, :3] = np.swapaxes(m[..., :3, :3], -1, -2)
+    out[..., :3, 3] = apply_matrix(m, np.zeros(m.shape[:-2] + (3,), m.dtype), True)
+    out[..., 3, 3] = 1
+    return out

@@ -13,7 +13,9 @@ The one exception is scipy's ``RigidTransform(matrix, normalize=False)``:
 scipy then keeps the matrix exactly as given (with ``copy=False`` sharing
 its memory), so such a transform keeps the matrix, applies it as it is (its
 block need not be a rotation) and reads its rotation and translation from it
-whenever they are needed.
+whenever they are needed.  What scipy derives from one without normalising
+(`inv`, ``** ±1``, indexing, `concatenate`) keeps a matrix too; a product is
+the normalised product of the matrices, as scipy's.
 
 The maths lives in `_motion` (apply, compose, invert), `_convert` and
 `_dualquat`; this module validates, wraps and keeps scipy's messages.
@@ -199,6 +201,16 @@ class RigidTransform:
         return tf
 
     @classmethod
+    def _kept(cls, matrix, single):
+        """A transform keeping the matrices (..., 4, 4) as they are, not copied: scipy's raw
+        matrix, as ``RigidTransform(matrix, normalize=False)`` and what scipy derives from
+        one without normalising (`inv`, ``** ±1``, indexing, `concatenate`)."""
+        tf = cls.__new__(cls)
+        tf._m, tf._q, tf._t = matrix, None, None
+        tf._single, tf._unit, tf._matrix_of_one = single, False, None
+        return tf
+
+    @classmethod
     def _make(cls, quat, translation, single):
         """Like `_from_parts`, broadcasting the two and promoting to one dtype."""
         if quat.shape[:-1] != translation.shape[:-1] or quat.dtype != translation.dtype:
@@ -208,12 +220,23 @@ class RigidTransform:
             translation = np.array(np.broadcast_to(translation, batch + (3,)), dtype)
         return cls._from_parts(quat, translation, single)
 
-    # raw parts (read from the kept matrix for normalize=False transforms)
+    # raw parts (read from the kept matrix for normalize=False transforms: the quaternion derived
+    # from its block as it is, normalised, as scipy's exp coordinates, dual quaternions, mean and
+    # powers take it; `rotation` is the nearest rotation, as scipy's)
     @property
     def _quat(self):
         if self._m is None:
             return self._q
         return _convert.from_matrix(self._m[..., :3, :3], assume_valid=True)
+
+    @property
+    def _batch(self):
+        """The stored batch shape (``()`` for a single transform)."""
+        return self._q.shape[:-1] if self._m is None else self._m.shape[:-2]
+
+    @property
+    def _dtype(self):
+        return (self._q if self._m is None else self._m).dtype
 
     @property
     def _translation(self):
@@ -285,10 +308,14 @@ class RigidTransform:
     def concatenate(cls, transforms):
         """Join transforms (single ones count as one) along the first axis."""
         if isinstance(transforms, RigidTransform):
+            if transforms._m is not None:
+                return cls._kept(transforms.as_matrix(), transforms._single)
             return cls._from_parts(transforms._quat.copy(), transforms._translation.copy(), transforms._single,
                                    transforms._unit)
         if not all(isinstance(x, RigidTransform) for x in transforms):
             raise TypeError("input must contain RigidTransform objects only")
+        if any(x._m is not None for x in transforms):   # scipy's raw matrices, joined as they are
+            return cls._kept(np.concatenate([x.as_matrix().reshape((-1, 4, 4)) for x in transforms]), False)
         q = np.concatenate([np.atleast_2d(x._quat) for x in transforms])
         t = np.concatenate([np.atleast_2d(x._translation) for x in transforms])
         return cls._from_parts(q, t, False, all(x._unit for x in transforms))
@@ -339,25 +366,26 @@ class RigidTransform:
         The real part has scipy's sign, that of its quaternion from the rotation matrix:
         its largest component in magnitude (x, y, z, w: the first of equal ones) is positive."""
         q = self._quat
-        xyzw = q[..., _TO_LAST[:4]]
-        lead = np.take_along_axis(xyzw, np.argmax(xyzw * xyzw, axis=-1)[..., None], axis=-1)
-        q = np.where(lead < 0, 0.0 - q, q)   # (0 - q: no -0 where a component is 0)
+        if self._m is None:   # (a kept matrix's quaternion comes from its matrix: scipy's sign)
+            xyzw = q[..., _TO_LAST[:4]]
+            lead = np.take_along_axis(xyzw, np.argmax(xyzw * xyzw, axis=-1)[..., None], axis=-1)
+            q = np.where(lead < 0, 0.0 - q, q)   # (0 - q: no -0 where a component is 0)
         dq = _dualquat.from_rotation_translation(q, self._translation)
         return dq if scalar_first else dq[..., _TO_LAST]
 
     # ------------------------------------------------------------------ operations
     def apply(self, vector, inverse=False):
         """``R v + t`` (or ``Rᵀ (v - t)`` with `inverse`), broadcasting vectors and transforms."""
-        q, t = self._quat, self._translation
-        v = np.asarray(vector, dtype=q.dtype)
+        v = np.asarray(vector, dtype=self._dtype)
         if v.ndim < 1 or v.shape[-1] != 3:
             raise ValueError(f"Expected vector to have shape (..., 3), got {v.shape}.")
-        if q.shape[:-1] != v.shape[:-1]:
+        if self._batch != v.shape[:-1]:
             try:
-                np.broadcast_shapes(q.shape[:-1], v.shape[:-1])
+                np.broadcast_shapes(self._batch, v.shape[:-1])
             except ValueError:
                 raise ValueError("operands could not be broadcast together with transforms of shape "
                                  f"{self.shape} and vectors of shape {v.shape}") from None
+        q, t = self._q, self._t
         if self._m is not None:   # normalize=False kept the matrix: applied as given, as scipy does
             out = _motion.apply_matrix(self._m, v, inverse)
         elif q.shape == (4,) and v.shape == (3,):
@@ -372,7 +400,9 @@ class RigidTransform:
         return out
 
     def inv(self):
-        """The inverse transforms."""
+        """The inverse transforms (of a kept matrix: scipy's ``[Rᵀ, -Rᵀ t]``, kept)."""
+        if self._m is not None:
+            return type(self)._kept(_motion.invert_matrix(self._m), self._single)
         q, t = _motion.inverse(self._quat, self._translation, self._unit)
         return type(self)._from_parts(q, t, self._single, self._unit)
 
@@ -383,12 +413,15 @@ class RigidTransform:
                 other = RigidTransform.from_rotation(other)
             else:
                 return NotImplemented
-        q1, t1, q2, t2 = self._quat, self._translation, other._quat, other._translation
         try:
-            np.broadcast_shapes(q1.shape[:-1], q2.shape[:-1])
+            np.broadcast_shapes(self._batch, other._batch)
         except ValueError:
             raise ValueError(f"Cannot broadcast {self.shape if not self._single else (1,)} transforms in first "
                              f"to {other.shape if not other._single else (1,)} transforms in second object.") from None
+        if self._m is not None or other._m is not None:
+            # scipy's product of the matrices as they are, then normalised
+            return type(self)(np.matmul(self.as_matrix(), other.as_matrix()), normalize=True, copy=False)
+        q1, t1, q2, t2 = self._q, self._t, other._q, other._t
         single = self._single and other._single
         if not single:
             q1, t1 = (q1[None], t1[None]) if self._single else (q1, t1)
@@ -416,6 +449,8 @@ class RigidTransform:
         if n == -1:
             return self.inv()
         if n == 1:
+            if self._m is not None:
+                return type(self)._kept(self._m.copy(), self._single)
             return type(self)._from_parts(self._quat.copy(), self._translation.copy(), self._single, self._unit)
         res = type(self).from_exp_coords(self.as_exp_coords() * n)
         res._single = self._single
@@ -469,11 +504,13 @@ class RigidTransform:
     @property
     def shape(self):
         """Batch shape (``()`` for a single transform)."""
-        return () if self._single else self._quat.shape[:-1]
+        return () if self._single else self._batch
 
     @property
     def rotation(self):
-        """The rotations, as a `Rotation`."""
+        """The rotations, as a `Rotation` (of a kept matrix: the rotation nearest its block, as scipy's)."""
+        if self._m is not None:
+            return Rotation.from_matrix(self._m[..., :3, :3])
         return Rotation(self._quat, normalize=False, copy=True, scalar_first=True)
 
     @property
@@ -484,7 +521,7 @@ class RigidTransform:
     def __len__(self):
         if self._single:
             raise TypeError("Single transform has no len")
-        return self._quat.shape[0]
+        return self._batch[0]
 
     def __iter__(self):
         if self._single:
@@ -494,8 +531,11 @@ class RigidTransform:
     def __getitem__(self, index):
         if self._single:
             raise TypeError("Single transform is not subscriptable.")
-        if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and self._quat.shape[0] == 0:
+        if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and self._batch[0] == 0:
             raise IndexError("cannot take from an empty array")
+        if self._m is not None:   # scipy's rows of the matrices as they are
+            m = np.array(self._m[index])
+            return type(self)._kept(m, m.ndim == 2)
         q = self._quat[index]
         return type(self)._from_parts(q.copy(), self._translation[index].copy(), q.ndim == 1, self._unit)
 
@@ -512,6 +552,8 @@ class RigidTransform:
         self._unit = self._unit and value._unit
 
     def __reduce__(self):
+        if self._m is not None:
+            return (type(self)._kept, (self._m, self._single))
         return (type(self)._from_parts, (self._quat, self._translation, self._single, self._unit))
 
     def __repr__(self):

@@ -162,6 +162,38 @@ def test_normalize_false_applies_its_matrix_as_given():
                                           got[i])
 
 
+def test_normalize_false_operations_as_scipy():
+    """A kept matrix whose block is not a rotation goes through scipy's operations as scipy
+    takes it: `inv`, ``** -1``, ``** 1``, indexing and `concatenate` keep raw matrices, a
+    product is the normalised product of the matrices, `rotation` is the nearest rotation,
+    and exp coordinates, dual quaternions, means and other powers use the quaternion derived
+    from the block.  A pickled one comes back as it was (scipy's comes back normalised)."""
+    import pickle
+    rng = np.random.default_rng(11)
+    m = np.tile(np.eye(4), (3, 1, 1))
+    m[:, :3, :3] = rng.normal(size=(3, 3, 3))
+    m[:, :3, 0] *= np.sign(np.linalg.det(m[:, :3, :3]))[:, None]   # proper frames, far from rotations
+    m[:, :3, 3] = rng.normal(size=(3, 3))
+    other = st.RigidTransform.from_exp_coords(rng.normal(size=(3, 6))).as_matrix()
+    for batch in (m, m[0]):
+        ours, ref = RigidTransform(batch, normalize=False), st.RigidTransform(batch, normalize=False)
+        ours_other = RigidTransform(other[: len(batch)] if batch.ndim == 3 else other[0])
+        ref_other = st.RigidTransform(other[: len(batch)] if batch.ndim == 3 else other[0])
+        pairs = [(lambda x, y: x.inv().as_matrix()), (lambda x, y: (x ** -1).apply([1.0, 2, 3])),
+                 (lambda x, y: (x ** 1).as_matrix()), (lambda x, y: (x * y).as_matrix()),
+                 (lambda x, y: (y * x).as_matrix()), (lambda x, y: (x * x.inv()).as_matrix()),
+                 (lambda x, y: (x ** 0.5).as_matrix()), (lambda x, y: (x ** 2).as_matrix()),
+                 (lambda x, y: x.rotation.as_quat()), (lambda x, y: x.as_exp_coords()),
+                 (lambda x, y: x.as_dual_quat()), (lambda x, y: type(x).concatenate([x, y]).inv().as_matrix())]
+        if batch.ndim == 3:
+            pairs += [(lambda x, y: x.mean().as_matrix()), (lambda x, y: x[1].inv().as_matrix()),
+                      (lambda x, y: x[[2, 0]].inv().as_matrix()), (lambda x, y: x[1:].as_matrix())]
+        for f in pairs:
+            np.testing.assert_allclose(f(ours, ours_other), f(ref, ref_other), atol=1e-12)
+        np.testing.assert_array_equal(ours.inv().inv().as_matrix()[..., :3, :3], batch[..., :3, :3])
+        np.testing.assert_array_equal(pickle.loads(pickle.dumps(ours)).as_matrix(), batch)
+
+
 def test_pickle_iteration_and_inputs_unchanged():
     import pickle
     ours, ref, rng = _pair(np.float64)
