@@ -94,10 +94,10 @@ def increments(times, omega, method, frame, points=6, substeps=2):
             at = times[:-1] + (j + g) * hs
             w = poly_weights(times, at, idx, m - 1, (0,))[:, :, 0]    # (T-1, m)
             gauss.append(np.einsum("km,kmbc->kbc", w, omega[idx]))
-        w1, w2 = gauss
         hh = hs[:, None, None]
-        coning = (np.sqrt(3) / 12) * hh * hh * np.cross(w1, w2)
-        out[:, j] = 0.5 * hh * (w1 + w2) + (coning if frame == "body" else -coning)
+        a1, a2 = hh * gauss[0], hh * gauss[1]   # the rotations over the step (no h² ω₁ × ω₂ to overflow)
+        coning = (np.sqrt(3) / 12) * np.cross(a1, a2)
+        out[:, j] = 0.5 * (a1 + a2) + (coning if frame == "body" else -coning)
     return out
 
 
@@ -133,6 +133,9 @@ def swing_twist(q, axis):
     perpendicular to `axis`) the twist is the identity."""
     along = np.sum(q[..., 1:] * axis, axis=-1, keepdims=True)
     twist = np.concatenate([q[..., :1], along * axis], axis=-1)   # q and axis of one batch shape
+    # scaled by a power of two near its largest component (exact, the same bits where nothing
+    # underflows), so that the squares of a tiny twist do not underflow to a zero norm
+    twist = np.ldexp(twist, -np.frexp(np.max(np.abs(twist), axis=-1, keepdims=True))[1]).astype(q.dtype, copy=False)
     n = np.sqrt(np.sum(twist * twist, axis=-1, keepdims=True))
     twist = np.divide(twist, n, out=np.broadcast_to(np.array([1.0, 0, 0, 0], q.dtype), twist.shape).copy(),
                       where=n > 0)

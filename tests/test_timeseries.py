@@ -488,6 +488,18 @@ def test_integrate_as_accurate_as_numpy_quaternion():
     assert ours[-1] <= theirs[-1] and ours.max() <= theirs.max()
 
 
+@pytest.mark.parametrize("scale", [1e-300, 1e-200, 1e200, 1e300])
+def test_integrate_at_extreme_time_scales(scale, rng):
+    """ω s over times t / s is the same motion: the coning term h² ω₁ × ω₂ must not overflow
+    or underflow where each step's rotation is ordinary (it was 0 × inf at |ω| ≳ 1e154)."""
+    t = np.cumsum(rng.uniform(0.05, 0.2, 12))
+    w = rng.normal(size=(12, 3))
+    for method in ("magnus", "constant"):
+        ref = integrate_angular_velocity(t, w, method=method)
+        got = integrate_angular_velocity(t / scale, w * scale, method=method)
+        assert rotation_error(got, ref).max() < 1e-13
+
+
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_integrate_dtype_and_batch(dtype, rng):
     t = np.linspace(0, 1, 20)
@@ -570,6 +582,16 @@ def test_swing_twist(batch, rng):
 def test_swing_twist_undefined_twist():
     swing, twist = swing_twist(Rotation.from_rotvec([np.pi, 0, 0]), [0, 0, 1])
     assert twist.magnitude() == 0 and abs(swing.magnitude() - np.pi) < 1e-15
+
+
+@pytest.mark.parametrize("tiny", [1e-150, 1e-170, 1e-300])
+def test_swing_twist_of_a_tiny_twist(tiny):
+    """A half turn about x tipped by a tiny quarter turn about z: the twist about z is that
+    quarter turn, however small its components (their squares underflowed to an identity)."""
+    q = Rotation.from_quat([tiny, 1, 0, tiny], scalar_first=True)
+    swing, twist = swing_twist(q, [0, 0, 1])
+    np.testing.assert_allclose(twist.as_rotvec(), [0, 0, np.pi / 2], rtol=1e-15)
+    assert rotation_error(swing * twist, q) < 1e-15
 
 
 def test_geodesic_mean(rng):
