@@ -40,7 +40,7 @@ from ._trig import atan_unit32, tan
 from ._validate import all_finite
 
 __all__ = [
-    "vdot", "soa", "sqsum", "slerp_weights", "hemisphere", "wide_arcs", "slerp_core", "squad_param", "squad_blend",
+    "vdot", "soa", "sqsum", "slerp_weights", "hemisphere", "arcs", "slerp_core", "squad_param", "squad_blend",
     "frame_core", "frames", "slerp", "lerp", "nlerp", "squad", "bezier", "unflip", "unit_keys",
 ]
 
@@ -110,7 +110,8 @@ def slerp_weights(a2, b2, h, sign=None):
     array of the sign of A·B (see `hemisphere`), and B counts as -B where it
     is negative (w1 then carries the sign; +0 keeps B).  Accurate for
     A·B >= 0 after the flip (weights at most sqrt(2)); `slerp_core` computes
-    the wide arcs (A·B < 0, followed as given) by `wide_arcs` instead.
+    the wide arcs (A·B < 0, followed as given) and extrapolation beyond -1 and 2 by
+    `arcs` instead.
     Returns views into the thread's scratch: use them before the caller's
     scratch frame ends.
     """
@@ -158,7 +159,7 @@ def _sine_weights(r2, b2, h, w0, th, s2, w1):
 def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
     """float64 weights from rho = tan(Ω/2) and tau = tan(h Ω/2) (module docstring)."""
     dtype = r2.dtype
-    # b² = 0 only for zero input (or B = -A followed as given, see `wide_arcs`):
+    # b² = 0 only for zero input (or B = -A followed as given, see `arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
     np.maximum(b2, _ops.row(_floor(dtype), dtype, b2.shape), out=b2)
     np.divide(r2, b2, out=r2)
@@ -218,30 +219,34 @@ def _where(mask):
     return (slice(None),) + np.nonzero(mask)
 
 
-def wide_arcs(A, B, h, O, wide):
-    """O[:, wide] = slerp(A, B, h) where A·B < 0 and B is followed as given.
+def arcs(A, B, h, O, where, sign=None):
+    """O[:, where] = slerp(A, B, h) as ``cos(h Ω) A + sin(h Ω) P``, the arc from A along P.
 
-    Near B = -A the weights of ``w0 A + w1 B`` grow like 1 / |A + B| and the
-    sum cancels.  Here the arc is ``cos(h Ω) A + sin(h Ω) P`` instead, with
-    P the unit vector of ``S - (A·S) A / |A|²``, S = A + B: S is exact for
-    nearly opposite inputs, so P is accurate and orthogonal to A, and the
-    output unit, however close B is to -A.  B = -c A exactly (c > 0) has no
-    unique arc: the rotation stays constant, A before the midpoint and B
-    from it on.
+    For the pairs the weights of ``w0 A + w1 B`` serve badly: wide arcs (A·B < 0, B
+    followed as given), where they grow like 1 / |A + B| near B = -A, and extrapolation
+    (h < -1 or h > 2), where they grow like |h| while their sum stays near 1: both
+    cancel.  P is the unit vector of ``V - (A·V) A / |A|²``, V the shorter of D = B - A
+    and S = B + A (exact for nearly equal or nearly opposite inputs), so P is accurate and
+    orthogonal to A, and the output's norm that of A whatever h.  `sign`: ±1 rows (see
+    `slerp_weights`), B counting as -B where -1.  B = c A exactly (c ≠ 0) has no unique
+    arc: the rotation stays constant, A before the midpoint and B from it on.
     """
     s = O.shape[1:]
-    at = _where(wide)
+    at = _where(where)
     a = np.broadcast_to(A, (4,) + s)[at]
     b = np.broadcast_to(B, (4,) + s)[at]
+    if sign is not None:
+        b = b * sign[at[1:]]
     hh = np.broadcast_to(h, s)[at[1:]]
     S = a + b
     D = b - a
-    a2 = vdot(a, a, 0)
-    P = S - (vdot(a, S, 0) / a2) * a
+    a2, d2, s2 = vdot(a, a, 0), vdot(D, D, 0), vdot(S, S, 0)
+    V = np.where(d2 <= s2, D, S)
+    P = V - (vdot(a, V, 0) / a2) * a
     pn = np.sqrt(vdot(P, P, 0))
     flat = ~(pn > 0)
     pn[flat] = 1
-    ang = np.arctan2(np.sqrt(vdot(D, D, 0)), np.sqrt(vdot(S, S, 0)))
+    ang = np.arctan2(np.sqrt(d2), np.sqrt(s2))
     ang *= 2 * hh
     res = np.cos(ang) * a + (np.sin(ang) * (np.sqrt(a2) / pn)) * P   # P at |A|: homogeneous
     if flat.any():
@@ -301,7 +306,13 @@ def _slerp_rows(A, B, h, O, shortest):
         np.multiply(B, w1, out=T[4:])
         np.add(T[:4], T[4:], out=O)
         if wide is not None and wide.any():
-            wide_arcs(A, B, h, O, wide)
+            arcs(A, B, h, O, wide)
+        if not _scale.inside(np.asarray(h), 2.0, -1.0):   # extrapolation beyond a segment's length
+            far = np.broadcast_to((h < -1) | (h > 2) | (h != h), s)   # (NaN h: NaN out, named by callers)
+            if wide is not None:
+                far = far & ~wide
+            if far.any():
+                arcs(A, B, h, O, far, sign)
     return out_of_range
 
 
@@ -458,7 +469,7 @@ def _wide_tangents(k0, k1, P, phi, wide):
 
     ``(2 D + a² k0) / (a b)`` cancels near k1 = -k0 (its error grows like
     1 / b); the component of S = k0 + k1 orthogonal to k0 does not (as in
-    `wide_arcs`).  k1 = -c k0 exactly: no unique arc, p = 0 and phi = 0.
+    `arcs`).  k1 = -c k0 exactly: no unique arc, p = 0 and phi = 0.
     """
     at = _where(wide)
     a = k0[at]

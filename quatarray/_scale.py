@@ -236,8 +236,9 @@ def _bounds(a, few=3 * _FEW):
     return float(a.min()), float(a.max())
 
 
-def inside(v, bound):
-    """True when every element of `v` lies in [-bound, bound] (False for NaN).
+def inside(v, bound, low=None):
+    """True when every element of `v` lies in [-bound, bound] (in [low, bound] if `low` is
+    given; False for NaN).
 
     >>> import numpy as np
     >>> from quatarray._scale import inside
@@ -245,7 +246,7 @@ def inside(v, bound):
     (True, False)
     """
     lo, hi = _bounds(v)
-    return -bound <= lo and hi <= bound
+    return (-bound if low is None else low) <= lo and hi <= bound
 
 
 def shrink_vectors(v, n2=None):

@@ -235,6 +235,40 @@ def test_slerp_extrapolates_along_the_great_circle(rng, path):
         assert_allclose(slerp(q0, q1, t), ref, atol=tol(np.float64, 50))
 
 
+@pytest.mark.parametrize("shortest", [True, False])
+def test_slerp_extrapolates_far_without_cancelling(dtype, path, shortest):
+    """Far outside [0, 1] the weights of w0 q0 + w1 q1 grow like |t| and cancel: the arc is
+    taken from q0 along its tangent instead.  About one axis the closed form is the angle
+    a + t (b - a).  The error stays within what the keys' rounding leaves undetermined:
+    their angle to about eps (times t) and, a small angle d apart, their circle's tangent to
+    about eps / d.  The norm stays unit (the weights' sum drifted by about |t| eps), also
+    for equal keys (slerp(q, q, t) = q for any t, not 0) and in squad's outer SLERP."""
+    rng = np.random.default_rng(5)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    a = rng.uniform(-3, 3, 8)
+    step = np.concatenate([[0.0, 1e-9, -1e-5], rng.uniform(-1.5, 1.5, 5)])   # b - a, |b - a| < π: shortest arcs
+    q0 = np.concatenate([np.cos(a / 2)[:, None], np.sin(a / 2)[:, None] * axis], axis=1)
+    b = a + step
+    q1 = np.concatenate([np.cos(b / 2)[:, None], np.sin(b / 2)[:, None] * axis], axis=1)
+    q0, q1 = q0.astype(dtype), q1.astype(dtype)
+    eps = np.finfo(dtype).eps
+    for t in (-1.5, 2.5, -40.0, 1e3, -1e6, 1e12):
+        got = plain(slerp(q0, q1, t, shortest=shortest)).astype(np.float64)
+        # the closed form from the keys as rounded to dtype: their angles, then a + t (b - a)
+        a0 = 2 * np.arctan2(q0[:, 1:].astype(np.float64) @ axis, q0[:, 0].astype(np.float64))
+        a1 = 2 * np.arctan2(q1[:, 1:].astype(np.float64) @ axis, q1[:, 0].astype(np.float64))
+        d = np.angle(np.exp(1j * (a1 - a0)))   # in (-π, π]: the shortest arc, as the keys' signs give it
+        ang = a0 + t * d
+        ref = np.concatenate([np.cos(ang / 2)[:, None], np.sin(ang / 2)[:, None] * axis], axis=1)
+        same = np.sign(np.sum(ref * got, axis=1))[:, None]   # (shortest may follow -q1: the same rotations)
+        bound = 16 * eps * (1 + abs(t) * (1 + np.abs(d)) + 1 / np.maximum(np.abs(d), eps))[:, None]
+        assert np.all(np.abs(got - same * ref) <= bound), (t, np.max(np.abs(got - same * ref) / bound))
+        np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1, atol=4 * eps)
+        np.testing.assert_array_equal(plain(slerp(q0, q0, t, shortest=shortest)), q0)
+    np.testing.assert_array_equal(plain(squad(q0, q0, q0, q0, 1e9)), q0)
+
+
 def test_slerp_antipodal_is_constant(dtype, path):
     q = random_quats(np.random.default_rng(1), (6,), dtype)
     t = np.linspace(-0.5, 1.5, 6).astype(dtype)
