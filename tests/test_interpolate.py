@@ -1001,6 +1001,17 @@ def test_extrapolation_modes(rng):
     assert_allclose(ext(out_t[0]), slerp(k[0], k[1], u), atol=tol(np.float64, 20))
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_extended_tracks_of_equal_keys_stay_on_the_key(dtype):
+    """Equal keys extended to the limit give the key back with every method: the outer
+    SLERP of squad, at 2 u (1 - u) of about -5e7 for u = 5000, used to cancel to 0 in
+    float32 and raise."""
+    q = np.array([0.5, 0.5, 0.5, 0.5], dtype)
+    for method in METHODS:
+        ext = Track([0.0, 1.0, 2.0], np.array([q, q, q]), method=method, extrapolate="extend")
+        assert_allclose(ext([-5000.0, 1000.0, 5000.0]), np.tile(q, (3, 1)), atol=tol(dtype, 4))
+
+
 # ---------------------------------------------------------------------------
 # segment lookup
 # ---------------------------------------------------------------------------
