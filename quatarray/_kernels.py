@@ -565,19 +565,29 @@ def _k_exp(q, o):
         with np.errstate(over="ignore"):   # only there: e**w that overflows still warns
             e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
         np.exp(q[0], out=ew)
+        over = ew.size and ew.max() == np.inf   # e**w overflowed somewhere
         # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
         np.maximum(vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), out=vn)
         cos_sin(vn, c, s, (u, v))
         s /= vn
+        if over:
+            big = ew == np.inf
+            sb = s[big]
         s *= ew
         if e is not None:
             np.ldexp(s, e, out=s)
         for k in (1, 2, 3):
             np.multiply(q[k], s, out=o[k])
         np.multiply(c, ew, out=o[0])
-        if ew.size and ew.max() == np.inf:   # e**w overflowed: zero components stay zero (not 0 · inf)
-            for k in (1, 2, 3):
-                np.copyto(o[k], 0.0, where=q[k] == 0)
+        if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
+            with np.errstate(over="ignore"):   # (e**w has warned)
+                half = np.exp(q[0][big] * 0.5)
+                if e is not None:
+                    sb = np.ldexp(sb, e[big])
+                o[0][big] = c[big] * half * half
+                for k in (1, 2, 3):
+                    o[k][big] = q[k][big] * sb * half * half
+                    np.copyto(o[k], 0.0, where=q[k] == 0)   # zero components stay zero (not 0 · inf)
 
 
 def exp(q):

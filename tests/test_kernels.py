@@ -275,6 +275,30 @@ def test_exp_of_huge_vector_parts_and_overflowing_scalars(rng):
             np.testing.assert_array_equal(got[2], 0.0)                          # e^-800 underflows to 0
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_exp_whose_scale_overflows_keeps_finite_components(dtype):
+    """e^w beyond the float range with the other factor small enough: the component is
+    finite, e^w times sin|v| v/|v| or cos|v| computed as (x e^(w/2)) e^(w/2); only the
+    components that truly overflow are inf.  Independent values: exp and sin of the float
+    arguments in float64 (float32) or from e^709 e (float64)."""
+    w = {np.float32: 88.8, np.float64: 710.0}[dtype]
+    q = np.array([[w, np.pi, 0, 0], [w, 1e-20, 0, 0], [w, 0, np.pi / 2, 0]], dtype)
+    with np.errstate(over="ignore"):
+        got = K.exp(q).astype(np.float64)
+        for i in range(len(q)):
+            np.testing.assert_array_equal(K.exp(q[i]), got[i].astype(dtype))   # each row as alone
+    wf, v = float(q[0, 0]), [float(q[0, 1]), float(q[1, 1])]
+    if dtype == np.float64:   # e^710 sin x as e^709 (e sin x): in range
+        np.testing.assert_allclose(got[0, 1], math.exp(709.0) * (math.e * math.sin(v[0])), rtol=4e-16)
+        np.testing.assert_allclose(got[1, 1], math.exp(709.0) * (math.e * v[1]), rtol=4e-16)
+    else:   # float32's e^88.8 is a float64 number
+        np.testing.assert_allclose(got[0, 1], math.exp(wf) * math.sin(v[0]), rtol=4 * np.finfo(np.float32).eps)
+        np.testing.assert_allclose(got[1, 1], math.exp(wf) * v[1], rtol=4 * np.finfo(np.float32).eps)
+    assert np.isinf(got[:2, 0]).all() and np.isinf(got[2, 2])          # e^w cos|v|, e^w sin(π/2): beyond the range
+    np.testing.assert_array_equal(got[:2, 2:], 0)
+    assert not np.isnan(got).any()
+
+
 def test_power_whose_magnitude_overflows_keeps_zero_components(rng):
     """|q|^t beyond the float range gives inf components, and the components of v that are
     zero stay zero (0 × inf would be NaN), with the product's sign; each row as alone."""
