@@ -585,9 +585,9 @@ def _k_exp(q, o):
                 if e is not None:
                     sb = np.ldexp(sb, e[big])
                 o[0][big] = c[big] * half * half
-                for k in (1, 2, 3):
-                    o[k][big] = q[k][big] * sb * half * half
-                    np.copyto(o[k], 0.0, where=q[k] == 0)   # zero components stay zero (not 0 · inf)
+                for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
+                    qk = q[k][big] * sb
+                    o[k][big] = np.where(qk == 0, qk, qk * half * half)
 
 
 def exp(q):
@@ -619,9 +619,9 @@ def _log_parts(q):
     for a negative real quaternion (|v| = 0, w < 0) the axis is taken as x
     (θ = π).  Blocks of extreme magnitude are rescaled in place first by
     2**-e (e None when not): ln|q|, |v| and the scale then refer to the
-    rescaled q, which is what the callers multiply.  The last item is None, or,
+    rescaled q, which is what the callers multiply.  The sixth item is None, or,
     for a block with vectors that are zero or below the range, the mask of the rows
-    whose scale is a limit (`_small_vectors`)."""
+    whose scale is a limit (`_small_vectors`); the seventh |q|² (of q as rescaled)."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
     w = q[0]
     _scale.sum_squares(q, vv, 1)
@@ -653,7 +653,7 @@ def _log_parts(q):
     arctan2(vn, w, out=theta)
     np.divide(theta, vn, out=scale)
     lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
-    return ln, theta, vn, scale, e, lim
+    return ln, theta, vn, scale, e, lim, n2
 
 
 def _small_vectors(q, vn, theta, scale, v0):
@@ -681,7 +681,7 @@ def _small_vectors(q, vn, theta, scale, v0):
 
 
 def _k_log(q, o):
-    ln, theta, vn, scale, e, lim = _log_parts(q)
+    ln, theta, vn, scale, e, lim, _ = _log_parts(q)
     np.multiply(q[1:], scale, out=o[1:])
     np.copyto(o[0], ln)
     if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
@@ -710,10 +710,16 @@ def log(q):
 
 def _k_power(q, t, o):
     t = t[0]
-    ln, theta, vn, scale, e, lim = _log_parts(q)
+    ln, theta, vn, scale, e, lim, n2 = _log_parts(q)
     mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
     np.multiply(t, ln, out=mag)
     np.exp(mag, out=mag)
+    if not _scale.inside(ln, 0.5):
+        # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
+        # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
+        # (Of the rows as rescaled, if they were: each row's choice is its own.)
+        far = np.abs(ln) > 0.5
+        mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
     if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
         mag *= np.exp2(t * e)
     real = zero = None   # (masks only for a block with real quaternions or vectors below the range)

@@ -368,6 +368,56 @@ def test_log_of_tiny_vectors_keeps_their_axis():
     np.testing.assert_allclose(K.log(np.array([-1, 0, 1e-30, 0], np.float32)), [0, 0, np.pi, 0], rtol=1e-7)
 
 
+def test_power_modulus_rounds_like_pow_away_from_unit_norms():
+    """|q|^t for |q| away from 1 comes from (|q|²)^(t/2), correctly rounded: a real
+    quaternion whose w² is exact gets the exact power, rounded once (exp(t ln|q|) was 140
+    ulp off for 2**1023, and 2**1024 came out finite), and a general one's norm is the exact
+    |q|^t (a fraction, for even t) within the |t| / 2 ulp that |q|²'s rounding leaves."""
+    from fractions import Fraction
+    with np.errstate(over="ignore"):
+        for x in (2.0, 3.0, 0.25, 7.25, -5.5, 1 / 1024):
+            for t in (1023.0, -60.0, 2.0, 37.0, -3.0, 101.0):
+                exact = Fraction(abs(x)) ** int(t)
+                if not Fraction(1, 10 ** 300) < exact < 10 ** 300:
+                    continue
+                got = K.power(np.array([x, 0, 0, 0]), t)
+                assert abs(got[0]) == float(exact) and not got[2:].any(), (x, t)
+        assert K.power(np.array([2.0, 0, 0, 0]), 1024.0)[0] == np.inf
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        q = rng.normal(size=4) * 10.0 ** rng.uniform(-3, 3)
+        t = int(rng.integers(-30, 31)) * 2
+        n2 = sum(Fraction(float(c)) ** 2 for c in q)
+        exact = n2 ** (t // 2) if t >= 0 else 1 / n2 ** (-t // 2)
+        if not Fraction(1, 10 ** 300) < exact < 10 ** 300:
+            continue
+        got = K.power(q, float(t))
+        norm2 = sum(Fraction(float(c)) ** 2 for c in got)   # |got|² against exact², as fractions
+        rel = Fraction((abs(t) / 2 * 2 + 8) * np.finfo(float).eps)
+        assert abs(norm2 / exact ** 2 - 1) <= 2 * rel + rel ** 2, (q, t)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_power_and_exp_rows_as_alone_beside_extreme_ones(dtype):
+    """A block with one quaternion of extreme magnitude (rescaled) or whose e^w overflows:
+    every other row keeps the bits it has alone, signed zeros included (the modulus' choice
+    of formula and the overflow's fix-up are each row's own)."""
+    big = np.finfo(dtype).max ** 0.75
+    rng = np.random.default_rng(12)
+    q = (rng.normal(size=(40, 4)) * rng.uniform(0.1, 10, (40, 1))).astype(dtype)
+    q[::7, 1] = -0.0
+    q[5] = [big, 0, 0, 0]
+    q[9] = [{np.float32: 95.0, np.float64: 720.0}[dtype], 0.5, -0.0, 0]
+    with np.errstate(over="ignore"):
+        for f in (lambda x: K.power(x, 0.3), lambda x: K.power(x, -2.5), K.exp):
+            got = f(q)
+            for i in range(len(q)):
+                np.testing.assert_array_equal(f(q[i]).view(_INT[dtype]), got[i].view(_INT[dtype]))
+
+
+_INT = {np.float32: np.int32, np.float64: np.int64}
+
+
 @pytest.mark.parametrize("t", [0.5, -0.5, 2.0, 1.3, 3.7])
 def test_power_of_tiny_vectors_keeps_their_axis_and_gives_no_nan(t):
     """q**t for vectors below the range: the axis v/|v| kept (θ = π for w < 0), no
