@@ -172,10 +172,11 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
 
 
 def _contig_last(a, dtype):
-    """`a` as `dtype` with a contiguous last axis (needed for complex views)."""
+    """`a` as `dtype` with a contiguous last axis (needed for complex views) and no negative
+    strides (NumPy's complex64 multiply rounds differently on reversed views)."""
     if a.dtype != dtype:
         return a.astype(dtype)
-    if a.strides[-1] != a.itemsize:
+    if a.strides[-1] != a.itemsize or any(s < 0 for s in a.strides):
         return np.ascontiguousarray(a)
     return a
 
@@ -189,8 +190,8 @@ def hamilton(a, b, c, d, o0, o1, t, u):
     may overlap the inputs or each other.  Complex arrays only, and no
     multiply writes over its own input: NumPy's complex array multiply gives
     the same bits for every length, stride and broadcast, except a length-1
-    multiply in place and scalar (or Python complex) multiplies, which round
-    differently.
+    multiply in place, scalar (or Python complex) multiplies and complex64
+    views with negative strides, which round differently.
 
     >>> import numpy as np
     >>> from quatarray._kernels import hamilton
