@@ -686,6 +686,99 @@ def test_zarr_messages_name_the_users_path(store, capsys):
     assert sorted(os.listdir(tmp)) == ["file.zarr", "in.zarr"]
 
 
+def test_outputs_inside_the_input_or_holding_it_are_refused(store, capsys):
+    """An output inside the input's store, or a store holding the input, is refused even with
+    --force (its replacement deleted the input), on local paths and URLs alike; the input and
+    the folder are left as they were."""
+    from quatarray.cli import main
+    from quatarray.formats import FormatError, read_zarr, resample_zarr, write_zarr
+    tmp, _, keys = store
+    outer = tmp / "outer.zarr"
+    for src, out in ((tmp / "in.zarr", tmp / "in.zarr" / "sub.zarr"), (tmp / "in.zarr", tmp / "in.zarr" / "x.csv"),
+                     (outer / "in.zarr", outer)):
+        if src.parent == outer:
+            outer.mkdir(exist_ok=True)
+            write_zarr(src, read_zarr(tmp / "in.zarr"), force=True)
+        before = sorted(os.listdir(src))
+        assert main(["resample", str(src), "-o", str(out), "--fps", "2", "--force"]) == 2
+        assert capsys.readouterr().err == f"quatarray: error: {out}: lies inside the input, or holds it: write elsewhere\n"
+        assert sorted(os.listdir(src)) == before
+        np.testing.assert_array_equal(read_zarr(src).keys, keys)
+    write_zarr("memory://nest/in.zarr", read_zarr(tmp / "in.zarr"), force=True)
+    with pytest.raises(FormatError, match="lies inside the input, or holds it"):
+        resample_zarr("memory://nest/in.zarr", "memory://nest/in.zarr/sub.zarr", fps=2, progress=False, force=True)
+
+
+def test_an_object_where_a_store_goes_is_never_replaced(store):
+    """On an object store as on a disk, a file (an object) at OUT.zarr is not replaced, even with
+    force; a store there is."""
+    import fsspec
+    from quatarray.formats import read_zarr, write_zarr
+    tmp, _, keys = store
+    kf = read_zarr(tmp / "in.zarr")
+    fsspec.filesystem("memory").pipe("/objects/file.zarr", b"data")
+    with pytest.raises(FileExistsError, match="exists and is not a Zarr store"):
+        write_zarr("memory://objects/file.zarr", kf, force=True)
+    assert fsspec.filesystem("memory").cat("/objects/file.zarr") == b"data"
+    write_zarr("memory://objects/out.zarr", kf)
+    write_zarr("memory://objects/out.zarr", kf, force=True)
+    np.testing.assert_array_equal(read_zarr("memory://objects/out.zarr").keys, keys)
+
+
+def test_a_store_moved_aside_comes_back_when_the_new_one_cannot_take_its_place(store, monkeypatch):
+    """Replacing a local store moves it aside, then renames the new one onto it: a failure (or an
+    interrupt) between the two puts the old store back, and leaves no temporary folder."""
+    from quatarray.formats import read_zarr, write_zarr
+    from quatarray.formats import zarr as _zarr
+    tmp, _, keys = store
+    kf = read_zarr(tmp / "in.zarr")
+    out = tmp / "out.zarr"
+    write_zarr(out, kf)
+    real = os.replace
+    calls = []
+
+    def failing(a, b):
+        if os.fspath(a).endswith(".part") and os.fspath(b) == str(out):   # the new store onto OUT
+            calls.append(a)
+            raise KeyboardInterrupt
+        return real(a, b)
+
+    monkeypatch.setattr(_zarr.os, "replace", failing)
+    with pytest.raises(KeyboardInterrupt):
+        write_zarr(out, kf, force=True)
+    monkeypatch.setattr(_zarr.os, "replace", real)
+    assert len(calls) == 1
+    np.testing.assert_array_equal(read_zarr(out).keys, keys)
+    assert sorted(os.listdir(tmp)) == ["in.zarr", "out.zarr"]
+
+
+def test_a_copy_onto_an_object_store_cut_short_keeps_the_new_store(store, monkeypatch):
+    """On an object store the old OUT is removed before the new store is copied under it: a copy
+    cut short keeps the new store's temporary prefix (the error names it), and a rerun with
+    force replaces the incomplete OUT."""
+    import fsspec
+    from quatarray.formats import read_zarr, write_zarr
+    tmp, _, keys = store
+    kf = read_zarr(tmp / "in.zarr")
+    write_zarr("memory://cut/out.zarr", kf)
+    mem = type(fsspec.filesystem("memory"))
+    real = mem.copy
+
+    def cut(self, *args, **kwargs):   # the chunks arrive, the metadata does not
+        if str(args[0]).endswith("zarr.json"):
+            raise KeyboardInterrupt
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(mem, "copy", cut)
+    with pytest.raises(KeyboardInterrupt) as info:
+        write_zarr("memory://cut/out.zarr", kf, force=True)
+    monkeypatch.setattr(mem, "copy", real)
+    kept = re.search(r"kept at (\S+);", " ".join(info.value.__notes__)).group(1)
+    np.testing.assert_array_equal(read_zarr(kept).keys, keys)
+    write_zarr("memory://cut/out.zarr", kf, force=True)
+    np.testing.assert_array_equal(read_zarr("memory://cut/out.zarr").keys, keys)
+
+
 @pytest.mark.filterwarnings("ignore:The data type")    # zarr on fixed-length strings
 @pytest.mark.parametrize("damage, message", [
     ("complex", "expected 'keys' of real numbers, got dtype complex128"),

@@ -17,7 +17,7 @@ import numpy as np
 
 from . import bvh, csv, gltf, npz, zarr
 from .keyframes import fps_times, read_times, resample_keyframes
-from .text import FormatError, TextStyle, echo, not_a_store, option, refuse_existing, same_file
+from .text import FormatError, TextStyle, echo, nested, not_a_store, option, refuse_existing, same_file
 
 __all__ = ["Format", "FORMATS", "format_of", "resample_file"]
 
@@ -195,7 +195,10 @@ def formats_of(src, dst):
 def check_output(src, dst, kind_out, force):
     """The overwrite rule, for every command that writes a file: an existing `dst` only with `force`;
     `dst` equal to `src` only with `force` and only where the format replaces its input atomically;
-    never a file where a store (a directory) goes, or the reverse."""
+    never a file where a store (a directory) goes, or the reverse, nor `dst` inside the input's
+    store or holding the input (whose replacement would delete it)."""
+    if nested(src, dst):
+        raise FormatError("lies inside the input, or holds it: write elsewhere", dst)
     if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
         if FORMATS[kind_out].directory:
             raise not_a_store(dst, FORMATS[kind_out].name)

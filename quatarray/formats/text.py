@@ -10,7 +10,7 @@
 - `echo`: a value quoted in a message, cut to about 60 characters;
 - `option`: an option named as the caller spells it (``--force`` on the
   command line, ``force=True`` in Python; `command_line` switches).
-- `refuse_existing`, `same_file`: the overwrite rule's wording and its test
+- `refuse_existing`, `same_file`, `nested`: the overwrite rule's wording and its tests
   of whether an output is the input.
 
 `FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
@@ -121,6 +121,17 @@ def same_file(a, b):
         return os.path.samefile(a, b)
     except OSError:
         return False
+
+
+def nested(a, b):
+    """Whether paths `a` and `b` are two places one inside the other (a file or store within a
+    store's folder, or the reverse), links resolved; False for one and the same path.
+
+    >>> nested("in.zarr", "in.zarr/sub.zarr"), nested("in.zarr", "in.zarr"), nested("a.csv", "a.csv.zarr")
+    (True, False, False)
+    """
+    ra, rb = (os.path.realpath(os.fspath(x)) for x in (a, b))
+    return ra != rb and (ra.startswith(rb.rstrip(os.sep) + os.sep) or rb.startswith(ra.rstrip(os.sep) + os.sep))
 
 
 def not_a_store(name, store):

@@ -126,6 +126,18 @@ class _Location:
     def exists(self):
         return os.path.lexists(self.path) if self.local else self.fs.exists(self.path)
 
+    def nests(self, other):
+        """Whether this store and `other` are two places one inside the other (on one filesystem)."""
+        (kind, a), (other_kind, b) = self.key(), other.key()
+        sep = os.sep if kind == "file" else "/"
+        return (kind == other_kind and a != b
+                and (a.startswith(b.rstrip(sep) + sep) or b.startswith(a.rstrip(sep) + sep)))
+
+    def is_folder(self):
+        """Whether what is at this location is a folder (on an object store: a prefix, not an
+        object): what `force` may replace by a store, where a file never is."""
+        return os.path.isdir(self.path) if self.local else not self.fs.isfile(self.path)
+
     def store(self, path=None):
         """Arguments of `zarr.open_group` for this store (or for `path` on its filesystem)."""
         path = self.path if path is None else path
@@ -402,6 +414,8 @@ class _Queries:
 def _atomic(loc, force):
     """Yield the `_Location`-style zarr arguments of a temporary store; move it onto `loc` on success,
     remove it on failure.  OS errors name the user's store, never the temporary one."""
+    if loc.exists() and not loc.is_folder():   # never replace a file (an object) by a store
+        raise not_a_store(loc.name, "Zarr")
     if loc.local:
         context = _atomic_dir(loc.path, loc.name, force)
     else:
@@ -425,18 +439,21 @@ def _atomic_dir(path, name, force):
         raise not_a_store(name, "Zarr")
     refuse_existing(os.path.lexists(path), name, force)
     tmp = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
+    old = None
     try:
         yield {"store": tmp}
         if os.path.lexists(path):   # a store there: move it aside first, then drop it
             old = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".old")
             os.replace(path, os.path.join(old, "store"))
-            os.replace(tmp, path)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, path)
-    except BaseException:
+        os.replace(tmp, path)
+    except BaseException:   # (an interrupt too): the old store back where it was, if it was moved
+        if old is not None and not os.path.lexists(path) and os.path.lexists(os.path.join(old, "store")):
+            os.replace(os.path.join(old, "store"), path)
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
 
 
 @contextlib.contextmanager
@@ -447,9 +464,11 @@ def _atomic_prefix(loc, force):
     refuse_existing(fs.exists(loc.path), loc.name, force)
     parent, _, base = loc.path.rpartition("/")
     tmp = f"{parent}/.{base}.{uuid.uuid4().hex[:8]}.part"
+    committing = False
     try:
         yield loc.store(tmp)
         objects = sorted(fs.find(tmp))
+        committing = True
         if fs.exists(loc.path):
             _remove(fs, loc.path)
         # chunks, then each array's zarr.json, then the group's: readers see all or nothing
@@ -459,9 +478,16 @@ def _atomic_prefix(loc, force):
             fs.copy(data, [loc.path + p[len(tmp):] for p in data])
         for p in order[len(data):]:
             fs.copy(p, loc.path + p[len(tmp):])
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            fs.rm(tmp, recursive=True)
+    except BaseException as exc:
+        if committing:   # the old store may be gone: the new one, complete, is kept where it was written
+            exc.add_note(f"quatarray: the complete new store is kept at {fs.unstrip_protocol(tmp)}; "
+                         f"{loc.name} may be incomplete (rerun with force)")
+        else:
+            with contextlib.suppress(FileNotFoundError):
+                fs.rm(tmp, recursive=True)
+        raise
+    with contextlib.suppress(FileNotFoundError):
+        fs.rm(tmp, recursive=True)
 
 
 def _remove(fs, path):
@@ -618,6 +644,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
         if loc is not None and loc.key() == loc_out.key():
             raise FormatError(f"is the {what}; Zarr outputs are written while the {what} is read, so they "
                               "cannot replace it (even when forced): write elsewhere, then rename", loc_out.name)
+        if loc is not None and loc.nests(loc_out):
+            raise FormatError(f"lies inside the {what}, or holds it: write elsewhere", loc_out.name)
     key_times, keys, names = _read(loc_in)
     check_query(key_times, np.empty(0), extrapolate)     # at least 2 keys
     batch = keys.shape[1:-1]
