@@ -14,7 +14,7 @@ import numpy as np
 from . import _blocks, _convert, _kernels
 from ._validate import all_finite, float_array
 
-__all__ = ["mean", "chordal_sums", "reduce", "align"]
+__all__ = ["mean", "dominant", "weight_exponents", "chordal_sums", "reduce", "align"]
 
 
 def mean(q, weights, axes, unit=False):
@@ -24,12 +24,17 @@ def mean(q, weights, axes, unit=False):
     the rows are known to be unit quaternions (`Rotation`'s storage)."""
     if weights is not None:
         weights = _weights_in_range(np.broadcast_to(weights, q.shape[:-1]), axes)
-    # the 4x4 matrix in scipy's (x, y, z, w) order, so that ties (all weights zero) resolve as in
-    # scipy; both reorderings are one `take` from the 16 flat entries (a fifth of fancy indexing)
-    k = chordal_sums(q, weights, axes, unit=unit)
+    return dominant(chordal_sums(q, weights, axes, unit=unit), q.dtype)
+
+
+def dominant(k, dtype):
+    """The mean rotations of chordal sums `k` (..., 4, 4), (w, x, y, z) order: the dominant
+    eigenvectors, canonical, in `dtype`.  The matrix is taken in scipy's (x, y, z, w) order, so
+    that ties (all weights zero) resolve as in scipy; both reorderings are one `take` from the
+    16 flat entries (a fifth of fancy indexing)."""
     _, vectors = np.linalg.eigh(np.take(k.reshape(k.shape[:-2] + (16,)), _XYZW_ENTRIES, axis=-1))
     last = np.take(vectors.reshape(k.shape[:-2] + (16,)), _WXYZ_LAST, axis=-1)
-    return _convert.canonical(last).astype(q.dtype, copy=False)
+    return _convert.canonical(last).astype(dtype, copy=False)
 
 
 _XYZW = np.array([1, 2, 3, 0])
@@ -43,10 +48,16 @@ def _weights_in_range(w, axes):
     ``w q qᵀ`` could overflow or its products underflow (weights of 1.5e308 gave the identity):
     the mean does not depend on their scale.  Ordinary weights are returned as they are."""
     wmax = np.max(w, axis=axes, keepdims=True)
-    n = prod(w.shape[a] for a in axes)
+    e = weight_exponents(wmax, prod(w.shape[a] for a in axes))
+    return w if e is None else np.ldexp(w, -e)
+
+
+def weight_exponents(wmax, n):
+    """The powers of two to divide weights by, per mean, from their largest `wmax` over `n`
+    rotations: None where every mean's weights are ordinary (0, or within 2**±900 over n)."""
     if np.all((wmax == 0) | ((wmax >= 2.0 ** -900) & (wmax <= 2.0 ** 900 / n))):
-        return w
-    return np.ldexp(w, -np.frexp(wmax)[1])
+        return None
+    return np.frexp(wmax)[1]
 
 
 def chordal_sums(q, weights, axes, name="rotations to average", unit=False):

@@ -55,7 +55,7 @@ except ImportError as exc:  # pragma: no cover - exercised by a monkeypatched im
     raise ImportError("quatarray.dask needs the optional dependency dask[array]: "
                       "pip install 'quatarray[dask]'") from exc
 
-from . import _convert, _euler, _interp_kernels, _kernels
+from . import _convert, _euler, _interp_kernels, _kernels, _rotation_algorithms
 from ._validate import all_finite, batch_axis
 from .interpolate import Track as _MemoryTrack
 
@@ -558,22 +558,25 @@ def unflip(q, axis=0):
 
 # --------------------------------------------------------------------------- mean
 
-def _chordal_sum(q, w):
-    """Σ w q qᵀ / |q|² over a whole block (float64, shape (1, ..., 1, 4, 4))."""
-    q64 = _finite(q, "q").astype(np.float64, copy=False)
-    scale = np.broadcast_to(w, q.shape[:-1]) / np.einsum("...i,...i->...", q64, q64)
-    flat = q64.reshape(-1, 4)
-    k = (flat * scale.reshape(-1, 1)).T @ flat
+def _chordal_sum(q, w, wmax, n):
+    """Σ w q qᵀ over a whole block of rows normalised as `Rotation.mean`'s (at any magnitude;
+    NaN and inf raise the module's ValueError, zero rows its), the weights scaled as its (by
+    the largest of all, `wmax`, over `n` rotations): float64, shape (1, ..., 1, 4, 4)."""
+    c = _convert.from_quat(_finite(q, "q").astype(np.float64, copy=False).reshape(-1, 4), scalar_first=True, name="q")
+    w = np.broadcast_to(w, q.shape[:-1]).reshape(-1).astype(np.float64, copy=False)
+    e = _rotation_algorithms.weight_exponents(np.asarray(wmax, np.float64), n)
+    if e is not None:
+        w = np.ldexp(w, -e)
+    k = (c * w[:, None]).T @ c
     return k.reshape((1,) * (q.ndim - 1) + (4, 4))
 
 
 def _dominant(k, dtype):
-    _, vectors = np.linalg.eigh(k)
-    return _convert.canonical(vectors[..., -1]).astype(dtype)
+    return _rotation_algorithms.dominant(k, dtype)
 
 
 def mean(q, weights=None):
-    """Chordal L2 mean of all the rotations `q`: the dominant eigenvector of Σ wᵢ qᵢ qᵢᵀ / |qᵢ|².
+    """Chordal L2 mean of all the rotations `q`: the dominant eigenvector of Σ wᵢ q̂ᵢ q̂ᵢᵀ.
 
     A blockwise reduction: each chunk gives its 4x4 sum, Dask sums those in a
     tree, and one 4x4 eigenvector problem gives the mean (canonical sign,
@@ -613,9 +616,12 @@ def mean(q, weights=None):
         raise ValueError(f"Expected `weights` to be broadcastable to rotation shape: got weights of shape "
                          f"{w.shape} for rotations of shape {q.shape[:-1]}")
     ix = _LETTERS[:nb]
-    parts = da.blockwise(_chordal_sum, ix + "yz", q, ix + "x", w, ix[nb - w.ndim:], new_axes={"y": 4, "z": 4},
-                         adjust_chunks={c: 1 for c in ix}, concatenate=True, dtype=np.float64,
-                         meta=np.empty((0,) * (nb + 2)))
+    n = np.prod(q.shape[:-1])
+    n = int(n) if np.isfinite(n) else 2 ** 62    # unknown chunk sizes: as many as may be summed
+    wmax = w.max() if weights is not None else 1.0    # (one more pass over the weights, not the rotations)
+    parts = da.blockwise(_chordal_sum, ix + "yz", q, ix + "x", w, ix[nb - w.ndim:], wmax, None, n, None,
+                         new_axes={"y": 4, "z": 4}, adjust_chunks={c: 1 for c in ix}, concatenate=True,
+                         dtype=np.float64, meta=np.empty((0,) * (nb + 2)))
     k = parts.sum(axis=tuple(range(nb)))
     return k.map_blocks(partial(_dominant, dtype=q.dtype), drop_axis=1, dtype=q.dtype,
                         meta=np.empty((0,), q.dtype))

@@ -178,6 +178,22 @@ def test_mean_reduction_equals_memory(rng, scheduler, chunks, dtype):
     assert len(parts) == np.prod([len(c) for c in chunked(q, chunks).chunks[:-1]])
 
 
+@pytest.mark.parametrize("scale, weights", [(1e160, None), (1e-160, None), (1.0, "huge"), (1.0, "tiny"),
+                                            (1.0, "zeros")])
+def test_mean_at_extreme_scales_as_rotation_mean(rng, scale, weights):
+    """Rotations of any norm and weights of any size give Rotation.mean's answer: the rows are
+    normalised as its are (|q|² had overflowed to the identity or underflowed to an eigensolver
+    failure) and the weights scaled by the largest of all; zero weights give its identity."""
+    q = unit(rng, (30,), np.float64) * 0.4
+    w = {None: None, "huge": np.full(30, 1e308), "tiny": np.where(np.arange(30) == 7, 1e-320, 0.0),
+         "zeros": np.zeros(30)}[weights]
+    ref = quats(Rotation.from_quat(q, scalar_first=True).mean(w))
+    got = qd.mean(chunked(q * scale, ((10, 20), (4,))), w).compute()
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-14)
+    with pytest.raises(ValueError, match="expected non-zero quaternions"):
+        qd.mean(chunked(np.array([[0.0, 0, 0, 0], [1, 0, 0, 0]]), ((1, 1), (4,)))).compute()
+
+
 def test_mean_docstring_names_the_mean_it_computes(rng):
     """dask.mean is the chordal mean of Rotation.mean; its docstring pointed at QuatArray.mean, the
     arithmetic mean of the components, which it is not."""
