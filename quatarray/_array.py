@@ -406,10 +406,7 @@ class QuatArray(np.ndarray):
             except ValueError:
                 raise ValueError(f"expected v of a batch shape that broadcasts with the quaternions' "
                                  f"{q.shape[:-1]}, got v of batch shape {v.shape[:-1]}") from None
-        res = _kernels.rotate(q, v)
-        if not all_finite(res) and all_finite(q):
-            raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
-        return res
+        return _kernels.rotate_nonzero(q, v)
 
     @classmethod
     def identity(cls, num=None, *, shape=None, dtype=np.float64):

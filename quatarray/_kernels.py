@@ -18,7 +18,7 @@ from ._validate import all_finite
 __all__ = [
     "result_dtype", "ANGLE_FLOOR", "cos_sin", "half_angle", "arctan2",
     "hamilton", "multiply", "multiply_rows", "conjugate", "sqnorm", "norm",
-    "normalize", "inverse", "dot", "exp", "log", "power", "rotate",
+    "normalize", "inverse", "dot", "exp", "log", "power", "rotate", "rotate_nonzero",
 ]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
@@ -868,6 +868,15 @@ _rotated_floats = _ops.compiled(
     lambda op, rows, w, x, y, z, ux, uy, uz, s: _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux],
                                                          [uz, ux, uy], s, rows, None, _ops.NONE, None, None), 8)
 """`_rotated` on one pair's floats ``(w, x, y, z, ux, uy, uz, s)`` (`_ops.compiled`)."""
+
+
+def rotate_nonzero(q, v, inverse=False):
+    """`rotate`, refusing zero quaternions (their NaN) with the API's `ValueError`: finite q and
+    v give finite vectors otherwise."""
+    res = rotate(q, v, inverse=inverse)
+    if not all_finite(res) and all_finite(q):
+        raise ValueError("expected non-zero quaternions to rotate by, got a zero quaternion")
+    return res
 
 
 def rotate_block(q, u, o, add=None, *, wsign, unit=False):

@@ -264,7 +264,7 @@ def rotate(q, v, inverse=False):
     array([[0., 1., 0.]])
     """
     q, v = _quat(q, "q"), _array(v, "v", 1, (3,))
-    return _apply(_kernels.rotate, ("q", "v"), [q, v], (1, 1), (3,), _kernels.result_dtype(q.dtype, v.dtype),
+    return _apply(_kernels.rotate_nonzero, ("q", "v"), [q, v], (1, 1), (3,), _kernels.result_dtype(q.dtype, v.dtype),
                   inverse=bool(inverse))
 
 

@@ -194,6 +194,19 @@ def test_mean_at_extreme_scales_as_rotation_mean(rng, scale, weights):
         qd.mean(chunked(np.array([[0.0, 0, 0, 0], [1, 0, 0, 0]]), ((1, 1), (4,)))).compute()
 
 
+def test_rotate_by_a_zero_quaternion_is_refused_as_in_memory():
+    """A zero quaternion gives NaN in the rotation formula: refused as QuatArray.rotate refuses
+    it (the same function), in the chunk that holds it; the other chunks compute."""
+    from quatarray import QuatArray
+    q = np.array([[1.0, 0, 0, 0], [0, 0, 0, 0]])
+    with pytest.raises(ValueError, match="expected non-zero quaternions to rotate by") as mem:
+        QuatArray(q).rotate(np.ones(3))
+    lazy = qd.rotate(chunked(q, ((1, 1), (4,))), np.ones(3))
+    with pytest.raises(ValueError, match=re.escape(str(mem.value))):
+        lazy.compute()
+    np.testing.assert_array_equal(lazy[:1].compute(), [[1.0, 1, 1]])
+
+
 def test_mean_docstring_names_the_mean_it_computes(rng):
     """dask.mean is the chordal mean of Rotation.mean; its docstring pointed at QuatArray.mean, the
     arithmetic mean of the components, which it is not."""
