@@ -269,6 +269,13 @@ class QuatArray(np.ndarray):
         res = _raw(self).astype(dtype, *args, **kwargs)
         return res.view(type(self)) if res.dtype in (np.float32, np.float64) else res
 
+    def view(self, *args, **kwargs):
+        """As ndarray's; a view that is no longer (..., 4) float32 or float64 is a plain ndarray."""
+        res = super().view(*args, **kwargs)
+        if isinstance(res, QuatArray) and (res.dtype not in (np.float32, np.float64) or res.shape[-1:] != (4,)):
+            return res.view(np.ndarray)
+        return res
+
     # --- reductions: the methods are the NumPy functions ----------------------------
     def mean(self, *args, **kwargs):
         """Arithmetic mean over batch axes, exactly ``np.mean(q, ...)`` (not normalised;
@@ -600,6 +607,25 @@ class QuatArray(np.ndarray):
 
 # --- operand handling ------------------------------------------------------------
 
+def _method_as_function(name):
+    """ndarray method `name` as the NumPy function of that name (``q.take(...)`` is ``np.take(q,
+    ...)``), so that it follows the function's quaternion meaning or raises its `TypeError`:
+    ndarray's own method worked on the components (``q.sort()`` sorted inside each quaternion)."""
+    func = getattr(np, name)
+
+    def method(self, *args, **kwargs):
+        return func(self, *args, **kwargs)
+
+    method.__name__ = method.__qualname__ = name   # (no docstring: ndarray's API, kept silent in the docs)
+    return method
+
+
+for _name in ("take", "repeat", "sort", "argsort", "partition", "argpartition", "searchsorted", "argmax",
+              "argmin", "max", "min", "diagonal", "trace", "compress", "cumsum", "cumprod", "nonzero"):
+    setattr(QuatArray, _name, _method_as_function(_name))
+del _name
+
+
 def _operand(x, name):
     """Raw quaternion array of a QuatArray operand; plain arrays are refused."""
     if isinstance(x, QuatArray):
@@ -918,6 +944,14 @@ def _take(a, indices, axis=None, out=None, mode="raise"):
         raw, axis = raw.reshape(-1, 4), 0
     res = np.take(raw, _plain(indices), axis=_batch_axis(axis, raw.ndim - 1), mode=mode)
     return _finish(res, out)
+
+
+@_implements(BATCH_FUNCTIONS, np.repeat)
+def _repeat(a, repeats, axis=None):
+    raw = _operand(a, "a")
+    if axis is None:
+        raw, axis = raw.reshape(-1, 4), 0
+    return QuatArray._wrap(np.repeat(raw, _plain(repeats), axis=_batch_axis(axis, raw.ndim - 1)))
 
 
 @_implements(BATCH_FUNCTIONS, np.flip)

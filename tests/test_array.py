@@ -391,6 +391,29 @@ def test_batch_functions(rng, dtype):
     assert not np.shares_memory(np.copy(p), p)
 
 
+def test_ndarray_methods_follow_the_functions(rng):
+    """ndarray's methods of the NumPy functions' names are those functions: whole quaternions
+    for take and repeat, TypeError for those without a quaternion meaning (q.sort() sorted the
+    components of each quaternion; q.argsort() and q.diagonal() made QuatArrays that are not
+    (..., 4)), and a view that is no longer (..., 4) float is a plain ndarray."""
+    q = QuatArray(rng.normal(size=(3, 2, 4)))
+    np.testing.assert_array_equal(q.take([2, 0], axis=0).ndarray, q.ndarray[[2, 0]])
+    np.testing.assert_array_equal(q.take([5]).ndarray, q.ndarray.reshape(-1, 4)[[5]])
+    rep = q.repeat(2, axis=1)
+    assert type(rep) is QuatArray and rep.shape == (3, 4, 4)
+    np.testing.assert_array_equal(rep.ndarray[:, ::2], q.ndarray)
+    np.testing.assert_array_equal(q.repeat(2).ndarray, np.repeat(q.ndarray.reshape(-1, 4), 2, axis=0))
+    before = q.ndarray.copy()
+    for name in ("sort", "argsort", "argmax", "argmin", "max", "min", "diagonal", "cumsum", "cumprod", "nonzero",
+                 "searchsorted", "partition", "trace", "compress"):
+        args = {"searchsorted": (0.5,), "partition": (1,), "compress": ([True],)}.get(name, ())
+        with pytest.raises(TypeError, match="has no quaternion meaning"):
+            getattr(q, name)(*args)
+    np.testing.assert_array_equal(q.ndarray, before)
+    assert type(q.view(np.complex128)) is np.ndarray and type(q[..., :2].view(np.float64)) is np.ndarray
+    assert type(q.view(np.ndarray)) is np.ndarray and type(q.ndarray.view(QuatArray)) is QuatArray
+
+
 def test_comparison_functions(rng):
     p = qa(rng, (3,))
     q = p.copy()

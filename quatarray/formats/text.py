@@ -127,6 +127,7 @@ def nested(a, b):
     """Whether paths `a` and `b` are two places one inside the other (a file or store within a
     store's folder, or the reverse), links resolved; False for one and the same path.
 
+    >>> from quatarray.formats.text import nested
     >>> nested("in.zarr", "in.zarr/sub.zarr"), nested("in.zarr", "in.zarr"), nested("a.csv", "a.csv.zarr")
     (True, False, False)
     """
