@@ -657,6 +657,14 @@ def _finish_plain(res, out):
     return out
 
 
+def _keepdims(s, q):
+    """A real array of the quaternions' ndim whose last axis has length 1 (a reduction over the
+    components with ``keepdims=True``, as in ``q / np.linalg.norm(q.ndarray, axis=-1,
+    keepdims=True)``): that axis broadcasts over the components, as NumPy's would, instead of
+    counting as one more batch axis (which made an (n, n) batch)."""
+    return s[..., 0] if isinstance(s, np.ndarray) and 0 < s.ndim == q.ndim and s.shape[-1] == 1 else s
+
+
 def _lift(s, dtype_like):
     """A real operand as a real quaternion (s, 0, 0, 0) of batch shape."""
     s = np.asarray(s, dtype=np.result_type(dtype_like, s) if isinstance(s, np.ndarray) else dtype_like.dtype)
@@ -706,8 +714,8 @@ def _finite_result(res, *named):
 def _binary(ufunc, a, b, out=None):
     qa, qb = isinstance(a, QuatArray), isinstance(b, QuatArray)
     name = ufunc.__name__
-    A = _raw(a) if qa else _real(a, "left operand of " + name)
-    B = _raw(b) if qb else _real(b, "right operand of " + name)
+    A = _raw(a) if qa else _keepdims(_real(a, "left operand of " + name), _raw(b))
+    B = _raw(b) if qb else _keepdims(_real(b, "right operand of " + name), A)
     _check_batches(ufunc, A, qa, B, qb)
     if ufunc in (np.equal, np.not_equal):   # comparisons accept nan (nan != nan)
         if not qa:

@@ -391,6 +391,23 @@ def test_batch_functions(rng, dtype):
     assert not np.shares_memory(np.copy(p), p)
 
 
+def test_a_keepdims_operand_broadcasts_over_the_components(rng, dtype):
+    """q / np.linalg.norm(q.ndarray, axis=-1, keepdims=True), NumPy's idiom, divides each
+    quaternion by its norm, as NumPy divides the (n, 4) components (it made an (n, n) batch);
+    a last axis of another length stays a batch axis."""
+    q = QuatArray(rng.normal(size=(50, 4)).astype(dtype))
+    norms = np.linalg.norm(q.ndarray, axis=-1, keepdims=True)
+    for got in (q / norms, q * (1 / norms), (1 / norms) * q):
+        assert type(got) is QuatArray and got.shape == (50, 4)
+        np.testing.assert_allclose(got.ndarray, q.ndarray / norms, rtol=2 * np.finfo(dtype).eps)
+    p = q.copy()
+    p /= norms
+    np.testing.assert_array_equal(p.ndarray, (q / norms).ndarray)
+    with pytest.raises(ValueError, match="broadcastable batch shapes"):   # as NumPy's (50, 4) * (7, 1)
+        q * np.ones((7, 1))
+    assert (q[:, None] * np.ones((50, 2))).shape == (50, 2, 4)          # a batch-shaped operand, as before
+
+
 def test_ndarray_methods_follow_the_functions(rng):
     """ndarray's methods of the NumPy functions' names are those functions: whole quaternions
     for take and repeat, TypeError for those without a quaternion meaning (q.sort() sorted the
