@@ -57,7 +57,7 @@ def _real(x, name):
     """
     if isinstance(x, QuatArray):
         return _raw(x)
-    if isinstance(x, (int, float)):
+    if type(x) in (int, float):   # (exactly: a NumPy scalar such as np.float64 is strong, as in NumPy)
         return x
     return float_array(x, name)
 
@@ -218,8 +218,10 @@ class QuatArray(np.ndarray):
         return res.view(type(self))
 
     def __repr__(self):
-        body = np.array2string(_raw(self), separator=", ", prefix="QuatArray(")
         suffix = "" if self.dtype == np.float64 else f", dtype={self.dtype}"
+        if not self.size:   # (``[]`` would lose the shape, and read back as shape (0,))
+            return f"QuatArray(np.zeros({self.shape}){suffix})"
+        body = np.array2string(_raw(self), separator=", ", prefix="QuatArray(")
         return f"QuatArray({body}{suffix})"
 
     def __str__(self):
@@ -746,6 +748,8 @@ def _compute(ufunc, A, qa, B, qb, a, b):
         if qb:
             Binv = _kernels.inverse(B)
             return _kernels.multiply(A, Binv) if qa else _per_quat(A) * Binv
+        if not np.all(B):   # as dividing by the zero quaternion (1/0 gave inf, 0/0 NaN)
+            raise ZeroDivisionError("quaternion division: expected non-zero real divisors, got 0")
         return np.divide(A, _per_quat(B))
     if ufunc in (np.add, np.subtract):
         if not qa:

@@ -408,6 +408,34 @@ def test_a_keepdims_operand_broadcasts_over_the_components(rng, dtype):
     assert (q[:, None] * np.ones((50, 2))).shape == (50, 2, 4)          # a batch-shaped operand, as before
 
 
+def test_division_by_a_real_zero_raises_as_by_the_zero_quaternion():
+    """q / 0 gave inf and NaN with a warning, where q / QuatArray(0) raises: both raise now,
+    whatever the dtype, the divisor's shape or the operator's form."""
+    q = QuatArray([[1.0, 2, 3, 4], [0, 0, 0, 0]])
+    for divisor in (0, 0.0, np.float32(0), np.array([1.0, 0.0]), [0.0, 2.0]):
+        with pytest.raises(ZeroDivisionError, match="expected non-zero real divisors, got 0"):
+            q / divisor
+        with pytest.raises(ZeroDivisionError):
+            np.divide(q, divisor)
+    p = q.copy()
+    with pytest.raises(ZeroDivisionError):
+        p /= 0
+    np.testing.assert_array_equal(p.ndarray, q.ndarray)   # nothing written
+    np.testing.assert_array_equal((q / np.array([2.0, 4.0])).ndarray, q.ndarray / [[2.0], [4.0]])
+
+
+def test_numpy_scalars_promote_as_numpy_and_empty_reprs_read_back():
+    """np.float64 is a strong scalar in NumPy (NEP 50) for every operator, where + and -
+    treated it as a Python float; an empty batch's repr keeps its shape and reads back."""
+    q32 = QuatArray(np.ones((2, 4), np.float32))
+    for op in (np.add, np.subtract, np.multiply, np.divide):
+        assert op(q32, np.float64(2)).dtype == op(q32.ndarray, np.float64(2)).dtype == np.float64
+        assert op(q32, 2.0).dtype == np.float32 and op(q32, np.float32(2)).dtype == np.float32
+    for empty in (QuatArray(np.zeros((2, 0, 4))), QuatArray(np.zeros((0, 4), np.float32))):
+        back = eval(repr(empty), {"QuatArray": QuatArray, "np": np, "float32": np.float32})
+        assert back.shape == empty.shape and back.dtype == empty.dtype
+
+
 def test_ndarray_methods_follow_the_functions(rng):
     """ndarray's methods of the NumPy functions' names are those functions: whole quaternions
     for take and repeat, TypeError for those without a quaternion meaning (q.sort() sorted the
