@@ -213,16 +213,13 @@ def build_parser():
                    help="replace an existing OUT, also when it is IN (not for Zarr stores, which are written "
                         "while IN is read)")
     p.add_argument("--scheduler", metavar="ADDRESS", help=".zarr to .zarr: run on this distributed scheduler")
-    p.add_argument("--storage-option", metavar="KEY=VALUE", action="append", type=_storage_option, default=[],
-                   dest="storage_options",
-                   help="Zarr stores given as URLs (s3://..., gs://..., memory://...): an option of their "
-                        "filesystem, e.g. endpoint_url=http://127.0.0.1:9000 or anon=true (VALUE is read as "
-                        "JSON when it parses, else as text); repeat for several")
+    _add_storage_option(p)
     p.add_argument("--quiet", action="store_true", help=".zarr to .zarr: no progress bar")
     p.set_defaults(run=_run_resample)
 
     p = commands.add_parser(
-        "reduce", help="keep fewer keys, every track within an angular tolerance (.csv, .npz, .bvh, .gltf, .glb)",
+        "reduce", help="keep fewer keys, every track within an angular tolerance (.csv, .npz, .zarr, .bvh, .gltf, "
+                       ".glb)",
         description="Drop keys while the curve through the kept ones stays within --tolerance of every "
                     "original key, and print keys before and after and the largest error per track. "
                     "CSV and NPZ tracks keep one shared set of key times (the kept rows are written as read). "
@@ -239,6 +236,7 @@ def build_parser():
                    help="curve the reader draws through the keys (default: slerp)")
     p.add_argument("--scalar-last", action="store_true", help="CSV components are x, y, z, w (input and output)")
     p.add_argument("--force", action="store_true", help="replace an existing OUT, also when it is IN")
+    _add_storage_option(p)
     p.set_defaults(run=_run_reduce)
 
     p = commands.add_parser("demo", help="resample a shipped example and plot the angular speed (demo.png)",
@@ -248,6 +246,14 @@ def build_parser():
     p.add_argument("-o", "--output", metavar="DIR", default=".", help="folder for demo.png (default: .)")
     p.set_defaults(run=_run_demo)
     return parser
+
+
+def _add_storage_option(p):
+    p.add_argument("--storage-option", metavar="KEY=VALUE", action="append", type=_storage_option, default=[],
+                   dest="storage_options",
+                   help="Zarr stores given as URLs (s3://..., gs://..., memory://...): an option of their "
+                        "filesystem, e.g. endpoint_url=http://127.0.0.1:9000 or anon=true (VALUE is read as "
+                        "JSON when it parses, else as text); repeat for several")
 
 
 def _run_resample(args):
@@ -279,7 +285,8 @@ def _tolerance(text):
 def _run_reduce(args):
     start = time.perf_counter()
     rows = reduce_file(args.input, args.output, args.tolerance, method=args.method,
-                       scalar_last=args.scalar_last, force=args.force)
+                       scalar_last=args.scalar_last, force=args.force,
+                       storage_options=dict(args.storage_options) or None)
     width = max(len(r[0]) for r in rows) if rows else 0
     for name, before, after, err in rows:
         print(f"  {name:<{width}}  {before} -> {_count(after, 'key')}   max error {np.degrees(err):.4g} deg")
@@ -323,8 +330,16 @@ def main(argv=None):
         message = str(exc)
     except KeyboardInterrupt:
         return 130
+    except Exception as exc:   # an object store's own errors (no credentials, no endpoint): one line too
+        if not type(exc).__module__.split(".")[0] in _STORAGE_PACKAGES:
+            raise
+        message = f"{where}: {type(exc).__name__}: {exc}"
     print("quatarray: error: " + " ".join(message.split()), file=sys.stderr)
     return 2
+
+
+_STORAGE_PACKAGES = {"botocore", "aiobotocore", "s3fs", "gcsfs", "adlfs", "fsspec", "aiohttp", "google"}
+"""Packages whose exceptions are an object store's answer (credentials, network), not a bug of ours."""
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -363,6 +363,25 @@ def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
     assert _s3_objects(s3, "quatarray-test/cli") == ["again.zarr", "in.zarr", "out.zarr"]
 
 
+def test_s3_reduce_and_bad_storage_options_on_the_command_line(s3, rng, tmp_path, capsys):
+    """quatarray reduce reads a store on S3 with --storage-option (it had no such option), and an
+    option the filesystem does not take is one line naming it, exit status 2, not a traceback."""
+    from quatarray.cli import main
+    from quatarray.formats import read_csv
+    times, keys = _s3_input(rng, "s3://quatarray-test/reduce/in.zarr", s3)
+    flags = [arg for k, v in s3.items() for arg in ("--storage-option", f"{k}={json.dumps(v) if isinstance(v, dict) else v}")]
+    out = tmp_path / "red.csv"
+    assert main(["reduce", "s3://quatarray-test/reduce/in.zarr", "-o", str(out), "--tolerance", "0.5deg", *flags]) == 0
+    kept = read_csv(out)
+    assert set(kept.times) <= set(times) and kept.times[0] == times[0] and kept.times[-1] == times[-1]
+    capsys.readouterr()
+    assert main(["resample", "s3://quatarray-test/reduce/in.zarr", "-o", str(tmp_path / "x.csv"), "--fps", "2",
+                 *flags, "--storage-option", "bogus_opt=1"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("quatarray: error: s3://quatarray-test/reduce/in.zarr: storage options [") and \
+        "bogus_opt" in err and err.count("\n") == 1, err
+
+
 def test_s3_quatarray_dask(s3, rng):
     """quatarray.dask on chunks read from and written to an S3-protocol server with dask's
     from_zarr / to_zarr and storage_options."""

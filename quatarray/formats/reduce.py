@@ -25,7 +25,7 @@ from .. import _euler, _reduce
 from ..timeseries import reduce_keys
 from .bvh import resample_motion
 from .keyframes import Keyframes
-from .registry import FORMATS, Request, check_output, format_of, formats_of
+from .registry import FORMATS, Request, check_output, check_storage_options, format_of, formats_of
 from .text import FormatError
 
 __all__ = ["reduce_file", "parse_tolerance"]
@@ -137,7 +137,7 @@ def _reduce_gltf(src, dst, kind_in, kind_out, tolerance, method, request):
 _REDUCERS = {"keyframes": _reduce_keyframes, "BVH": _reduce_bvh, "glTF": _reduce_gltf}
 
 
-def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force=False):
+def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force=False, storage_options=None):
     """Write `dst` with fewer keys than `src`, every track within `tolerance` of its keys.
 
     Parameters
@@ -158,6 +158,8 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
         Replace an existing `dst`, also when it is `src` (atomically), and
         let a ``.gltf`` output's ``.bin`` replace an existing file, as
         `resample_file`: without it an existing `dst` or ``.bin`` is refused.
+    storage_options : dict, optional
+        Options of the filesystems of Zarr stores given as URLs, as `resample_file`.
 
     Returns
     -------
@@ -186,6 +188,7 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     tolerance = parse_tolerance(tolerance) if isinstance(tolerance, str) else float(tolerance)
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"expected tolerance > 0, got {tolerance!r}")
+    check_storage_options(storage_options, kind_in, kind_out, dst)
     check_output(src, dst, kind_out, force)
-    request = dataclasses.replace(Request(), scalar_last=scalar_last, force=force)
+    request = dataclasses.replace(Request(), scalar_last=scalar_last, force=force, storage_options=storage_options)
     return _REDUCERS[family](src, dst, kind_in, kind_out, tolerance, method, request)

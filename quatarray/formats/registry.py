@@ -192,6 +192,13 @@ def formats_of(src, dst):
     return kind_in, kind_out
 
 
+def check_storage_options(storage_options, kind_in, kind_out, dst):
+    """Storage options apply to formats that take URLs (Zarr stores) only."""
+    if storage_options and not (FORMATS[kind_in].urls or FORMATS[kind_out].urls):
+        urls = ", ".join(f"{f.name} stores ({e})" for e, f in FORMATS.items() if f.urls)
+        raise FormatError(f"storage options apply to {urls} only", dst)
+
+
 def check_output(src, dst, kind_out, force):
     """The overwrite rule, for every command that writes a file: an existing `dst` only with `force`;
     `dst` equal to `src` only with `force` and only where the format replaces its input atomically;
@@ -295,9 +302,7 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         raise ValueError("give exactly one of fps and times")
     if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
         raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
-    if storage_options and not (FORMATS[kind_in].urls or FORMATS[kind_out].urls):
-        urls = ", ".join(f"{f.name} stores ({e})" for e, f in FORMATS.items() if f.urls)
-        raise FormatError(f"storage options apply to {urls} only", dst)
+    check_storage_options(storage_options, kind_in, kind_out, dst)
     check_output(src, dst, kind_out, force)
     if chunked is None:   # a chunked resampler reads its query times chunk by chunk (Zarr: also from a .zarr store)
         if times is not None and isinstance(times, (str, os.PathLike)):

@@ -109,7 +109,10 @@ class _Location:
         self.url = "://" in self.name or "::" in self.name
         self.options = dict(storage_options or {}) if self.url else None
         if self.url:
-            self.fs, self.path = fsspec.core.url_to_fs(self.name, **self.options)
+            try:
+                self.fs, self.path = fsspec.core.url_to_fs(self.name, **self.options)
+            except TypeError as exc:   # an option the filesystem does not take
+                raise self._bad_options(exc) from None
             self.path = self.path.rstrip("/")
             self.local = "file" in np.atleast_1d(self.fs.protocol)
         else:
@@ -124,7 +127,15 @@ class _Location:
         return (tuple(np.atleast_1d(self.fs.protocol)), self.path)
 
     def exists(self):
-        return os.path.lexists(self.path) if self.local else self.fs.exists(self.path)
+        if self.local:
+            return os.path.lexists(self.path)
+        try:
+            return self.fs.exists(self.path)
+        except TypeError as exc:   # an option the filesystem takes only when it connects (s3fs)
+            raise self._bad_options(exc) from None
+
+    def _bad_options(self, exc):
+        return ValueError(f"storage options {sorted(self.options)} do not fit {self.name}'s filesystem ({exc})")
 
     def nests(self, other):
         """Whether this store and `other` are two places one inside the other (on one filesystem)."""
