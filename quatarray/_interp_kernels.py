@@ -620,6 +620,20 @@ def unit_keys(keys, name="keys", unit=False):
         raise ValueError(f"expected non-zero {name}, got a zero quaternion") from None
 
 
+def unflip_dots(a, b):
+    """The dot products a·b (components last) whose signs `unflip` follows, the one formula of
+    every path (the chunked one's too).  float32: summed in float64 (exact products), so that
+    rotations close to π apart get the sign of their exact dot product, as `hemisphere` gives
+    slerp; in `vdot`'s order, each product cast to float64 as NumPy computes it (no float64
+    copy of the quaternions)."""
+    if a.dtype != np.float32:
+        return vdot(a, b)
+    d = np.multiply(a[..., 0], b[..., 0], dtype=np.float64)
+    for k in (1, 2, 3):
+        d += np.multiply(a[..., k], b[..., k], dtype=np.float64)
+    return d
+
+
 def unflip(q, axis, d=None):
     """Signs flipped so that consecutive quaternions along batch `axis` have
     a non-negative dot product (the first one keeps its sign).
@@ -638,14 +652,8 @@ def unflip(q, axis, d=None):
     n = qa.shape[0]
     if n < 2:
         return q.astype(dtype, copy=True)
-    # float32: summed in float64 (exact products), so that rotations close to π
-    # apart get the sign of their exact dot product, as `hemisphere` gives slerp
-    if d is None and dtype != np.float32:
-        d = vdot(qa[1:], qa[:-1])
-    elif d is None:   # `vdot`'s order, each product cast to float64 as NumPy computes it (no float64 copy of q)
-        d = np.multiply(qa[1:, ..., 0], qa[:-1, ..., 0], dtype=np.float64)
-        for k in (1, 2, 3):
-            d += np.multiply(qa[1:, ..., k], qa[:-1, ..., k], dtype=np.float64)
+    if d is None:
+        d = unflip_dots(qa[1:], qa[:-1])
     step = np.ones(qa.shape[:-1], np.int8)
     np.copyto(step[1:], -1, where=d < 0)
     zero = None

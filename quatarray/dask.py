@@ -473,8 +473,8 @@ def _unflip_summary(q, axis):
     out[0, ..., 0:4] = qa[0]
     out[0, ..., 4:8] = qa[-1]
     u_last = np.moveaxis(_interp_kernels.unflip(q, axis), axis, 0)[-1]
-    out[0, ..., 8] = np.where(_interp_kernels.vdot(u_last, qa[-1]) < 0, -1, 1)
-    out[0, ..., 9] = (_interp_kernels.vdot(qa[1:], qa[:-1]) == 0).any(axis=0) if len(qa) > 1 else False
+    out[0, ..., 8] = np.where((u_last != qa[-1]).any(axis=-1), -1, 1)   # (exact: u_last is ±qa[-1])
+    out[0, ..., 9] = (_interp_kernels.unflip_dots(qa[1:], qa[:-1]) == 0).any(axis=0) if len(qa) > 1 else False
     return np.moveaxis(out, 0, axis)
 
 
@@ -487,7 +487,7 @@ def _unflip_carries(s, axis):
     g = np.ones(sa.shape[:-1], s.dtype)
     last_sign = sa[0, ..., 8]                 # final sign of chunk 0's last quaternion
     for j in range(1, len(sa)):                # a loop over chunks, not elements
-        d = _interp_kernels.vdot(sa[j, ..., 0:4], sa[j - 1, ..., 4:8])
+        d = _interp_kernels.unflip_dots(sa[j, ..., 0:4], sa[j - 1, ..., 4:8])
         g[j] = np.where(d == 0, 1, np.where(d < 0, -last_sign, last_sign))
         last_sign = np.where(sa[j, ..., 9] != 0, sa[j, ..., 8], g[j] * sa[j, ..., 8])
     return np.moveaxis(g, 0, axis)
@@ -501,7 +501,7 @@ def _unflip_apply(q, g, axis):
     n = qa.shape[0]
     carried = np.ones(qa.shape[:-1], bool)   # before the chunk's first zero dot product
     if n > 1:
-        carried[1:] = np.logical_and.accumulate(_interp_kernels.vdot(qa[1:], qa[:-1]) != 0, axis=0)
+        carried[1:] = np.logical_and.accumulate(_interp_kernels.unflip_dots(qa[1:], qa[:-1]) != 0, axis=0)
     factor = np.where(carried, np.moveaxis(g, axis, 0), 1).astype(u.dtype)
     return u * np.moveaxis(factor, 0, axis)[..., None]
 

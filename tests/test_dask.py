@@ -160,6 +160,20 @@ def test_unflip_across_chunk_borders(rng, scheduler, chunks, dtype):
 
 
 @pytest.mark.parametrize("dtype", DTYPES)
+@pytest.mark.parametrize("scale", [1e-25, 1e-170, 1.0, 1e20])
+def test_unflip_of_tiny_or_huge_quaternions_whatever_the_chunks(dtype, scale):
+    """The chunked unflip decides every sign with the in-memory unflip's own dot products (float32
+    summed in float64): float32 quaternions of 1e-25 had their dots underflow to 0 in the chunk
+    summaries, and came back with other signs, chunk by chunk; no warning either."""
+    signs = np.array([1, -1, -1, 1, -1, 1, 1, -1, -1, -1])
+    q = (np.array([0.6, 0.8, 0, 0]) * signs[:, None] * scale).astype(dtype)
+    ref = np.asarray(qi.unflip(q))
+    for c in (1, 2, 3, 10):
+        got = qd.unflip(da.from_array(q, chunks=(c, 4))).compute(scheduler="synchronous")
+        np.testing.assert_array_equal(got, ref)
+
+
+@pytest.mark.parametrize("dtype", DTYPES)
 @pytest.mark.parametrize("chunks", CHUNKS)
 def test_mean_reduction_equals_memory(rng, scheduler, chunks, dtype):
     q = unit(rng, BATCH, dtype) * rng.uniform(0.5, 2, BATCH + (1,)).astype(dtype)
