@@ -771,6 +771,20 @@ def test_outputs_inside_the_input_or_holding_it_are_refused(store, capsys):
         resample_zarr("memory://nest/in.zarr", "memory://nest/in.zarr/sub.zarr", fps=2, progress=False, force=True)
 
 
+def test_an_empty_times_store_is_refused_as_an_empty_times_file(store, capsys):
+    """A --times store of no times wrote a store of no frames, which no reader takes back; it is
+    refused before anything is written, as an empty file of times is."""
+    import zarr
+    from quatarray.cli import main
+    tmp, _, _ = store
+    zarr.open_group(str(tmp / "t.zarr"), mode="w")["times"] = np.zeros(0)
+    (tmp / "t.txt").write_text("")
+    for times in ("t.zarr", "t.txt"):
+        assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / "out.zarr"), "--times", str(tmp / times)]) == 2
+        assert capsys.readouterr().err == f"quatarray: error: {tmp / times}: no times\n"
+    assert sorted(os.listdir(tmp)) == ["in.zarr", "t.txt", "t.zarr"]
+
+
 def test_an_object_where_a_store_goes_is_never_replaced(store):
     """On an object store as on a disk, a file (an object) at OUT.zarr is not replaced, even with
     force; a store there is."""

@@ -402,6 +402,8 @@ class _Queries:
         if loc is not None:
             self.array, self.where = _times_node(loc), loc.name
             self.size = self.array.shape[0]
+            if not self.size:   # (as an empty file of times; a store of no frames reads back as no track)
+                raise FormatError("no times", loc.name)
             return
         self.memory = np.asarray(read_times(times) if isinstance(times, (str, os.PathLike)) else times, np.float64)
         self.size = len(self.memory)
