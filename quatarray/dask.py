@@ -571,10 +571,6 @@ def _chordal_sum(q, w, wmax, n):
     return k.reshape((1,) * (q.ndim - 1) + (4, 4))
 
 
-def _dominant(k, dtype):
-    return _rotation_algorithms.dominant(k, dtype)
-
-
 def mean(q, weights=None):
     """Chordal L2 mean of all the rotations `q`: the dominant eigenvector of Σ wᵢ q̂ᵢ q̂ᵢᵀ.
 
@@ -623,7 +619,7 @@ def mean(q, weights=None):
                          new_axes={"y": 4, "z": 4}, adjust_chunks={c: 1 for c in ix}, concatenate=True,
                          dtype=np.float64, meta=np.empty((0,) * (nb + 2)))
     k = parts.sum(axis=tuple(range(nb)))
-    return k.map_blocks(partial(_dominant, dtype=q.dtype), drop_axis=1, dtype=q.dtype,
+    return k.map_blocks(partial(_rotation_algorithms.dominant, dtype=q.dtype), drop_axis=1, dtype=q.dtype,
                         meta=np.empty((0,), q.dtype))
 
 

@@ -10,7 +10,7 @@
 - `echo`: a value quoted in a message, cut to about 60 characters;
 - `option`: an option named as the caller spells it (``--force`` on the
   command line, ``force=True`` in Python; `command_line` switches).
-- `refuse_existing`, `same_file`, `nested`: the overwrite rule's wording and its tests
+- `refuse_existing`, `same_file`, `nested`, `one_below_other`: the overwrite rule's wording and its tests
   of whether an output is the input.
 
 `FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
@@ -131,8 +131,13 @@ def nested(a, b):
     >>> nested("in.zarr", "in.zarr/sub.zarr"), nested("in.zarr", "in.zarr"), nested("a.csv", "a.csv.zarr")
     (True, False, False)
     """
-    ra, rb = (os.path.realpath(os.fspath(x)) for x in (a, b))
-    return ra != rb and (ra.startswith(rb.rstrip(os.sep) + os.sep) or rb.startswith(ra.rstrip(os.sep) + os.sep))
+    return one_below_other(*(os.path.realpath(os.fspath(x)) for x in (a, b)))
+
+
+def one_below_other(a, b, sep=os.sep):
+    """Whether the resolved paths `a` and `b` differ and one lies below the other (`sep` their
+    separator: ``/`` on an object store)."""
+    return a != b and (a.startswith(b.rstrip(sep) + sep) or b.startswith(a.rstrip(sep) + sep))
 
 
 def not_a_store(name, store):

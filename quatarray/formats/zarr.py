@@ -67,7 +67,7 @@ import numpy as np
 from .._validate import float_array
 from .keyframes import Keyframes, fps_steps, keys_at_key_times, read_times, snap_to_keys
 from .text import (FormatError, check_arrays, check_query, check_size, echo, not_a_store, not_carried,
-                   refuse_existing)
+                   one_below_other, refuse_existing)
 
 __all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
 
@@ -140,9 +140,7 @@ class _Location:
     def nests(self, other):
         """Whether this store and `other` are two places one inside the other (on one filesystem)."""
         (kind, a), (other_kind, b) = self.key(), other.key()
-        sep = os.sep if kind == "file" else "/"
-        return (kind == other_kind and a != b
-                and (a.startswith(b.rstrip(sep) + sep) or b.startswith(a.rstrip(sep) + sep)))
+        return kind == other_kind and one_below_other(a, b, os.sep if kind == "file" else "/")
 
     def is_folder(self):
         """Whether what is at this location is a folder (on an object store: a prefix, not an
