@@ -53,12 +53,19 @@ def _real(x, name):
     """A real operand that acts as a scalar per quaternion.
 
     Python numbers are kept as they are, so that float32 quaternions stay
-    float32 (NumPy's weak-scalar rule); everything else becomes a real array.
+    float32 (NumPy's weak-scalar rule); everything else becomes a real array,
+    float32 where NumPy would promote it with float32 to float32 (bool, 8- and
+    16-bit integers, float16: ``q32 * np.int8(2)`` stays float32, as in NumPy),
+    else float64.
     """
     if isinstance(x, QuatArray):
         return _raw(x)
     if type(x) in (int, float):   # (exactly: a NumPy scalar such as np.float64 is strong, as in NumPy)
         return x
+    dtype = getattr(x, "dtype", None)
+    if (isinstance(dtype, np.dtype) and dtype.kind in "biuf" and dtype.itemsize < 4
+            and np.promote_types(dtype, np.float32) == np.float32):
+        return float_array(x, name, dtype=np.float32)
     return float_array(x, name)
 
 

@@ -431,6 +431,21 @@ def test_numpy_scalars_promote_as_numpy_and_empty_reprs_read_back():
     for op in (np.add, np.subtract, np.multiply, np.divide):
         assert op(q32, np.float64(2)).dtype == op(q32.ndarray, np.float64(2)).dtype == np.float64
         assert op(q32, 2.0).dtype == np.float32 and op(q32, np.float32(2)).dtype == np.float32
+    # real operands of other dtypes promote with the quaternions' dtype as NumPy promotes them
+    # (float16 and small integers keep float32; int32, int64 and float64 make float64)
+    q64 = QuatArray(np.ones((2, 4)))
+    for x in (np.float16(2), np.int8(2), np.uint16(3), np.bool_(True), np.int32(2), np.int64(2),
+              np.array([2, 3], np.int8), np.array([2, 3], np.float16), np.array([2, 3]), [2, 3]):
+        per_quat = x if np.ndim(x) == 0 else np.asarray(x)[:, None]
+        for q in (q32, q64):
+            for op in (np.add, np.subtract, np.multiply, np.divide):
+                want = op(q.ndarray, per_quat)
+                got = op(q, x)
+                assert got.dtype == want.dtype, (op.__name__, q.dtype, x)
+                if op in (np.multiply, np.divide):   # a real scales every component, as NumPy's op
+                    np.testing.assert_array_equal(got.ndarray, want)
+                else:   # a real is added to w only
+                    np.testing.assert_array_equal(got.ndarray[:, 0], want[:, 0])
     for empty in (QuatArray(np.zeros((2, 0, 4))), QuatArray(np.zeros((0, 4), np.float32))):
         back = eval(repr(empty), {"QuatArray": QuatArray, "np": np, "float32": np.float32})
         assert back.shape == empty.shape and back.dtype == empty.dtype
