@@ -1133,6 +1133,10 @@ def magnitude(q, unit=False):
     """
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
+    elif q.size > 4 and q.ndim == 2 and len(q) <= _blocks.VIEWS_MAX:   # a Rotation's few: the
+        out = np.empty(len(q), q.dtype)                                 # kernel at once on views
+        _k_magnitude(q.T, out[None], unit=True)
+        return out
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
         angle = _angle_floats(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
