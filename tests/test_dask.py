@@ -396,6 +396,49 @@ def test_s3_reduce_and_bad_storage_options_on_the_command_line(s3, rng, tmp_path
         "bogus_opt" in err and err.count("\n") == 1, err
 
 
+def test_s3_urls_with_empty_segments_are_one_store(s3, rng, monkeypatch):
+    """``s3://bkt//x.zarr`` and ``s3://bkt/a//x.zarr`` name the store of the same URL without the
+    ``//``: a write that fails leaves no temporary objects (s3fs lists ``bkt//x`` as ``bkt/x``, so
+    those under ``/.x.zarr.*.part`` were never found again), a write that succeeds is there, and
+    the input is recognised in its ``//`` forms, so it is neither replaced nor written into."""
+    import s3fs
+    import zarr
+
+    from quatarray.formats import FormatError, read_zarr, resample_zarr
+    from quatarray.formats import zarr as _zarr
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 2 * 4)
+    monkeypatch.setattr(_zarr, "MEMORY_KEYS", 0)       # keys read while the output is written
+    bucket = "quatarray-test"
+    times, keys = _s3_input(rng, f"s3://{bucket}/slashes/in.zarr", s3)
+
+    def objects():
+        found = s3fs.S3FileSystem(skip_instance_cache=True, **s3).find(bucket)   # keys with a leading / too
+        return sorted(p[len(bucket) + 1:] for p in found if "slashes" in p)
+
+    before = objects()
+    for out, plain in ((f"s3://{bucket}//slashes-out.zarr", f"s3://{bucket}/slashes-out.zarr"),
+                       (f"s3://{bucket}/slashes//out.zarr/", f"s3://{bucket}/slashes/out.zarr")):
+        assert resample_zarr(f"s3://{bucket}/slashes/in.zarr", out, fps=4, progress=False, storage_options=s3)[0] == 30
+        np.testing.assert_array_equal(read_zarr(plain, storage_options=s3).times,
+                                      quatarray.formats.fps_times(times[0], times[-1], 4, onto=times))
+    written = objects()
+    assert not [p for p in written if ".part" in p or p.startswith("/") or "//" in p], written
+    s3fs.S3FileSystem(skip_instance_cache=True, **s3).pipe(f"{bucket}/slashes/in.zarr/keys/c/2/0/0", b"garbage")
+    for out in (f"s3://{bucket}//slashes-bad.zarr", f"s3://{bucket}/slashes//bad.zarr"):
+        with pytest.raises(FormatError, match="cannot read array 'keys'"):
+            resample_zarr(f"s3://{bucket}/slashes/in.zarr", out, fps=4, progress=False, storage_options=s3)
+        assert objects() == written
+    for out, message in ((f"s3://{bucket}//slashes//in.zarr", "is the input"),
+                         (f"s3://{bucket}/slashes//in.zarr//sub.zarr", "lies inside the input"),
+                         (f"s3://{bucket}/slashes//", "lies inside the input")):
+        with pytest.raises(FormatError, match=message):
+            resample_zarr(f"s3://{bucket}/slashes/in.zarr", out, fps=4, progress=False, force=True, storage_options=s3)
+    assert objects() == written
+    assert set(before) < set(written)
+    np.testing.assert_array_equal(zarr.open_group(f"s3://{bucket}/slashes/in.zarr", mode="r",
+                                                  storage_options=s3)["times"][...], times)
+
+
 def test_s3_quatarray_dask(s3, rng):
     """quatarray.dask on chunks read from and written to an S3-protocol server with dask's
     from_zarr / to_zarr and storage_options."""

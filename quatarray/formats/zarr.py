@@ -5,7 +5,8 @@ scalar-first, like the NPZ layout, and optionally the track names in the
 group attribute ``names`` (one per flattened batch index).  It may be
 anything zarr opens: a local path, or a URL (``memory://``, ``s3://``,
 ``gs://``, any fsspec protocol) with ``storage_options`` for its filesystem
-(credentials, endpoint).
+(credentials, endpoint).  A URL's empty path segments are dropped, as a
+local path's are: ``s3://bkt//run.zarr`` is ``s3://bkt/run.zarr``.
 
 `resample_zarr` (Zarr → Zarr) reads the keys into memory when small (one
 `Track` for every chunk of queries), else keeps them as a Dask array
@@ -113,7 +114,7 @@ class _Location:
                 self.fs, self.path = fsspec.core.url_to_fs(self.name, **self.options)
             except TypeError as exc:   # an option the filesystem does not take
                 raise self._bad_options(exc) from None
-            self.path = self.path.rstrip("/")
+            self.path = _object_path(self.fs, self.path)
             self.local = "file" in np.atleast_1d(self.fs.protocol)
         else:
             self.fs, self.path, self.local = None, os.path.abspath(self.name), True
@@ -153,6 +154,18 @@ class _Location:
         if self.local:
             return {"store": path}
         return {"store": self.fs.unstrip_protocol(path), "storage_options": self.options}
+
+
+def _object_path(fs, path):
+    """`path` on object store `fs` in one form: no empty segments (``//``) and no trailing ``/``, as a
+    local path has none.  Zarr writes the literal keys of ``s3://bkt//out.zarr`` (``/out.zarr/...``),
+    but s3fs lists and removes ``bkt//out.zarr`` as ``bkt/out.zarr``
+    (https://github.com/fsspec/s3fs/issues/770): the temporary objects of such a store could not be
+    found again, and a store checked for, replaced or compared was another one.  Paths that are URLs
+    themselves (HTTP) are kept as they are."""
+    if "://" in path:
+        return path.rstrip("/")
+    return fs.root_marker + "/".join(part for part in path.split("/") if part)
 
 
 def _locations(storage_options, **stores):
