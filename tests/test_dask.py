@@ -366,7 +366,8 @@ def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
     assert main(args + ["--fps", "5"]) == 2
     assert f"{out}: exists; give --force to replace it\n" in capsys.readouterr().err     # the CLI's words
     assert main(args + ["--times", "s3://quatarray-test/cli/out.zarr", "--force"]) == 2
-    assert f"{out}: is the times store; Zarr outputs are written while" in capsys.readouterr().err
+    assert f"{out}: is the times store, which is read chunk by chunk while the output is written" in \
+        capsys.readouterr().err
     assert main(["resample", "s3://quatarray-test/cli/out.zarr", "-o", "s3://quatarray-test/cli/again.zarr",
                  "--times", "s3://quatarray-test/cli/in.zarr", "--extrapolate", "clamp", "--quiet", *flags]) == 0
     again = zarr.open_group("s3://quatarray-test/cli/again.zarr", mode="r", storage_options=s3)
@@ -752,8 +753,8 @@ def test_zarr_input_is_never_its_output(store, capsys):
     for out, force in [("in.zarr", []), ("in.zarr", ["--force"]), ("in.zarr/", ["--force"]), ("link.zarr", ["--force"])]:
         assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", *force]) == 2
         err = capsys.readouterr().err
-        assert err.startswith(f"quatarray: error: {tmp / out}: is the input; Zarr outputs are written while the "
-                              "input is read"), err   # the output named once
+        assert err.startswith(f"quatarray: error: {tmp / out}: is the input, which is read chunk by chunk while "
+                              "the output is written"), err   # the output named once
     assert sorted(os.listdir(tmp / "in.zarr")) == before
     assert sorted(os.listdir(tmp)) == ["in.zarr", "link.zarr"]
 

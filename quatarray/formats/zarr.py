@@ -49,9 +49,12 @@ The output appears only when complete:
 
 Replacing an existing store needs ``force`` (a file where the store
 should be is never replaced); on an object store the old store is removed
-first (its metadata first, so that it never looks half-present).  The input store is
-never replaced, even with ``force``: neither way is atomic for a store
-that is still being read.
+first (its metadata first, so that it never looks half-present).
+`resample_zarr` never replaces its input store (or its store of times),
+even with ``force``: it reads them chunk by chunk while it writes, and
+neither way of replacing is atomic for a store that is still being read.
+`write_zarr` takes keyframes in memory, so with ``force`` it may replace
+the store they were read from (``quatarray reduce in.zarr -o in.zarr``).
 """
 
 import contextlib
@@ -68,7 +71,7 @@ import numpy as np
 from .._validate import float_array
 from .keyframes import Keyframes, fps_steps, keys_at_key_times, read_times, snap_to_keys
 from .text import (FormatError, check_arrays, check_query, check_size, echo, not_a_store, not_carried,
-                   one_below_other, refuse_existing)
+                   one_below_other, read_while_written, refuse_existing)
 
 __all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
 
@@ -666,8 +669,7 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     loc_in, loc_out = where["src"], where["dst"]
     for what, loc in (("input", loc_in), ("times store", where.get("times"))):
         if loc is not None and loc.key() == loc_out.key():
-            raise FormatError(f"is the {what}; Zarr outputs are written while the {what} is read, so they "
-                              "cannot replace it (even when forced): write elsewhere, then rename", loc_out.name)
+            raise read_while_written(loc_out.name, what)
         if loc is not None and loc.nests(loc_out):
             raise FormatError(f"lies inside the {what}, or holds it: write elsewhere", loc_out.name)
     key_times, keys, names = _read(loc_in)
