@@ -533,6 +533,52 @@ def test_local_cluster_two_processes_writing_to_s3(rng, s3):
     assert set(got[4]) == {1}
 
 
+def test_a_write_failing_on_a_cluster_leaves_no_temporary_store(store, monkeypatch):
+    """On a distributed cluster, a chunk that cannot be written ends the resample only once the other
+    chunks of the write have finished: one still being written when the error arrived landed after
+    the temporary store was removed, and made it again (a .out.zarr.*.part folder left behind)."""
+    distributed = pytest.importorskip("distributed", reason="distributed is not installed (the dask extra)")
+    import shutil
+    import threading
+
+    import zarr
+
+    from quatarray.formats import zarr as _zarr
+    tmp, _, _ = store
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 4 * 3)       # chunks of 4 frames of the 3 tracks
+    second_started, removed, second_written = threading.Event(), threading.Event(), threading.Event()
+    real_setitem, real_rmtree = zarr.Array.__setitem__, shutil.rmtree
+
+    def setitem(self, key, value):        # the workers are threads of this process
+        first = key[0].start if self.basename == "keys" else None
+        if first == 0:          # the first chunk fails while the second is being written
+            second_started.wait(60)
+            raise OSError(errno.ENOSPC, "No space left on device")
+        if first == 4:          # the second is written once the temporary store is removed, or after 3 s
+            second_started.set()
+            removed.wait(3)
+            real_setitem(self, key, value)
+            second_written.set()
+            return
+        real_setitem(self, key, value)
+
+    def rmtree(path, *args, **kwargs):
+        real_rmtree(path, *args, **kwargs)
+        # the removal on the error, not zarr's own when it creates the group (in its I/O thread)
+        if os.fspath(path).endswith(".part") and threading.current_thread() is threading.main_thread():
+            removed.set()
+
+    monkeypatch.setattr(zarr.Array, "__setitem__", setitem)
+    monkeypatch.setattr(shutil, "rmtree", rmtree)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=False, dashboard_address="127.0.0.1:0",
+                                  silence_logs=40) as cluster, distributed.Client(cluster):
+        with pytest.raises(OSError, match="No space left on device") as info:
+            _zarr.resample_zarr(str(tmp / "in.zarr"), str(tmp / "out.zarr"), fps=1, progress=False)
+        assert second_written.wait(60)
+    assert info.value.filename == str(tmp / "out.zarr")
+    assert sorted(os.listdir(tmp)) == ["in.zarr"]
+
+
 # --------------------------------------------------------------------------- errors
 
 def test_split_component_axis_is_refused(rng):

@@ -629,7 +629,10 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     scheduler : str, optional
         Address of a running ``distributed`` scheduler.  Default: the
         active ``distributed.Client`` if there is one, else Dask's local
-        threads.  The workers must reach `src` and `dst`.
+        threads.  The workers must reach `src` and `dst`.  On an error the
+        chunks being written are finished before the temporary store is
+        removed (on a cluster: every chunk of the current window of
+        `WINDOW_CHUNKS`), so that none of them makes it again.
     progress : bool, optional
         Show a progress bar on stderr (Dask's ``ProgressBar``, or
         ``distributed.progress`` on a cluster); default: when stderr is a
@@ -701,8 +704,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
             t = queries.window(start, stop, rows)
             out = interpolate(t).rechunk((rows,) + batch + (4,))
             region = slice(start, stop)
-            run(da.store([t, out], [zt, zk], regions=[(region,), (region,) + (slice(None),) * (len(batch) + 1)],
-                         lock=False, compute=False))
+            run(partial(da.store, [t, out], [zt, zk], lock=False, compute=False,
+                        regions=[(region,), (region,) + (slice(None),) * (len(batch) + 1)]))
     return len(key_times), n
 
 
@@ -727,24 +730,38 @@ class _CurveAndKeys:
 
 @contextlib.contextmanager
 def _runner(scheduler, show):
-    """A function that computes a graph: on the distributed scheduler at `scheduler`, on the active
-    ``distributed.Client``, or on local threads; with a progress bar if `show`."""
+    """A function that runs a write, given as `dask.array.store` waiting for more of its arguments
+    (``compute=False``): on the distributed scheduler at `scheduler`, on the active
+    ``distributed.Client``, or on local threads; with a progress bar if `show`.  It returns only
+    when no chunk of the write is being written any more, also on an error."""
     client = None
     if scheduler is None and "distributed" in sys.modules:
         from distributed import default_client
         with contextlib.suppress(ValueError):
             client = default_client()
     if scheduler is not None or client is not None:
-        from distributed import Client, progress
+        from distributed import Client, futures_of, progress, wait
         with contextlib.ExitStack() as stack:
             if client is None:
                 client = stack.enter_context(Client(scheduler))
 
-            def run(graph):
-                future = client.compute(graph)
-                if show:
-                    progress(future)
-                client.gather(future)
+            def run(store):
+                # a future for every chunk (each one's result is its target, not its data), all waited
+                # for, failed or not, before an error is raised: the chunks still being written on the
+                # workers when one fails would otherwise land after the temporary store is removed (a
+                # cancelled task runs on, and the scheduler no longer reports it).  On Ctrl-C or SIGTERM
+                # too, the window's chunks are waited for; a second interrupt stops waiting.
+                futures = futures_of(client.persist(store(return_stored=True, load_stored=False)))
+                try:
+                    if show:
+                        progress(futures)
+                    wait(futures)
+                except BaseException:
+                    wait(futures)
+                    raise
+                for future in futures:
+                    if future.status == "error":
+                        future.result()    # raises the chunk's error
             yield run
         return
     # our own pool, so that on an error, Ctrl-C or SIGTERM the chunks being written are finished
@@ -761,8 +778,8 @@ def _runner(scheduler, show):
                 from dask.diagnostics import ProgressBar
                 stack.enter_context(ProgressBar(out=sys.stderr))
 
-            def run(graph):
-                dask.compute(graph, scheduler="threads", pool=pool, num_workers=workers)
+            def run(store):
+                dask.compute(store(), scheduler="threads", pool=pool, num_workers=workers)
             yield run
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
