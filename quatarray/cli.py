@@ -210,8 +210,8 @@ def build_parser():
                         "reads back exactly (default: a key at its own time keeps the input's text, every "
                         "interpolated value is written in full)")
     p.add_argument("--force", action="store_true",
-                   help="replace an existing OUT, also when it is IN (not for Zarr stores, which are written "
-                        "while IN is read)")
+                   help="replace an existing OUT, also when it is IN (not .zarr to .zarr, which reads IN "
+                        "chunk by chunk while it writes OUT)")
     p.add_argument("--scheduler", metavar="ADDRESS", help=".zarr to .zarr: run on this distributed scheduler")
     _add_storage_option(p)
     p.add_argument("--quiet", action="store_true", help=".zarr to .zarr: no progress bar")

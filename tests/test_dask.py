@@ -366,7 +366,8 @@ def test_s3_cli_zarr_path(s3, rng, tmp_path, monkeypatch, capsys):
     assert main(args + ["--fps", "5"]) == 2
     assert f"{out}: exists; give --force to replace it\n" in capsys.readouterr().err     # the CLI's words
     assert main(args + ["--times", "s3://quatarray-test/cli/out.zarr", "--force"]) == 2
-    assert f"{out}: is the times store; Zarr outputs are written while" in capsys.readouterr().err
+    assert f"{out}: is the times store, which is read chunk by chunk while the output is written" in \
+        capsys.readouterr().err
     assert main(["resample", "s3://quatarray-test/cli/out.zarr", "-o", "s3://quatarray-test/cli/again.zarr",
                  "--times", "s3://quatarray-test/cli/in.zarr", "--extrapolate", "clamp", "--quiet", *flags]) == 0
     again = zarr.open_group("s3://quatarray-test/cli/again.zarr", mode="r", storage_options=s3)
@@ -394,6 +395,49 @@ def test_s3_reduce_and_bad_storage_options_on_the_command_line(s3, rng, tmp_path
     err = capsys.readouterr().err
     assert err.startswith("quatarray: error: s3://quatarray-test/reduce/in.zarr: storage options [") and \
         "bogus_opt" in err and err.count("\n") == 1, err
+
+
+def test_s3_urls_with_empty_segments_are_one_store(s3, rng, monkeypatch):
+    """``s3://bkt//x.zarr`` and ``s3://bkt/a//x.zarr`` name the store of the same URL without the
+    ``//``: a write that fails leaves no temporary objects (s3fs lists ``bkt//x`` as ``bkt/x``, so
+    those under ``/.x.zarr.*.part`` were never found again), a write that succeeds is there, and
+    the input is recognised in its ``//`` forms, so it is neither replaced nor written into."""
+    import s3fs
+    import zarr
+
+    from quatarray.formats import FormatError, read_zarr, resample_zarr
+    from quatarray.formats import zarr as _zarr
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 2 * 4)
+    monkeypatch.setattr(_zarr, "MEMORY_KEYS", 0)       # keys read while the output is written
+    bucket = "quatarray-test"
+    times, keys = _s3_input(rng, f"s3://{bucket}/slashes/in.zarr", s3)
+
+    def objects():
+        found = s3fs.S3FileSystem(skip_instance_cache=True, **s3).find(bucket)   # keys with a leading / too
+        return sorted(p[len(bucket) + 1:] for p in found if "slashes" in p)
+
+    before = objects()
+    for out, plain in ((f"s3://{bucket}//slashes-out.zarr", f"s3://{bucket}/slashes-out.zarr"),
+                       (f"s3://{bucket}/slashes//out.zarr/", f"s3://{bucket}/slashes/out.zarr")):
+        assert resample_zarr(f"s3://{bucket}/slashes/in.zarr", out, fps=4, progress=False, storage_options=s3)[0] == 30
+        np.testing.assert_array_equal(read_zarr(plain, storage_options=s3).times,
+                                      quatarray.formats.fps_times(times[0], times[-1], 4, onto=times))
+    written = objects()
+    assert not [p for p in written if ".part" in p or p.startswith("/") or "//" in p], written
+    s3fs.S3FileSystem(skip_instance_cache=True, **s3).pipe(f"{bucket}/slashes/in.zarr/keys/c/2/0/0", b"garbage")
+    for out in (f"s3://{bucket}//slashes-bad.zarr", f"s3://{bucket}/slashes//bad.zarr"):
+        with pytest.raises(FormatError, match="cannot read array 'keys'"):
+            resample_zarr(f"s3://{bucket}/slashes/in.zarr", out, fps=4, progress=False, storage_options=s3)
+        assert objects() == written
+    for out, message in ((f"s3://{bucket}//slashes//in.zarr", "is the input"),
+                         (f"s3://{bucket}/slashes//in.zarr//sub.zarr", "lies inside the input"),
+                         (f"s3://{bucket}/slashes//", "lies inside the input")):
+        with pytest.raises(FormatError, match=message):
+            resample_zarr(f"s3://{bucket}/slashes/in.zarr", out, fps=4, progress=False, force=True, storage_options=s3)
+    assert objects() == written
+    assert set(before) < set(written)
+    np.testing.assert_array_equal(zarr.open_group(f"s3://{bucket}/slashes/in.zarr", mode="r",
+                                                  storage_options=s3)["times"][...], times)
 
 
 def test_s3_quatarray_dask(s3, rng):
@@ -487,6 +531,52 @@ def test_local_cluster_two_processes_writing_to_s3(rng, s3):
                                atol=100 * np.finfo(float).eps)
     np.testing.assert_allclose(got[3], np.asarray(qi.slerp(q[:-1], q[1:], 0.3)), rtol=0, atol=32 * np.finfo(float).eps)
     assert set(got[4]) == {1}
+
+
+def test_a_write_failing_on_a_cluster_leaves_no_temporary_store(store, monkeypatch):
+    """On a distributed cluster, a chunk that cannot be written ends the resample only once the other
+    chunks of the write have finished: one still being written when the error arrived landed after
+    the temporary store was removed, and made it again (a .out.zarr.*.part folder left behind)."""
+    distributed = pytest.importorskip("distributed", reason="distributed is not installed (the dask extra)")
+    import shutil
+    import threading
+
+    import zarr
+
+    from quatarray.formats import zarr as _zarr
+    tmp, _, _ = store
+    monkeypatch.setattr(_zarr, "CHUNK_QUATS", 4 * 3)       # chunks of 4 frames of the 3 tracks
+    second_started, removed, second_written = threading.Event(), threading.Event(), threading.Event()
+    real_setitem, real_rmtree = zarr.Array.__setitem__, shutil.rmtree
+
+    def setitem(self, key, value):        # the workers are threads of this process
+        first = key[0].start if self.basename == "keys" else None
+        if first == 0:          # the first chunk fails while the second is being written
+            second_started.wait(60)
+            raise OSError(errno.ENOSPC, "No space left on device")
+        if first == 4:          # the second is written once the temporary store is removed, or after 3 s
+            second_started.set()
+            removed.wait(3)
+            real_setitem(self, key, value)
+            second_written.set()
+            return
+        real_setitem(self, key, value)
+
+    def rmtree(path, *args, **kwargs):
+        real_rmtree(path, *args, **kwargs)
+        # the removal on the error, not zarr's own when it creates the group (in its I/O thread)
+        if os.fspath(path).endswith(".part") and threading.current_thread() is threading.main_thread():
+            removed.set()
+
+    monkeypatch.setattr(zarr.Array, "__setitem__", setitem)
+    monkeypatch.setattr(shutil, "rmtree", rmtree)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=False, dashboard_address="127.0.0.1:0",
+                                  silence_logs=40) as cluster, distributed.Client(cluster):
+        with pytest.raises(OSError, match="No space left on device") as info:
+            _zarr.resample_zarr(str(tmp / "in.zarr"), str(tmp / "out.zarr"), fps=1, progress=False)
+        assert second_written.wait(60)
+    assert info.value.filename == str(tmp / "out.zarr")
+    assert sorted(os.listdir(tmp)) == ["in.zarr"]
 
 
 # --------------------------------------------------------------------------- errors
@@ -709,8 +799,8 @@ def test_zarr_input_is_never_its_output(store, capsys):
     for out, force in [("in.zarr", []), ("in.zarr", ["--force"]), ("in.zarr/", ["--force"]), ("link.zarr", ["--force"])]:
         assert main(["resample", str(tmp / "in.zarr"), "-o", str(tmp / out), "--fps", "10", *force]) == 2
         err = capsys.readouterr().err
-        assert err.startswith(f"quatarray: error: {tmp / out}: is the input; Zarr outputs are written while the "
-                              "input is read"), err   # the output named once
+        assert err.startswith(f"quatarray: error: {tmp / out}: is the input, which is read chunk by chunk while "
+                              "the output is written"), err   # the output named once
     assert sorted(os.listdir(tmp / "in.zarr")) == before
     assert sorted(os.listdir(tmp)) == ["in.zarr", "link.zarr"]
 

@@ -123,6 +123,35 @@ def test_reduce_follows_the_overwrite_rule(tmp_path, capsys, ext):
     assert main(["reduce", str(src), "-o", str(src), "--tolerance", "1deg", "--force"]) == 0
 
 
+@pytest.mark.parametrize("where", ["folder", "memory"])
+def test_reduce_replaces_a_zarr_input_with_force_as_a_file(dense_csv, tmp_path, capsys, where):
+    """reduce reads a store whole before it writes, so with --force it replaces its own input as it
+    does a file (it was refused with resample's reason); without --force it names the flag.  The
+    store is replaced atomically: no temporary is left, and the keys kept are the input's rows."""
+    pytest.importorskip("zarr", reason="zarr is not installed (the dask extra)")
+    from quatarray.formats import read_zarr, write_zarr
+    dense = read_csv(dense_csv)
+    src = "memory://qa-reduce-in-place/in.zarr" if where == "memory" else str(tmp_path / "in.zarr")
+    write_zarr(src, dense, force=True)
+    args = ["reduce", src, "-o", src, "--tolerance", "0.5deg"]
+    assert main(args) == 2
+    what = "exists" if where == "memory" else "is the input store"     # a URL is no path to compare
+    assert capsys.readouterr().err == f"quatarray: error: {src}: {what}; give --force to replace it\n"
+    np.testing.assert_array_equal(read_zarr(src).keys, dense.keys)
+    assert main(args + ["--force"]) == 0, capsys.readouterr().err
+    kept = read_zarr(src)
+    idx = np.searchsorted(dense.times, kept.times)
+    assert 2 <= len(idx) < len(dense.times) // 4 and np.array_equal(dense.times[idx], kept.times)
+    np.testing.assert_array_equal(kept.keys, dense.keys[idx])
+    assert kept.names == dense.names
+    if where == "memory":
+        import fsspec
+        assert fsspec.filesystem("memory").ls("/qa-reduce-in-place", detail=False) == ["/qa-reduce-in-place/in.zarr"]
+        fsspec.filesystem("memory").rm("/qa-reduce-in-place", recursive=True)
+    else:
+        assert sorted(os.listdir(tmp_path)) == ["arm_120.csv", "in.zarr"]
+
+
 @pytest.mark.parametrize("text, value", [("0.1deg", np.radians(0.1)), ("2e-3rad", 2e-3), ("0.5", 0.5),
                                          (" 1 deg ", np.radians(1))])
 def test_parse_tolerance(text, value):

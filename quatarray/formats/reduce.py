@@ -3,7 +3,7 @@
 Formats come from the registry (`quatarray.formats.FORMATS`): its readers and
 writers, and per family the way keys can be dropped:
 
-- **CSV, NPZ** (one time column for every track): the tracks keep one shared
+- **CSV, NPZ, Zarr** (one time column for every track): the tracks keep one shared
   set of key times (`quatarray.reduce_keys` with ``shared=True``); the kept
   rows are written exactly as they were read.
 - **BVH** (frames on one uniform grid): keys cannot be dropped one by one.
@@ -143,9 +143,9 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     Parameters
     ----------
     src, dst : str or os.PathLike
-        ``.csv`` or ``.npz`` (interchangeable), ``.bvh``, or ``.gltf`` or
-        ``.glb`` (interchangeable); see the module notes for what each
-        format allows.
+        ``.csv``, ``.npz`` or ``.zarr`` (interchangeable), ``.bvh``, or
+        ``.gltf`` or ``.glb`` (interchangeable); see the module notes for
+        what each format allows.
     tolerance : float or str
         Largest angle between the reduced curve and any original key, in
         radians, or text such as ``"0.1deg"`` (`parse_tolerance`).
@@ -155,7 +155,8 @@ def reduce_file(src, dst, tolerance, *, method="slerp", scalar_last=False, force
     scalar_last : bool
         CSV components are ``x, y, z, w``.
     force : bool
-        Replace an existing `dst`, also when it is `src` (atomically), and
+        Replace an existing `dst`, also when it is `src` (atomically: `src`
+        is read whole first, a Zarr store too), and
         let a ``.gltf`` output's ``.bin`` replace an existing file, as
         `resample_file`: without it an existing `dst` or ``.bin`` is refused.
     storage_options : dict, optional

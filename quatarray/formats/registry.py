@@ -17,7 +17,8 @@ import numpy as np
 
 from . import bvh, csv, gltf, npz, zarr
 from .keyframes import fps_times, read_times, resample_keyframes
-from .text import FormatError, TextStyle, echo, nested, not_a_store, option, refuse_existing, same_file
+from .text import (FormatError, TextStyle, echo, nested, not_a_store, option, read_while_written, refuse_existing,
+                   same_file)
 
 __all__ = ["Format", "FORMATS", "format_of", "resample_file"]
 
@@ -134,11 +135,10 @@ class Format:
     chunked : callable or None
         A resampler (called as `resample`) used instead when input and
         output are both of this format, which resamples chunk by chunk
-        beyond memory (Zarr → Zarr); None: none.
-    replaces_input : bool
-        The input is read whole before the output is renamed into place,
-        so the output may be the input (with ``force``).  False where the
-        `chunked` resampler writes the output while it reads the input.
+        beyond memory (Zarr → Zarr): it reads the input while it writes
+        the output, so its output is never its input.  None: none.  Every
+        other path reads the input whole before the output is renamed into
+        place, so there the output may be the input (with ``force``).
     directory : bool
         The format is a directory (a Zarr store), not a file.
     urls : bool
@@ -152,7 +152,6 @@ class Format:
     write: object
     resample: object
     chunked: object = None
-    replaces_input: bool = True
     directory: bool = False
     urls: bool = False
 
@@ -165,7 +164,7 @@ FORMATS = {
     ".gltf": Format("glTF", "glTF", None, None, _resample_gltf),
     ".glb": Format("GLB", "glTF", None, None, _resample_gltf),
     ".zarr": Format("Zarr", "keyframes", _read_zarr, _write_zarr, _resample_keyframes, chunked=_resample_zarr,
-                    replaces_input=False, directory=True, urls=True),
+                    directory=True, urls=True),
 }
 
 
@@ -199,11 +198,12 @@ def check_storage_options(storage_options, kind_in, kind_out, dst):
         raise FormatError(f"storage options apply to {urls} only", dst)
 
 
-def check_output(src, dst, kind_out, force):
+def check_output(src, dst, kind_out, force, chunked=False):
     """The overwrite rule, for every command that writes a file: an existing `dst` only with `force`;
-    `dst` equal to `src` only with `force` and only where the format replaces its input atomically;
-    never a file where a store (a directory) goes, or the reverse, nor `dst` inside the input's
-    store or holding the input (whose replacement would delete it)."""
+    `dst` equal to `src` only with `force`, and never when `chunked` (the input is read chunk by chunk
+    while `dst` is written, so it cannot be replaced atomically); never a file where a store (a
+    directory) goes, or the reverse, nor `dst` inside the input's store or holding the input (whose
+    replacement would delete it)."""
     if nested(src, dst):
         raise FormatError("lies inside the input, or holds it: write elsewhere", dst)
     if os.path.isdir(dst) != FORMATS[kind_out].directory and os.path.exists(dst):
@@ -211,11 +211,11 @@ def check_output(src, dst, kind_out, force):
             raise not_a_store(dst, FORMATS[kind_out].name)
         raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(dst))
     if same_file(src, dst):
-        if not FORMATS[kind_out].replaces_input:
-            raise FormatError(f"is the input; {FORMATS[kind_out].name} outputs are written while the input is "
-                              "read, so they cannot replace it: write elsewhere, then rename", dst)
+        if chunked:
+            raise read_while_written(dst)
         if not force:
-            raise FormatError(f"is the input file; give {option('force')} to replace it", dst)
+            what = "store" if FORMATS[kind_out].directory else "file"
+            raise FormatError(f"is the input {what}; give {option('force')} to replace it", dst)
     else:
         refuse_existing(os.path.lexists(dst), dst, force)
 
@@ -256,9 +256,9 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
         Replace an existing `dst` (atomically), also when it is `src`, and
         let a ``.gltf`` output's ``.bin`` replace an existing file (never a
         file of the input, unless `dst` is the input itself and the file its
-        buffer: the two are rewritten together).  A Zarr
-        store, written chunk by chunk while its input is read, is never
-        written over its input.
+        buffer: the two are rewritten together).  A Zarr store resampled
+        into a Zarr store, read chunk by chunk while the output is written,
+        is never written over.
     scheduler, progress
         Zarr → Zarr only: see `quatarray.formats.resample_zarr`.
     storage_options : dict, optional
@@ -303,7 +303,7 @@ def resample_file(src, dst, *, fps=None, times=None, method=None, extrapolate="r
     if not (precision is None or precision == "full" or (isinstance(precision, int) and 0 <= precision <= 30)):
         raise ValueError(f"expected precision an int from 0 to 30 or 'full', got {precision!r}")
     check_storage_options(storage_options, kind_in, kind_out, dst)
-    check_output(src, dst, kind_out, force)
+    check_output(src, dst, kind_out, force, chunked=chunked is not None)
     if chunked is None:   # a chunked resampler reads its query times chunk by chunk (Zarr: also from a .zarr store)
         if times is not None and isinstance(times, (str, os.PathLike)):
             times = (zarr.read_times_zarr(times, storage_options=storage_options) if zarr.is_zarr(times)

@@ -10,8 +10,8 @@
 - `echo`: a value quoted in a message, cut to about 60 characters;
 - `option`: an option named as the caller spells it (``--force`` on the
   command line, ``force=True`` in Python; `command_line` switches).
-- `refuse_existing`, `same_file`, `nested`, `one_below_other`: the overwrite rule's wording and its tests
-  of whether an output is the input.
+- `refuse_existing`, `read_while_written`, `same_file`, `nested`, `one_below_other`: the overwrite
+  rule's wording and its tests of whether an output is the input.
 
 `FormatError` and `TextStyle` are public (`quatarray.formats`); the rest is
 shared inside the package.
@@ -113,6 +113,14 @@ def refuse_existing(exists, name, force):
     only with `force`."""
     if exists and not force:
         raise FileExistsError(errno.EEXIST, f"exists; give {option('force')} to replace it", os.fspath(name))
+
+
+def read_while_written(name, what="input"):
+    """The error for an output that is the `what` (``"input"``, ``"times store"``) of a resample that
+    reads it chunk by chunk while it writes the output (.zarr to .zarr): never replaced, even with
+    force, since the old data is still being read when the new is written."""
+    return FormatError(f"is the {what}, which is read chunk by chunk while the output is written, so the output "
+                       f"cannot replace it, even with {option('force')}: write elsewhere, then rename", name)
 
 
 def same_file(a, b):

@@ -5,7 +5,8 @@ scalar-first, like the NPZ layout, and optionally the track names in the
 group attribute ``names`` (one per flattened batch index).  It may be
 anything zarr opens: a local path, or a URL (``memory://``, ``s3://``,
 ``gs://``, any fsspec protocol) with ``storage_options`` for its filesystem
-(credentials, endpoint).
+(credentials, endpoint).  A URL's empty path segments are dropped, as a
+local path's are: ``s3://bkt//run.zarr`` is ``s3://bkt/run.zarr``.
 
 `resample_zarr` (Zarr → Zarr) reads the keys into memory when small (one
 `Track` for every chunk of queries), else keeps them as a Dask array
@@ -48,9 +49,12 @@ The output appears only when complete:
 
 Replacing an existing store needs ``force`` (a file where the store
 should be is never replaced); on an object store the old store is removed
-first (its metadata first, so that it never looks half-present).  The input store is
-never replaced, even with ``force``: neither way is atomic for a store
-that is still being read.
+first (its metadata first, so that it never looks half-present).
+`resample_zarr` never replaces its input store (or its store of times),
+even with ``force``: it reads them chunk by chunk while it writes, and
+neither way of replacing is atomic for a store that is still being read.
+`write_zarr` takes keyframes in memory, so with ``force`` it may replace
+the store they were read from (``quatarray reduce in.zarr -o in.zarr``).
 """
 
 import contextlib
@@ -67,7 +71,7 @@ import numpy as np
 from .._validate import float_array
 from .keyframes import Keyframes, fps_steps, keys_at_key_times, read_times, snap_to_keys
 from .text import (FormatError, check_arrays, check_query, check_size, echo, not_a_store, not_carried,
-                   one_below_other, refuse_existing)
+                   one_below_other, read_while_written, refuse_existing)
 
 __all__ = ["read_zarr", "write_zarr", "resample_zarr", "read_store", "read_times_zarr", "is_zarr"]
 
@@ -113,7 +117,7 @@ class _Location:
                 self.fs, self.path = fsspec.core.url_to_fs(self.name, **self.options)
             except TypeError as exc:   # an option the filesystem does not take
                 raise self._bad_options(exc) from None
-            self.path = self.path.rstrip("/")
+            self.path = _object_path(self.fs, self.path)
             self.local = "file" in np.atleast_1d(self.fs.protocol)
         else:
             self.fs, self.path, self.local = None, os.path.abspath(self.name), True
@@ -153,6 +157,18 @@ class _Location:
         if self.local:
             return {"store": path}
         return {"store": self.fs.unstrip_protocol(path), "storage_options": self.options}
+
+
+def _object_path(fs, path):
+    """`path` on object store `fs` in one form: no empty segments (``//``) and no trailing ``/``, as a
+    local path has none.  Zarr writes the literal keys of ``s3://bkt//out.zarr`` (``/out.zarr/...``),
+    but s3fs lists and removes ``bkt//out.zarr`` as ``bkt/out.zarr``
+    (https://github.com/fsspec/s3fs/issues/770): the temporary objects of such a store could not be
+    found again, and a store checked for, replaced or compared was another one.  Paths that are URLs
+    themselves (HTTP) are kept as they are."""
+    if "://" in path:
+        return path.rstrip("/")
+    return fs.root_marker + "/".join(part for part in path.split("/") if part)
 
 
 def _locations(storage_options, **stores):
@@ -613,7 +629,10 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     scheduler : str, optional
         Address of a running ``distributed`` scheduler.  Default: the
         active ``distributed.Client`` if there is one, else Dask's local
-        threads.  The workers must reach `src` and `dst`.
+        threads.  The workers must reach `src` and `dst`.  On an error the
+        chunks being written are finished before the temporary store is
+        removed (on a cluster: every chunk of the current window of
+        `WINDOW_CHUNKS`), so that none of them makes it again.
     progress : bool, optional
         Show a progress bar on stderr (Dask's ``ProgressBar``, or
         ``distributed.progress`` on a cluster); default: when stderr is a
@@ -653,8 +672,7 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     loc_in, loc_out = where["src"], where["dst"]
     for what, loc in (("input", loc_in), ("times store", where.get("times"))):
         if loc is not None and loc.key() == loc_out.key():
-            raise FormatError(f"is the {what}; Zarr outputs are written while the {what} is read, so they "
-                              "cannot replace it (even when forced): write elsewhere, then rename", loc_out.name)
+            raise read_while_written(loc_out.name, what)
         if loc is not None and loc.nests(loc_out):
             raise FormatError(f"lies inside the {what}, or holds it: write elsewhere", loc_out.name)
     key_times, keys, names = _read(loc_in)
@@ -686,8 +704,8 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
             t = queries.window(start, stop, rows)
             out = interpolate(t).rechunk((rows,) + batch + (4,))
             region = slice(start, stop)
-            run(da.store([t, out], [zt, zk], regions=[(region,), (region,) + (slice(None),) * (len(batch) + 1)],
-                         lock=False, compute=False))
+            run(partial(da.store, [t, out], [zt, zk], lock=False, compute=False,
+                        regions=[(region,), (region,) + (slice(None),) * (len(batch) + 1)]))
     return len(key_times), n
 
 
@@ -712,24 +730,38 @@ class _CurveAndKeys:
 
 @contextlib.contextmanager
 def _runner(scheduler, show):
-    """A function that computes a graph: on the distributed scheduler at `scheduler`, on the active
-    ``distributed.Client``, or on local threads; with a progress bar if `show`."""
+    """A function that runs a write, given as `dask.array.store` waiting for more of its arguments
+    (``compute=False``): on the distributed scheduler at `scheduler`, on the active
+    ``distributed.Client``, or on local threads; with a progress bar if `show`.  It returns only
+    when no chunk of the write is being written any more, also on an error."""
     client = None
     if scheduler is None and "distributed" in sys.modules:
         from distributed import default_client
         with contextlib.suppress(ValueError):
             client = default_client()
     if scheduler is not None or client is not None:
-        from distributed import Client, progress
+        from distributed import Client, futures_of, progress, wait
         with contextlib.ExitStack() as stack:
             if client is None:
                 client = stack.enter_context(Client(scheduler))
 
-            def run(graph):
-                future = client.compute(graph)
-                if show:
-                    progress(future)
-                client.gather(future)
+            def run(store):
+                # a future for every chunk (each one's result is its target, not its data), all waited
+                # for, failed or not, before an error is raised: the chunks still being written on the
+                # workers when one fails would otherwise land after the temporary store is removed (a
+                # cancelled task runs on, and the scheduler no longer reports it).  On Ctrl-C or SIGTERM
+                # too, the window's chunks are waited for; a second interrupt stops waiting.
+                futures = futures_of(client.persist(store(return_stored=True, load_stored=False)))
+                try:
+                    if show:
+                        progress(futures)
+                    wait(futures)
+                except BaseException:
+                    wait(futures)
+                    raise
+                for future in futures:
+                    if future.status == "error":
+                        future.result()    # raises the chunk's error
             yield run
         return
     # our own pool, so that on an error, Ctrl-C or SIGTERM the chunks being written are finished
@@ -746,8 +778,8 @@ def _runner(scheduler, show):
                 from dask.diagnostics import ProgressBar
                 stack.enter_context(ProgressBar(out=sys.stderr))
 
-            def run(graph):
-                dask.compute(graph, scheduler="threads", pool=pool, num_workers=workers)
+            def run(store):
+                dask.compute(store(), scheduler="threads", pool=pool, num_workers=workers)
             yield run
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
