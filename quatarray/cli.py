@@ -207,8 +207,8 @@ def build_parser():
                         "matched by name, in any order and case)")
     p.add_argument("--precision", type=_precision, metavar="N|full",
                    help="decimals of every value written to CSV or BVH, or 'full': the shortest text that "
-                        "reads back exactly (default: a key at its own time keeps the input's text, every "
-                        "interpolated value is written in full)")
+                        "reads back exactly (default: a key at its own time is written as read, in the input's "
+                        "number style; every interpolated value is written in full)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing OUT, also when it is IN (not .zarr to .zarr, which reads IN "
                         "chunk by chunk while it writes OUT)")
@@ -222,7 +222,7 @@ def build_parser():
                        ".glb)",
         description="Drop keys while the curve through the kept ones stays within --tolerance of every "
                     "original key, and print keys before and after and the largest error per track. "
-                    "CSV and NPZ tracks keep one shared set of key times (the kept rows are written as read). "
+                    "CSV, NPZ and Zarr tracks keep one shared set of key times (the kept rows are the keys as read, in the file's number style). "
                     "BVH frames stay on one uniform grid: the clip is resampled at the coarsest whole "
                     "multiple of its frame time that keeps every joint within the tolerance (positions "
                     "linearly, outside the bound). glTF: each LINEAR rotation sampler gets its own fewer keys "

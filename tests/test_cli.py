@@ -786,11 +786,12 @@ def test_files_the_demo_writes_are_ignored_by_git(tmp_path, capsys):
 
 
 def test_precision_help_states_the_precision_rule():
-    """--help states the rule the files follow: only a key at its own time keeps the input's text
-    (it said 'default: as many as the input has', the old rule that rounded interpolated values)."""
+    """--help states the rule the files follow: only a key at its own time is written as read, in
+    the input's number style (it said 'default: as many as the input has', the old rule that
+    rounded interpolated values)."""
     text = " ".join(run("resample", "--help").stdout.split())
     assert "as many as the input has" not in text
-    assert "a key at its own time keeps the input's text" in text
+    assert "a key at its own time is written as read, in the input's number style" in text
     assert "every interpolated value is written in full" in text
 
 
