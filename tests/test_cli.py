@@ -582,8 +582,14 @@ def test_identity_resample_holds_exactly_when_the_guide_says(tmp_path):
     assert not any("e" in line for line in got)
     assert [[float(v) for v in line.split(",")[1:]] for line in got] == [
         [float(v) for v in row.split(",")] for row in exponent]
+    mixed = ["1.000,0.000,0.000,0.000", "0.6,0.8,0,0", "0.28,0.96,0,0"]   # two number styles in one file
+    got = identity(mixed)
+    assert [[float(v) for v in line.split(",")[1:]] for line in got] == [
+        [float(v) for v in row.split(",")] for row in mixed]
+    assert got != [f"{t},{r}" for t, r in enumerate(mixed)]            # the same numbers, in one style
     guide = " ".join(open(os.path.join(ROOT, "docs", "guide", "files.rst")).read().split())
-    assert "in the same hemisphere as the key before it" in guide and "not ``4.53e-01``" in guide
+    assert "in the same hemisphere as the key before it" in guide and "no exponent notation" in guide
+    assert "prints its numbers in one style" in guide and "a file that mixes styles" in guide
     readme = " ".join(open(os.path.join(ROOT, "README.md")).read().split())
     assert "whose keys do not flip hemisphere" in readme
 
