@@ -1,4 +1,4 @@
-"""The documentation: a warning-free Sphinx build, the guide's doctests, and three pages
+"""The documentation: a warning-free Sphinx build, the guide's doctests, and four pages
 rendered in headless Chromium.
 
 Needs the ``docs`` extra (``pip install -e ".[docs]"``) and, for the browser test,
