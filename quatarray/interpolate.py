@@ -53,8 +53,22 @@ EXTEND_LIMIT = _track.EXTEND_LIMIT
 # argument handling
 # ---------------------------------------------------------------------------
 
+def _rotation_quats(x, name):
+    """The unit quaternions, scalar-first, of `x` if it is a `Rotation` (or scipy's), else None:
+    every interpolation function takes rotations as it takes quaternions."""
+    if type(x) is np.ndarray or not (isinstance(x, Rotation) or _is_scipy_rotation(x)):
+        return None
+    return (x if isinstance(x, Rotation) else Rotation.from_scipy(x))._unit_quat(name)
+
+
+def _quats(x, name):
+    """Quaternions (..., 4) of array_like `x` or of a Rotation (`_rotation_quats`)."""
+    q = _rotation_quats(x, name)
+    return quat_array(x, name) if q is None else q
+
+
 def _finite_quat(x, name):
-    return finite(quat_array(x, name), name)
+    return finite(_quats(x, name), name)
 
 
 def _param(t):
@@ -84,7 +98,7 @@ def lerp(q0, q1, t):
 
     Parameters
     ----------
-    q0, q1 : array_like, shape (..., 4)
+    q0, q1 : array_like, shape (..., 4), or Rotation
         Quaternions; batch shapes broadcast.
     t : array_like
         Interpolation parameter, broadcasting against the batch shape;
@@ -114,7 +128,7 @@ def nlerp(q0, q1, t, *, shortest=True):
 
     Parameters
     ----------
-    q0, q1 : array_like, shape (..., 4)
+    q0, q1 : array_like, shape (..., 4), or Rotation
         Unit quaternions; batch shapes broadcast.
     t : array_like
         Interpolation parameter, broadcasting against the batch shape.
@@ -157,7 +171,7 @@ def slerp(q0, q1, t, *, shortest=True):
 
     Parameters
     ----------
-    q0, q1 : array_like, shape (..., 4)
+    q0, q1 : array_like, shape (..., 4), or Rotation
         Unit quaternions; batch shapes broadcast.
     t : array_like
         Interpolation parameter, broadcasting against the batch shape;
@@ -189,7 +203,7 @@ def slerp(q0, q1, t, *, shortest=True):
     >>> slerp([1, 0, 0, 0], [-1, 0, 0, 0], 0.5)    # the same rotation: stays put
     QuatArray([1., 0., 0., 0.])
     """
-    q0, q1, t = quat_array(q0, "q0"), quat_array(q1, "q1"), float_array(t, "t")
+    q0, q1, t = _quats(q0, "q0"), _quats(q1, "q1"), float_array(t, "t")
     _pairwise(("q0", "q1"), (q0, q1), t)
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):   # non-finite input: named below
         res, ok = _interp_kernels.slerp(q0, q1, t, bool(shortest), check=True)
@@ -208,7 +222,7 @@ def unflip(q, axis=0):
 
     Parameters
     ----------
-    q : array_like, shape (..., 4)
+    q : array_like, shape (..., 4), or Rotation
     axis : int, default 0
         A batch axis (the component axis cannot be chosen).
 
@@ -239,7 +253,7 @@ def squad(q0, a, b, q1, t):
 
     Parameters
     ----------
-    q0, a, b, q1 : array_like, shape (..., 4)
+    q0, a, b, q1 : array_like, shape (..., 4), or Rotation
         Unit quaternions (segment ends and inner control points); batch
         shapes broadcast.
     t : array_like
@@ -273,7 +287,7 @@ def bezier(q0, a, b, q1, t):
 
     Parameters
     ----------
-    q0, a, b, q1 : array_like, shape (..., 4)
+    q0, a, b, q1 : array_like, shape (..., 4), or Rotation
         Unit quaternions; batch shapes broadcast.
     t : array_like
         Parameter in [0, 1] along the segment (broadcasting).
@@ -341,7 +355,7 @@ def squad_control_points(keys, times=None):
 
     Parameters
     ----------
-    keys : array_like, shape (K, ..., 4)
+    keys : array_like, shape (K, ..., 4), or Rotation of shape (K, ...)
         K >= 2 keyframes of any batch of tracks.
     times : array_like, shape (K,), optional
         Strictly increasing key times; equal spacing if omitted.
@@ -360,7 +374,8 @@ def squad_control_points(keys, times=None):
     >>> np.allclose(s, keys)
     True
     """
-    keys, times = _prepared_keys(keys, times)
+    q = _rotation_quats(keys, "keys")
+    keys, times = _prepared_keys(keys if q is None else q, times, unit=q is not None)
     return QuatArray._wrap(_interp_curves.squad_controls(keys, times))
 
 
@@ -388,7 +403,7 @@ def bezier_control_points(keys, times=None):
 
     Parameters
     ----------
-    keys : array_like, shape (K, ..., 4)
+    keys : array_like, shape (K, ..., 4), or Rotation of shape (K, ...)
     times : array_like, shape (K,), optional
         Strictly increasing key times; equal spacing if omitted.
 
@@ -406,7 +421,8 @@ def bezier_control_points(keys, times=None):
     >>> np.allclose(a[0], slerp(keys[0], keys[1], 1 / 3))
     True
     """
-    keys, times = _prepared_keys(keys, times)
+    q = _rotation_quats(keys, "keys")
+    keys, times = _prepared_keys(keys if q is None else q, times, unit=q is not None)
     a, b = _interp_curves.bezier_controls(keys, times)
     return QuatArray._wrap(a), QuatArray._wrap(b)
 
@@ -473,12 +489,8 @@ class Track:
     """
 
     def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
-        if _is_scipy_rotation(keys):   # as Slerp accepts them
-            keys = Rotation.from_scipy(keys)
-        unit = isinstance(keys, Rotation)
-        if unit:  # its unit quaternions, scalar-first, without a copy where known unit
-            keys = keys._unit_quat("keys")
-        self._setup(times, keys, method, extrapolate, "times", "keys", unit)
+        q = _rotation_quats(keys, "keys")   # a Rotation's unit quaternions (no copy where known unit)
+        self._setup(times, keys if q is None else q, method, extrapolate, "times", "keys", q is not None)
 
     def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False, prepared=False):
         """`prepared`: the caller has checked `times` (float64 (K,), finite, strictly

@@ -1232,3 +1232,27 @@ def test_huge_and_tiny_rotation_keys_slerp_as_their_unit_ones(rng, scale):
     for got in (Slerp(times, rot)(t).as_quat(scalar_first=True), np.asarray(Track(times, rot)(t))):
         assert np.isfinite(got).all()
         assert_allclose(got, ref, atol=tol(np.float64, 20), double_cover=True)
+
+
+def test_every_interpolation_function_takes_rotations(rng):
+    """slerp, squad, the control points and the rest take a `Rotation` (quatarray's or scipy's)
+    wherever they take quaternions, as `Track` does: the same answer as its scalar-first unit
+    quaternions (they raised TypeError, though the README said they take a Rotation as keys)."""
+    r = Rotation.from_quat(rng.normal(size=(5, 4)))
+    q = r.as_quat(scalar_first=True)
+    a, b = r[:4], r[1:]
+    qa, qb = q[:4], q[1:]
+    t = np.linspace(0, 1, 4)
+    for f in (lerp, nlerp, slerp):
+        np.testing.assert_array_equal(f(a, b, t).ndarray, f(qa, qb, t).ndarray)
+        assert_allclose(f(a.to_scipy(), b, t), f(qa, qb, t), rtol=0, atol=4 * np.finfo(float).eps)
+    for f in (squad, bezier):
+        np.testing.assert_array_equal(f(a, b, a, b, t).ndarray, f(qa, qb, qa, qb, t).ndarray)
+    np.testing.assert_array_equal(unflip(r).ndarray, unflip(q).ndarray)
+    times = np.cumsum(rng.uniform(0.5, 2, size=5))
+    assert_allclose(squad_control_points(r, times), squad_control_points(q, times), rtol=0,
+                    atol=4 * np.finfo(float).eps)
+    for got, want in zip(bezier_control_points(r, times), bezier_control_points(q, times)):
+        assert_allclose(got, want, rtol=0, atol=4 * np.finfo(float).eps)
+    with pytest.raises(ValueError, match="keys"):
+        squad_control_points(r[:1])
