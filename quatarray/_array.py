@@ -333,7 +333,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([[1, 2, 2, 4]]).norm()
         array([5.])
         """
-        return _kernels.norm(_raw(self))
+        return _checked(_kernels.norm, _raw(self), "the quaternions")
 
     def normalized(self):
         """q / |q|; zero quaternions raise `ValueError`.
@@ -342,7 +342,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 3, 0, 4]).normalized()
         QuatArray([0. , 0.6, 0. , 0.8])
         """
-        return self._wrap(_kernels.normalize(_raw(self)))
+        return self._wrap(_checked(_kernels.normalize, _raw(self), "the quaternions"))
 
     def inverse(self):
         """conj(q) / |q|² (general quaternions); a zero quaternion raises `ZeroDivisionError`.
@@ -352,7 +352,7 @@ class QuatArray(np.ndarray):
         >>> q * q.inverse()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(_kernels.inverse(_raw(self)))
+        return self._wrap(_checked(_kernels.inverse, _raw(self), "the quaternions"))
 
     def exp(self):
         """Quaternion exponential; also ``np.exp(q)``.
@@ -370,7 +370,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([1, 0, 0, 0]).log()
         QuatArray([0., 0., 0., 0.])
         """
-        return self._wrap(_kernels.log(_raw(self)))
+        return self._wrap(_checked(_kernels.log, _raw(self), "the quaternions"))
 
     def power(self, t):
         """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped); also ``q ** t``.
@@ -390,7 +390,7 @@ class QuatArray(np.ndarray):
             except ValueError:
                 raise ValueError(f"expected an exponent t broadcastable to the batch shape {q.shape[:-1]}, "
                                  f"got shape {t.shape}") from None
-        return self._wrap(_kernels.power(q, t))
+        return self._wrap(_checked(_kernels.power, q, "the quaternions", t))
 
     def dot(self, other):
         """4-D inner product with `other` (a QuatArray), batch shape.
@@ -422,7 +422,7 @@ class QuatArray(np.ndarray):
             except ValueError:
                 raise ValueError(f"expected v of a batch shape that broadcasts with the quaternions' "
                                  f"{q.shape[:-1]}, got v of batch shape {v.shape[:-1]}") from None
-        return _kernels.rotate_nonzero(q, v)
+        return _checked(_kernels.rotate_nonzero, q, "the quaternions", v)
 
     @classmethod
     def identity(cls, num=None, *, shape=None, dtype=np.float64):
@@ -450,7 +450,7 @@ class QuatArray(np.ndarray):
                [ 0., -1.,  0.],
                [ 0.,  0.,  1.]])
         """
-        return _convert.as_matrix(_raw(self))
+        return _checked(_convert.as_matrix, _raw(self), "the quaternions")
 
     @classmethod
     def from_matrix(cls, matrix, *, assume_valid=False):
@@ -470,7 +470,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 1]).as_rotvec()
         array([0.        , 0.        , 3.14159265])
         """
-        return _convert.as_rotvec(_raw(self), degrees=degrees)
+        return _checked(_convert.as_rotvec, _raw(self), "the quaternions", degrees=degrees)
 
     @classmethod
     def from_rotvec(cls, rotvec, degrees=False):
@@ -490,7 +490,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 1]).as_mrp()
         array([0., 0., 1.])
         """
-        return _convert.as_mrp(_raw(self))
+        return _checked(_convert.as_mrp, _raw(self), "the quaternions")
 
     @classmethod
     def from_mrp(cls, mrp):
@@ -509,7 +509,12 @@ class QuatArray(np.ndarray):
         >>> QuatArray.from_euler("ZXY", [30, 20, 10], degrees=True).as_euler("ZXY", degrees=True).round(9)
         array([30., 20., 10.])
         """
-        return _euler.as_euler(_raw(self), seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        q = _raw(self)
+        try:   # (not through `_checked`: the gimbal warning points at the caller's frame)
+            return _euler.as_euler(q, seq, degrees=degrees, suppress_warnings=suppress_warnings)
+        except ValueError:
+            finite(q, "the quaternions")
+            raise
 
     @classmethod
     def from_euler(cls, seq, angles, degrees=False):
@@ -531,7 +536,12 @@ class QuatArray(np.ndarray):
         >>> q.as_davenport(np.eye(3)[[2, 0, 2]], "e", degrees=True).round(9)
         array([10., 20., 30.])
         """
-        return _euler.as_davenport(_raw(self), axes, order, degrees=degrees, suppress_warnings=suppress_warnings)
+        q = _raw(self)
+        try:   # (as in as_euler)
+            return _euler.as_davenport(q, axes, order, degrees=degrees, suppress_warnings=suppress_warnings)
+        except ValueError:
+            finite(q, "the quaternions")
+            raise
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
@@ -600,10 +610,11 @@ class QuatArray(np.ndarray):
                 return _binary(ufunc, *inputs, out=out)
             if ufunc in _UNARY and len(inputs) == 1:
                 q = _operand(inputs[0], "argument")
+                name = f"the argument of {ufunc.__name__}"
                 if ufunc in _PLAIN_UNARY:
-                    return _finish_plain(_UNARY[ufunc](q), out)
-                res = _UNARY[ufunc](q)
-                return _finish(_finite_result(res, (f"the argument of {ufunc.__name__}", q)), out)
+                    return _finish_plain(_checked(_UNARY[ufunc], q, name), out)
+                res = _checked(_UNARY[ufunc], q, name)
+                return _finish(_finite_result(res, (name, q)), out)
         elif method in ("reduce", "accumulate") and ufunc in (np.multiply, np.add):
             return _reduce(ufunc, method, *inputs, out=out, **kwargs)
         raise TypeError(
@@ -707,6 +718,17 @@ def _check_batches(ufunc, A, qa, B, qb):
         ) from None
 
 
+def _checked(kernel, q, name, *args, **kwargs):
+    """``kernel(q, *args, **kwargs)``; where the kernel raises `ValueError` (its range test finds
+    nan or inf without knowing where, or a zero quaternion), `finite`'s error for nan or inf in
+    `q` instead, naming `name` and the first such index; otherwise the kernel's own."""
+    try:
+        return kernel(q, *args, **kwargs)
+    except ValueError:
+        finite(q, name)
+        raise
+
+
 def _finite_result(res, *named):
     """The API's non-finite policy for results computed without a guard.
 
@@ -736,13 +758,22 @@ def _binary(ufunc, a, b, out=None):
     if ufunc is np.multiply and qa and qb:   # the product's blocks are judged while in cache
         res, ok = _kernels.multiply(A, B, check=True)
     else:
-        res = _compute(ufunc, A, qa, B, qb, a, b)
+        try:
+            res = _compute(ufunc, A, qa, B, qb, a, b)
+        except ValueError:   # a kernel's range test found nan or inf (it cannot say where), or not
+            _finite_operands(ufunc, A, B)
+            raise
         ok = all_finite(res)
     if not ok:
-        symbol = _SYMBOLS[ufunc]
-        finite(A, f"the left operand of {symbol}")
-        finite(B, f"the right operand of {symbol}")
+        _finite_operands(ufunc, A, B)
     return _finish(res, out)
+
+
+def _finite_operands(ufunc, A, B):
+    """`finite`'s error for the first operand of a binary operation holding nan or inf."""
+    symbol = _SYMBOLS[ufunc]
+    finite(A, f"the left operand of {symbol}")
+    finite(B, f"the right operand of {symbol}")
 
 
 def _compute(ufunc, A, qa, B, qb, a, b):

@@ -287,7 +287,8 @@ def test_sqrt_squares_back(rng):
 def test_unary_ufuncs_per_quaternion(ufunc):
     q = QuatArray([[1, 0, 0, 0], [np.nan, 0, 0, 0], [0, np.inf, 0, 0]])
     if ufunc is np.absolute:   # non-finite input is refused (the API's policy)
-        with pytest.raises(ValueError, match="expected finite quaternions"):
+        with pytest.raises(ValueError, match=r"expected finite values in the argument of absolute, got nan or inf at "
+                                             r"index \(1, 0\)"):
             ufunc(q)
         q = QuatArray([[1, 0, 0, 0], [0, 3, 0, 4], [0, 0, 0, 0]])
     res = ufunc(q)
@@ -684,3 +685,25 @@ def shapes_and_keys(draw):
 def test_touches_last_agrees_with_a_probe(case):
     shape, key = case
     assert _array._touches_last(key, shape) == (not _probe_keeps_last(key, shape)), (shape, key)
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda q: abs(q), "the quaternions"), (lambda q: np.absolute(q), "the argument of absolute"),
+    (lambda q: q.norm(), "the quaternions"),
+    (lambda q: q.log(), "the quaternions"), (lambda q: np.log(q), "the argument of log"),
+    (lambda q: q.normalized(), "the quaternions"), (lambda q: q.inverse(), "the quaternions"),
+    (lambda q: q ** 0.5, r"the left operand of \*\*"), (lambda q: q.power(0.5), "the quaternions"),
+    (lambda q: np.sqrt(q), "the argument of sqrt"), (lambda q: q.rotate([1, 0, 0]), "the quaternions"),
+    (lambda q: q.as_matrix(), "the quaternions"), (lambda q: q.as_rotvec(), "the quaternions"),
+    (lambda q: q.as_mrp(), "the quaternions"), (lambda q: q.as_euler("xyz"), "the quaternions"),
+    (lambda q: q.as_davenport(np.eye(3), "extrinsic"), "the quaternions"),
+    (lambda q: QuatArray(np.ones((3, 4))) / q, "the right operand of /"),
+    (lambda q: 2 / q, "the right operand of /"),
+])
+def test_nan_input_is_named_with_its_index(call, name):
+    """Every operation names the argument and the first index holding nan or inf (those whose
+    kernels find it by their range test said only 'expected finite quaternions')."""
+    q = QuatArray(np.ones((3, 4)))
+    q[1, 2] = np.nan   # the quaternion's component (1, 2): the first non-finite element
+    with pytest.raises(ValueError, match=rf"expected finite values in {name}, got nan or inf at index \(1, 2\)"):
+        call(q)
