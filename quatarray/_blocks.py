@@ -271,6 +271,10 @@ def soa(a):
 
 # --------------------------------------------------------------------------- scratch
 
+_DTYPES = {d: np.dtype(d) for d in (np.float32, np.float64, bool)}
+_DTYPES.update({d: d for d in list(_DTYPES.values())})   # (a lookup costs a third of np.dtype())
+
+
 class Scratch:
     """A thread's scratch: a stack of rows carved from one buffer kept between calls.
 
@@ -290,7 +294,7 @@ class Scratch:
 
     def rows(self, n, shape, dtype):
         shape = (n, *shape)
-        dtype = np.dtype(dtype)
+        dtype = _DTYPES.get(dtype) or np.dtype(dtype)
         nbytes = prod(shape) * dtype.itemsize
         if nbytes <= SMALL_ROWS:   # fresh small memory costs no page faults, and less than a view
             return np.empty(shape, dtype)
