@@ -566,21 +566,23 @@ def _k_exp(q, o):
         with np.errstate(over="ignore"):   # only there: e**w that overflows still warns
             e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
         np.exp(q[0], out=ew)
-        over = ew.size and ew.max() == np.inf   # e**w overflowed somewhere
-        # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
-        np.maximum(vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), out=vn)
-        cos_sin(vn, c, s, (u, v))
-        s /= vn
+        over = ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
         if over:
             big = ew == np.inf
-            sb = s[big]
-        s *= ew
-        if e is not None:
-            np.ldexp(s, e, out=s)
-        for k in (1, 2, 3):
-            np.multiply(q[k], s, out=o[k])
-        np.multiply(c, ew, out=o[0])
+        kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
+
+        def scale(s):
+            if over:
+                kept.append(s[big])
+            s *= ew
+            if e is not None:
+                np.ldexp(s, e, out=s)
+            return s
+
+        _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
+                     _ops.ARRAYS, c, s, (u, v), o)
         if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
+            sb = kept[0]
             with np.errstate(over="ignore"):   # (e**w has warned)
                 half = np.exp(q[0][big] * 0.5)
                 if e is not None:
@@ -589,6 +591,42 @@ def _k_exp(q, o):
                 for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
                     qk = q[k][big] * sb
                     o[k][big] = np.where(qk == 0, qk, qk * half * half)
+
+
+def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, c, s, rows, o):
+    """The exponential's formula, written once: ``o = e^w (cos|v|, sin|v| v/|v|)`` from the
+    vector part `v` (three rows or floats), |v| in `vn` (overwritten), its positive `floor`,
+    e^w in `ew`, in `op`'s arithmetic (`_ops`), with ``cos_sin(vn, c, s, rows)`` (`cos_sin`
+    or its float form) and ``scale(s)`` multiplying sin|v| / |v| by e^w (the block kernel
+    also keeps, and undoes a rescale of, some rows there).  Returns `o` (four rows, or
+    the four floats)."""
+    vn = op.max(vn, floor, vn)   # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
+    c, s = cos_sin(vn, c, s, rows)
+    s = op.div(s, vn, s)
+    s = scale(s)
+    return [op.mul(c, ew, o[0]), *[op.mul(v[k], s, o[k + 1]) for k in range(3)]]
+
+
+def _exp_floats(comps):
+    """`_k_exp` on the four floats of one float64 quaternion, or None where the block kernel
+    has more to do (|v|² beyond `_scale.HIGH`, e^w near overflow, non-finite input)."""
+    w, x, y, z = comps
+    vv = _scale.squares([x, y, z], _ops.FLOATS, None, None)   # `sum_squares`' order
+    if not vv <= _HIGH64:
+        return None
+    if not w < 709.0:   # e**w near or past the float maximum (its warning: the block kernel's)
+        return None
+    ew = float(np.exp(w))   # NumPy's exp: the array loop's bits
+    return _exp_formula([x, y, z], math.sqrt(vv), ANGLE_FLOOR[_FLOAT64], ew, _cos_sin_floats,
+                        lambda s: s * ew, _ops.FLOATS, None, None, None, _ops.NONE)
+
+
+def _cos_sin_floats(angle, c, s, rows):
+    """`cos_sin` of one float64 angle (a Python float), in the signature of the kernels'."""
+    return _cos_sin_tan(angle, _ops.FLOATS, _trig.tan_float, None, None, _ops.NONE)
+
+
+_FLOAT64 = np.dtype(np.float64)
 
 
 def exp(q):
@@ -600,6 +638,11 @@ def exp(q):
     True
     """
     q = np.asarray(q)
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: the same formula on its floats
+        one = _exp_floats(one)
+        if one is not None:
+            return _ops.to_array(one, q.shape)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(invalid="ignore", divide="ignore"):
         _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)
@@ -642,14 +685,14 @@ def _log_parts(q):
     d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
     np.log(n2, out=ln)
     um1 = np.subtract(n2, 1, out=u)       # exact for |q|² in [1/2, 2]
-    unit = not um1.all()                  # one reduction instead of a mask when none
+    unit = _scale.any_zero(um1)           # one reduction instead of a mask when none
     np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
     ln *= um1
     if unit:
         np.copyto(ln, d, where=n2 == 1)
     ln *= 0.5
     # one reduction instead of a mask and a test when no vector is zero or below the range
-    few = vv.min() < _scale.LOW[vv.dtype]
+    few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
     vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
     arctan2(vn, w, out=theta)
     np.divide(theta, vn, out=scale)
