@@ -668,36 +668,84 @@ def _log_parts(q):
     whose scale is a limit (`_small_vectors`); the seventh |q|² (of q as rescaled)."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
     w = q[0]
+    one, half = _ops.const(1.0, q.dtype), _ops.const(0.5, q.dtype)
     _scale.sum_squares(q, vv, 1)
-    np.multiply(w, w, out=n2)
-    n2 += vv                              # w² + |v|², as the one-quaternion path
+    _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
     e = v0 = None
     if not _scale.fits(n2):               # extreme magnitudes: the vectors kept, whose axes
         v0 = q[1:].copy()                 # a rescale may lose (`_small_vectors`)
         e = _scale.guard(q, n2)
     if e is not None:                     # q was rescaled: |v|² again
         _scale.sum_squares(q, vv, 1)
-        np.multiply(w, w, out=n2)
-        n2 += vv
-    np.subtract(w, 1, out=d)
-    np.add(w, 1, out=u)
-    d *= u
-    d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
-    np.log(n2, out=ln)
-    um1 = np.subtract(n2, 1, out=u)       # exact for |q|² in [1/2, 2]
+        _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
+    _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, _ln_ratio_rows, d, u, ln)
+    # one reduction instead of a mask and a test when no vector is zero or below the range
+    few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
+    vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
+    _angle_formula(vn, w, _ops.ARRAYS, arctan2, theta, scale)
+    lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
+    return ln, theta, vn, scale, e, lim, n2
+
+
+def _sqnorm_formula(w, vv, op, n2):
+    """|q|² = w² + |v|² from |v|² (`_log_parts`' order, in `op`'s arithmetic)."""
+    n2 = op.mul(w, w, n2)
+    return op.add(n2, vv, n2)
+
+
+def _ln_formula(w, vv, n2, op, one, half, ratio, d, u, ln):
+    """ln|q| = log1p(d) / 2 by Kahan's ``log(u) d / (u - 1)`` (`_log_parts`), written once:
+    d = (w - 1)(w + 1) + |v|², u = |q|² `n2`, in `op`'s arithmetic with the constants `one`,
+    `half` of the operands' dtype; ``ratio(ln, d, um1, n2)`` is ``ln · d / um1``, d where
+    |q|² = 1 (rows: a division and a mask; a float: a test).  Returns ln."""
+    d = op.sub(w, one, d)
+    u = op.add(w, one, u)
+    d = op.mul(d, u, d)
+    d = op.add(d, vv, d)                  # |q|² - 1 = (w - 1)(w + 1) + |v|²
+    ln = ratio(_LOG[op is _ops.FLOATS](n2, ln), d, op.sub(n2, one, u), n2)   # u - 1 exact for |q|² in [1/2, 2]
+    return op.mul(ln, half, ln)
+
+
+def _ln_ratio_rows(ln, d, um1, n2):
     unit = _scale.any_zero(um1)           # one reduction instead of a mask when none
     np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
     ln *= um1
     if unit:
         np.copyto(ln, d, where=n2 == 1)
-    ln *= 0.5
-    # one reduction instead of a mask and a test when no vector is zero or below the range
-    few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
-    vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
-    arctan2(vn, w, out=theta)
-    np.divide(theta, vn, out=scale)
-    lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
-    return ln, theta, vn, scale, e, lim, n2
+    return ln
+
+
+def _ln_ratio_float(ln, d, um1, n2):
+    return ln * (d / um1) if um1 != 0.0 else d
+
+
+_LOG = {False: lambda x, out: np.log(x, out=out), True: lambda x, out: float(np.log(x))}
+"""NumPy's log on rows, and on a float (the array loop's bits), by ``op is _ops.FLOATS``."""
+
+
+def _angle_formula(vn, w, op, atan2, theta, scale):
+    """θ = atan2(|v|, w) and the scale θ / |v| of the log's vector part (`_log_parts`)."""
+    theta = atan2(vn, w, out=theta)
+    return theta, op.div(theta, vn, scale)
+
+
+def _log_floats(comps):
+    """`_log_parts` on the four floats of one float64 quaternion: (ln|q|, θ, |v|, θ/|v|, |q|²),
+    or None where the block kernel has more to do (|q|² to rescale, |v|² below the range,
+    zero vector, non-finite input)."""
+    w, x, y, z = comps
+    vv = _scale.squares([x, y, z], _ops.FLOATS, None, None)   # `sum_squares`' order
+    n2 = _sqnorm_formula(w, vv, _ops.FLOATS, None)
+    if not (_LOW64 <= n2 <= _HIGH64 and vv >= _LOW64):
+        return None
+    ln = _ln_formula(w, vv, n2, _ops.FLOATS, 1.0, 0.5, _ln_ratio_float, None, None, None)
+    vn = math.sqrt(vv)
+    theta, scale = _angle_formula(vn, w, _ops.FLOATS, _arctan2_float, None, None)
+    return ln, theta, vn, scale, n2
+
+
+def _arctan2_float(y, x, out=None):
+    return arctan2(y, x)
 
 
 def _small_vectors(q, vn, theta, scale, v0):
@@ -726,12 +774,18 @@ def _small_vectors(q, vn, theta, scale, v0):
 
 def _k_log(q, o):
     ln, theta, vn, scale, e, lim, _ = _log_parts(q)
-    np.multiply(q[1:], scale, out=o[1:])
+    _log_vector(q[1:], scale, _ops.STACKS, o[1:])
     np.copyto(o[0], ln)
     if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
         o[0] += e * np.log(o.dtype.type(2))
     if lim is not None:   # a real quaternion in the block: the negative ones get θ = π about x
         np.copyto(o[1], np.pi, where=(vn == 0) & (q[0] < 0))
+
+
+def _log_vector(v, scale, stack, out):
+    """The log's vector part v θ/|v| from `_log_parts`' scale (a stack of rows, `_ops.STACKS`,
+    or floats, `_ops.FLOAT_STACKS`)."""
+    return stack.scale(v, scale, out)
 
 
 def log(q):
@@ -746,6 +800,11 @@ def log(q):
     True
     """
     q = np.asarray(q)
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: the same formula on its floats
+        parts = _log_floats(one)
+        if parts is not None:
+            return _ops.to_array([parts[0], *_log_vector(one[1:], parts[3], _ops.FLOAT_STACKS, None)], q.shape)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
@@ -756,35 +815,31 @@ def _k_power(q, t, o):
     t = t[0]
     ln, theta, vn, scale, e, lim, n2 = _log_parts(q)
     mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
-    np.multiply(t, ln, out=mag)
-    np.exp(mag, out=mag)
-    if not _scale.inside(ln, 0.5):
-        # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
-        # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
-        # (Of the rows as rescaled, if they were: each row's choice is its own.)
-        far = np.abs(ln) > 0.5
-        mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
-    if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
-        mag *= np.exp2(t * e)
     real = zero = None   # (masks only for a block with real quaternions or vectors below the range)
     if lim is not None:
         real = vn == 0
         zero = real & (q[0] == 0)
-        if zero.any():
+
+    def magnitude(mag):
+        if not _scale.inside(ln, 0.5):
+            # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
+            # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
+            # (Of the rows as rescaled, if they were: each row's choice is its own.)
+            far = np.abs(ln) > 0.5
+            mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
+        if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
+            mag *= np.exp2(t * e)
+        if zero is not None and zero.any():
             np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
-    np.multiply(t, theta, out=ang)
-    # sin and cos, not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2
-    # (principal roots of negative reals)
-    np.cos(ang, out=c)
-    np.sin(ang, out=sn)
-    np.multiply(mag, c, out=o[0])
-    # sin(tθ) / |v|  (the axis is v/|v|); where θ is 0 or below the range its limit t·scale
-    f = ang
-    if lim is not None:
-        np.copyto(f, np.where(lim, t * scale, sn / np.where(real, 1, vn)))
-    else:
-        np.divide(sn, vn, out=f)
-    ang = np.multiply(f, mag, out=c)   # (c is free: the real part is written)
+        return mag
+
+    def ratio(sn, f):
+        # sin(tθ) / |v|  (the axis is v/|v|); where θ is 0 or below the range its limit t·scale
+        if lim is not None:
+            return np.copyto(f, np.where(lim, t * scale, sn / np.where(real, 1, vn))) or f
+        return np.divide(sn, vn, out=f)
+
+    _, f, ang = _power_formula(t, ln, theta, _ops.ARRAYS, _POWER_ROWS, magnitude, ratio, mag, ang, c, sn, o[0])
     if zero is not None and zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         ang[zero] = 0.0
     for k in (1, 2, 3):
@@ -801,6 +856,55 @@ def _k_power(q, t, o):
             np.copyto(o[1], mag * sn, where=neg_real)
 
 
+def _power_formula(t, ln, theta, op, fns, magnitude, ratio, mag, ang, c, sn, o0):
+    """The power's formula, written once: |q|^t = exp(t ln|q|) (``magnitude(mag)`` then
+    adjusts it: the rows far from |q| = 1, rescaled or zero), and (the real part |q|^t cos(tθ)
+    into `o0`, sin(tθ) / |v|, that times |q|^t): the last two, the factors of the vector part
+    (``ratio(sn, f)`` divides sin(tθ) by |v| into `f`, the row of tθ).  In `op`'s
+    arithmetic with `fns` (exp, cos, sin; `_POWER_ROWS` or `_POWER_FLOATS`).  sin and cos,
+    not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2 (principal roots of
+    negative reals)."""
+    exp, cos, sin = fns
+    mag = magnitude(exp(op.mul(t, ln, mag), mag))
+    ang = op.mul(t, theta, ang)
+    c = cos(ang, c)
+    sn = sin(ang, sn)
+    w = op.mul(mag, c, o0)
+    f = ratio(sn, ang)
+    return w, f, op.mul(f, mag, c)   # (c is free: the real part is written)
+
+
+_POWER_ROWS = (lambda x, out: np.exp(x, out=out), lambda x, out: np.cos(x, out=out),
+               lambda x, out: np.sin(x, out=out))
+_POWER_FLOATS = (lambda x, out: float(np.exp(x)), lambda x, out: float(np.cos(x)),
+                 lambda x, out: float(np.sin(x)))   # NumPy's loops on a float: the arrays' bits
+
+
+def _power_floats(comps, t):
+    """`_k_power` on the four floats of one float64 quaternion and a float exponent, or None
+    where the block kernel has more to do (as `_log_floats`; |t ln|q|| or tθ too large for
+    exp, cos and sin to stay quiet and finite; sin(tθ)/|v| · |q|^t overflowing)."""
+    parts = _log_floats(comps)
+    if parts is None:
+        return None
+    ln, theta, vn, _, n2 = parts
+    if not (abs(t * ln) < 700.0 and abs(t * theta) < _POWER_ANGLE):
+        return None
+    far = abs(ln) > 0.5   # `_k_power`'s choice of the modulus' formula, for this quaternion
+
+    def magnitude(mag):
+        return float(np.power(n2, t * 0.5)) if far else mag
+
+    w, _, g = _power_formula(t, ln, theta, _ops.FLOATS, _POWER_FLOATS, magnitude, lambda sn, f: sn / vn,
+                             None, None, None, None, None)
+    if not abs(g) < math.inf:   # sin(tθ)/|v| · |q|^t overflowed: the block kernel's fix
+        return None
+    return [w, *_ops.FLOAT_STACKS.scale(comps[1:], g, None)]
+
+
+_POWER_ANGLE = 2.0 ** 50   # tθ beyond it: the block kernel (sin and cos keep few digits there anyway)
+
+
 def power(q, t):
     """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped).
 
@@ -814,6 +918,11 @@ def power(q, t):
     """
     q = np.asarray(q)
     t = np.asarray(t)
+    one = _ops.floats64(q) if t.size == 1 and t.ndim <= q.ndim - 1 else None
+    if one is not None:   # one float64 quaternion, one exponent: the same formula on floats
+        one = _power_floats(one, float(t.item(0)))
+        if one is not None:
+            return _ops.to_array(one, q.shape)
     dtype = result_dtype(q)
     batch = np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
