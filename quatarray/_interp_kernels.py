@@ -27,6 +27,7 @@ sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
 every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
+import math
 from math import prod
 
 import numpy as np
@@ -36,7 +37,7 @@ from . import _ops
 from . import _scale
 from ._blocks import soa
 from ._kernels import normalize, normalize_block, result_dtype
-from ._trig import atan_unit32, tan
+from ._trig import atan_unit32, tan, tan_float
 from ._validate import all_finite
 
 __all__ = [
@@ -159,31 +160,43 @@ def _sine_weights(r2, b2, h, w0, th, s2, w1):
 def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
     """float64 weights from rho = tan(Ω/2) and tau = tan(h Ω/2) (module docstring)."""
     dtype = r2.dtype
+    return _tangent_formula(r2, b2, h, _ops.ARRAYS, _TANGENT_ROWS, _ops.row(_floor(dtype), dtype, b2.shape),
+                            _ops.row(_tiny(dtype), dtype, rho.shape), _ONE64, w0, tau, t2, rho, a2)
+
+
+def _tangent_formula(r2, b2, h, op, fns, floor, tiny, one, w0, tau, t2, rho, a2):
+    """`_tangent_weights`' formula, written once, in `op`'s arithmetic with ``fns = (arctan,
+    tan, times)`` (``times(tau, h)``: tau·h, h of any real dtype) and the constants `floor`,
+    `tiny` and `one` of the operands' kind (rows: the rows made read-only, and a 0-d array;
+    floats: floats).  Returns (w0, w1)."""
+    arctan, tan_, times = fns
     # b² = 0 only for zero input (or B = -A followed as given, see `arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
-    np.maximum(b2, _ops.row(_floor(dtype), dtype, b2.shape), out=b2)
-    np.divide(r2, b2, out=r2)
-    np.sqrt(r2, out=rho)
-    np.maximum(rho, _ops.row(_tiny(dtype), dtype, rho.shape), out=rho)
-    np.arctan(rho, out=tau)
-    np.multiply(tau, h, out=tau, casting="unsafe")
-    tan(tau, out=tau, rows=(t2, w0, a2))
-    np.multiply(tau, tau, out=t2)
-    v = tau
-    np.divide(tau, rho, out=v)           # tau / rho  (-> h for tiny angles)
-    g = rho
-    np.add(t2, 1, out=g)
-    np.divide(1, g, out=g)               # 1 / (1 + tau²)
-    np.subtract(1, r2, out=w0)
-    w0 *= v
-    np.add(t2, w0, out=w0)               # tau² + (1 - rho²) v
-    np.subtract(1, w0, out=w0)
-    w0 *= g
-    w1 = a2
-    np.add(r2, 1, out=w1)
-    w1 *= v
-    w1 *= g
+    b2 = op.max(b2, floor, b2)
+    r2 = op.div(r2, b2, r2)
+    rho = op.sqrt(r2, rho)
+    rho = op.max(rho, tiny, rho)
+    tau = times(arctan(rho, tau), h)
+    tau = tan_(tau, out=tau, rows=(t2, w0, a2))
+    t2 = op.mul(tau, tau, t2)
+    v = op.div(tau, rho, tau)            # tau / rho  (-> h for tiny angles)
+    g = op.add(t2, one, rho)
+    g = op.div(one, g, g)                # 1 / (1 + tau²)
+    w0 = op.sub(one, r2, w0)
+    w0 = op.mul(w0, v, w0)
+    w0 = op.add(t2, w0, w0)              # tau² + (1 - rho²) v
+    w0 = op.sub(one, w0, w0)
+    w0 = op.mul(w0, g, w0)
+    w1 = op.add(r2, one, a2)
+    w1 = op.mul(w1, v, w1)
+    w1 = op.mul(w1, g, w1)
     return w0, w1
+
+
+_ONE64 = _ops.const(1.0, np.float64)
+_TANGENT_ROWS = (lambda x, out: np.arctan(x, out=out), tan,
+                 lambda tau, h: np.multiply(tau, h, out=tau, casting="unsafe"))
+_TANGENT_FLOATS = (lambda x, out: _ops.arctan_float(x), tan_float, lambda tau, h: tau * h)
 
 
 def hemisphere(A, B, a2, b2, out):
@@ -279,19 +292,38 @@ def slerp_core(A, B, h, O, shortest):
     return O
 
 
+def _chords(A, B, vec, pairs, T, ab):
+    """(a², b²) = (|B - A|², |B + A|²), written once: `vec` is `_ops.STACKS` on rows (T: 8
+    rows, ab: 2) or `_ops.FLOAT_STACKS` on floats; ``pairs(T, k)`` the pair (T[k], T[4 + k])
+    of the squares (views of rows; a list of floats).  The differences and sums are
+    squared together, and both norms summed in one order."""
+    T = vec.join(vec.sub(B, A, T[:4]), vec.add(B, A, T[4:]), T)
+    T = vec.mul(T, T, T)
+    ab = vec.add(pairs(T, 0), pairs(T, 1), ab)
+    ab = vec.add(ab, pairs(T, 2), ab)
+    return vec.add(ab, pairs(T, 3), ab)
+
+
+def _blend(A, B, w0, w1, vec, T, O):
+    """O = w0 A + w1 B, the SLERP blend, written once (`vec` as in `_chords`)."""
+    return vec.add(vec.scale(A, w0, T[:4]), vec.scale(B, w1, T[4:]), O)
+
+
+def _pairs_rows(T, k):
+    return T.reshape((2, 4) + T.shape[1:])[:, k]
+
+
+def _pairs_floats(T, k):
+    return [T[k], T[4 + k]]
+
+
 def _slerp_rows(A, B, h, O, shortest):
     """`slerp_core`'s formula; returns where |A|² + |B|² is out of range (None: nowhere)."""
     s = O.shape[1:]
     with _blocks.scratch().frame() as work:
         T = work.rows(8, s, O.dtype)
-        np.subtract(B, A, out=T[:4])
-        np.add(B, A, out=T[4:])
-        np.multiply(T, T, out=T)
-        Tv = T.reshape((2, 4) + s)
         ab = work.rows(3, s, O.dtype)
-        np.add(Tv[:, 0], Tv[:, 1], out=ab[:2])
-        ab[:2] += Tv[:, 2]
-        ab[:2] += Tv[:, 3]
+        _chords(A, B, _ops.STACKS, _pairs_rows, T, ab[:2])
         a2, b2, sign = ab
         # |B - A|² + |B + A|² = 2 (|A|² + |B|²), in range for every unit pair
         out_of_range = None if _scale.fits(np.add(a2, b2, out=sign)) else _scale.outside(sign)
@@ -302,9 +334,7 @@ def _slerp_rows(A, B, h, O, shortest):
             sign = None
             wide = b2 < a2
         w0, w1 = slerp_weights(a2, b2, h, sign)
-        np.multiply(A, w0, out=T[:4])
-        np.multiply(B, w1, out=T[4:])
-        np.add(T[:4], T[4:], out=O)
+        _blend(A, B, w0, w1, _ops.STACKS, T, O)
         if wide is not None and wide.any():
             arcs(A, B, h, O, wide)
         if not _scale.inside(np.asarray(h), 2.0, -1.0):   # extrapolation beyond a segment's length
@@ -535,10 +565,51 @@ def slerp(q0, q1, t, shortest=True, check=False):
     inputs only then.
     """
     dtype = result_dtype(q0, q1)
+    one = _slerp_one(q0, q1, t, shortest)
+    if one is not None:   # (finite: the float path takes finite input only)
+        return (one, True) if check else one
     if not check:
         return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
     out, bad = _pairwise(_slerp_checked, (q0, q1), t, dtype, flagged=True, shortest=shortest)
     return out, not bad
+
+
+def _slerp_floats(A, B, h, shortest):
+    """`slerp_core` of one float64 pair (lists of four floats) at a float `h`, on floats: the
+    four floats, or None where the block kernel has more to do (|A|² + |B|² out of range,
+    a wide arc followed as given, extrapolation beyond -1 and 2, non-finite input: `arcs`
+    and the rescaled pass)."""
+    a2, b2 = _chords(A, B, _ops.FLOAT_STACKS, _pairs_floats, _ops.NONE, None)
+    if not (_LOW64 <= a2 + b2 <= _HIGH64 and -1.0 <= h <= 2.0):
+        return None
+    if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
+        sign = math.copysign(1.0, b2 - a2)
+        r2, b2 = min(a2, b2), max(a2, b2)
+    elif b2 < a2:
+        return None
+    else:
+        sign, r2 = 1.0, a2
+    w0, w1 = _tangent_formula(r2, b2, h, _ops.FLOATS, _TANGENT_FLOATS, _FLOOR64, _TINY64, 1.0, None, None, None,
+                              None, None)
+    if shortest:
+        w1 = w1 * sign
+    return _blend(A, B, w0, w1, _ops.FLOAT_STACKS, _ops.NONE[:8], None)
+
+
+_LOW64, _HIGH64 = (_scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)])
+_FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
+
+
+def _slerp_one(q0, q1, t, shortest):
+    """`_slerp_floats` of one float64 pair of one shape at one float64 t (t's shape within
+    theirs) as an array of their shape, or None."""
+    if q0.shape != q1.shape or t.size != 1 or t.ndim >= q0.ndim or t.dtype != np.float64:
+        return None
+    a, b = _ops.floats64(q0), _ops.floats64(q1)
+    if a is None or b is None:
+        return None
+    one = _slerp_floats(a, b, t.item(0), shortest)
+    return None if one is None else _ops.to_array(one, q0.shape)
 
 
 def _slerp_checked(A, B, h, O, shortest):
