@@ -97,6 +97,8 @@ VIEWS_MAX = 512
 #: a view from the kept buffer (what a small batch pays per row set).
 SMALL_ROWS = 32 * 1024
 
+_FEW_ROWS = SMALL_ROWS // 8   # elements of a component-major copy that are always fresh rows
+
 #: Bytes of scratch a thread keeps between calls: 24 rows of a float64 block
 #: (6 MiB; two threads keep 12 MiB, 0.4 of a 10⁶-quaternion float64 output).
 #: The few kernels that need more rows (Bézier, squad) get fresh arrays for the
@@ -490,10 +492,14 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
     nb = len(batch)
     if 0 in batch:
         return False
-    if prod(batch) == 1:   # one element (a single quaternion, or a batch of one)
+    n = prod(batch)
+    if n == 1:   # one element (a single quaternion, or a batch of one)
         return _pair_of_one(kernel, ins, outs, dtype, views, params)
-    size = block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]), *[o.dtype for o in outs])
-    if prod(batch) <= size:   # one block: the same kernel call, without splitting or the pool
+    # (up to BLOCK elements it is one block for every dtype: no need to ask `block_size`)
+    size = BLOCK if n <= BLOCK else block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]),
+                                               *[o.dtype for o in outs])
+    if n <= size:
+        # one block: the same kernel call, without splitting or the pool
         work = scratch()
         top = work.top
         try:
@@ -503,11 +509,16 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
                         and (dtype is None or a.dtype == dtype)):
                     iv.append(soa(a))
                     continue
-                buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
-                buf[...] = soa(a if a.ndim == nb + 1 else a.reshape((1,) * (nb + 1 - a.ndim) + a.shape))
+                k = a.shape[-1]
+                # (a few: fresh rows, as `Scratch.rows` gives them, without its bookkeeping)
+                buf = (np.empty((k, *batch), dtype or a.dtype) if n * k <= _FEW_ROWS
+                       else work.rows(k, batch, dtype or a.dtype))
+                np.copyto(buf, soa(a if a.ndim == nb + 1 else a.reshape((1,) * (nb + 1 - a.ndim) + a.shape)),
+                          casting="unsafe")
                 iv.append(buf)
-            if views:
-                iv += [np.asarray(v).reshape((1,) * (nb - np.ndim(v)) + np.shape(v)) for v in views]
+            for v in views:
+                v = np.asarray(v)
+                iv.append(v if v.ndim == nb else v.reshape((1,) * (nb - v.ndim) + v.shape))
             r = kernel(*iv, *[soa(o) for o in outs], **params)
         finally:
             work.top = top
@@ -529,7 +540,7 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         ov = [soa(o[idx]) for o in outs]
         return kernel(*iv, *ov, **params)
 
-    return any(r is True or r is np.True_ for r in run(block, split(batch, size), prod(batch)))
+    return any(r is True or r is np.True_ for r in run(block, split(batch, size), n))
 
 
 def _pair_of_one(kernel, ins, outs, dtype, views, params):

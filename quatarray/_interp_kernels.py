@@ -193,7 +193,7 @@ def _tangent_formula(r2, b2, h, op, fns, floor, tiny, one, w0, tau, t2, rho, a2)
     return w0, w1
 
 
-_ONE64 = _ops.const(1.0, np.float64)
+_ONE64, _TWO64 = _ops.const(1.0, np.float64), _ops.const(2.0, np.float64)   # (a Python scalar operand costs a conversion)
 _TANGENT_ROWS = (lambda x, out: np.arctan(x, out=out), tan,
                  lambda tau, h: np.multiply(tau, h, out=tau, casting="unsafe"))
 _TANGENT_FLOATS = (lambda x, out: _ops.arctan_float(x), tan_float, lambda tau, h: tau * h)
@@ -292,29 +292,22 @@ def slerp_core(A, B, h, O, shortest):
     return O
 
 
-def _chords(A, B, vec, pairs, T, ab):
+def _chords(A, B, vec, T, ab):
     """(a², b²) = (|B - A|², |B + A|²), written once: `vec` is `_ops.STACKS` on rows (T: 8
-    rows, ab: 2) or `_ops.FLOAT_STACKS` on floats; ``pairs(T, k)`` the pair (T[k], T[4 + k])
-    of the squares (views of rows; a list of floats).  The differences and sums are
-    squared together, and both norms summed in one order."""
-    T = vec.join(vec.sub(B, A, T[:4]), vec.add(B, A, T[4:]), T)
+    rows, ab: 2) or `_ops.FLOAT_STACKS` on floats.  The differences and sums are held
+    interleaved (D0, S0, D1, S1, ...), squared together, and both norms summed in one
+    order from contiguous pairs of rows (2-D views of rows four apart cost a ufunc call
+    about three times a contiguous one's at small sizes)."""
+    T = vec.interleave(vec.sub(B, A, T[0::2]), vec.add(B, A, T[1::2]), T)
     T = vec.mul(T, T, T)
-    ab = vec.add(pairs(T, 0), pairs(T, 1), ab)
-    ab = vec.add(ab, pairs(T, 2), ab)
-    return vec.add(ab, pairs(T, 3), ab)
+    ab = vec.add(T[0:2], T[2:4], ab)
+    ab = vec.add(ab, T[4:6], ab)
+    return vec.add(ab, T[6:8], ab)
 
 
 def _blend(A, B, w0, w1, vec, T, O):
     """O = w0 A + w1 B, the SLERP blend, written once (`vec` as in `_chords`)."""
     return vec.add(vec.scale(A, w0, T[:4]), vec.scale(B, w1, T[4:]), O)
-
-
-def _pairs_rows(T, k):
-    return T.reshape((2, 4) + T.shape[1:])[:, k]
-
-
-def _pairs_floats(T, k):
-    return [T[k], T[4 + k]]
 
 
 def _slerp_rows(A, B, h, O, shortest):
@@ -323,7 +316,7 @@ def _slerp_rows(A, B, h, O, shortest):
     with _blocks.scratch().frame() as work:
         T = work.rows(8, s, O.dtype)
         ab = work.rows(3, s, O.dtype)
-        _chords(A, B, _ops.STACKS, _pairs_rows, T, ab[:2])
+        _chords(A, B, _ops.STACKS, T, ab[:2])
         a2, b2, sign = ab
         # |B - A|² + |B + A|² = 2 (|A|² + |B|²), in range for every unit pair
         out_of_range = None if _scale.fits(np.add(a2, b2, out=sign)) else _scale.outside(sign)
@@ -532,10 +525,10 @@ def frame_core(F, phi, u, O):
     else:
         tan(sn, out=sn, rows=_rows(3, s, O.dtype))   # tau
         np.multiply(sn, sn, out=c)
-        c += 1
-        np.divide(2, c, out=c)               # 2 / (1 + tau²)
+        c += _ONE64
+        np.divide(_TWO64, c, out=c)          # 2 / (1 + tau²)
         sn *= c                              # sin
-        c -= 1                               # cos
+        c -= _ONE64                          # cos
     Fv = F.reshape((2, 4) + s)
     np.multiply(Fv, CS[:, None], out=Fv)
     np.add(Fv[0], Fv[1], out=O)
@@ -550,7 +543,9 @@ def _pairwise(kernel, quats, t, dtype, flagged=False, **params):
     """Run ``kernel(*quats_block, t_block, O, **params)`` on the block engine;
     returns the (batch, 4) output, and with `flagged` also whether any block's
     kernel returned True (`_blocks.blockwise`)."""
-    batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)
+    batch = quats[0].shape[:-1]
+    if not (t.shape == batch and all(q.shape[:-1] == batch for q in quats[1:])):   # (the common case:
+        batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)        # no 2 µs call)
     out = np.empty(batch + (4,), dtype)
     flag = _blocks.blockwise(kernel, list(quats), [out], batch, dtype, views=[t], **params)
     return (out, flag) if flagged else out
@@ -579,7 +574,7 @@ def _slerp_floats(A, B, h, shortest):
     four floats, or None where the block kernel has more to do (|A|² + |B|² out of range,
     a wide arc followed as given, extrapolation beyond -1 and 2, non-finite input: `arcs`
     and the rescaled pass)."""
-    a2, b2 = _chords(A, B, _ops.FLOAT_STACKS, _pairs_floats, _ops.NONE, None)
+    a2, b2 = _chords(A, B, _ops.FLOAT_STACKS, _ops.NONE, None)
     if not (_LOW64 <= a2 + b2 <= _HIGH64 and -1.0 <= h <= 2.0):
         return None
     if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0

@@ -74,17 +74,18 @@ STACKS = SimpleNamespace(
     add=lambda a, b, out: np.add(a, b, out=out, order="C"),
     mul=lambda a, b, out: np.multiply(a, b, out=out, order="C"),
     scale=lambda a, x, out: np.multiply(a, x, out=out, order="C"),
-    join=lambda a, b, out: out)
+    interleave=lambda a, b, out: out)
 """`ARRAYS`' operations on stacks of k rows (k, ...), one call for the stack: ``a - b``,
 ``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`;
-``join(a, b, out)`` the stack of `a` then `b`, where both were written into `out`'s rows.
+``interleave(a, b, out)`` the rows of `a` and `b` alternately, where they were written into
+`out`'s even and odd rows.
 Iterated in C order, row after row: stacks may be component-major views of (n, k)
 arrays (e.g. ``o.T``), which NumPy's default order would walk in n inner loops of k."""
 
 FLOAT_STACKS = SimpleNamespace(
     sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
     mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a],
-    join=lambda a, b, out: a + b)
+    interleave=lambda a, b, out: [x for pair in zip(a, b) for x in pair])
 """The same on lists of k Python floats (the stack argument is ignored)."""
 
 
