@@ -29,6 +29,7 @@ every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 
 import math
 from math import prod
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -339,12 +340,28 @@ def _slerp_rows(A, B, h, O, shortest):
     return out_of_range
 
 
-def squad_param(h, out=None):
-    """2 h (1 - h): the parameter of squad's outer SLERP (its derivative is 2 - 4 h)."""
-    out = np.subtract(1, h, out=out, casting="unsafe")
-    np.multiply(out, h, out=out, casting="unsafe")
-    out *= 2
-    return out
+def squad_param(h, out=None, op=None):
+    """2 h (1 - h): the parameter of squad's outer SLERP (its derivative is 2 - 4 h), written
+    once: on rows (`out`: a row of any float dtype, or None for a new one), or with
+    ``op=_ops.FLOATS`` on a float."""
+    op = op or _CAST_ROWS
+    out = op.sub(1, h, out)
+    out = op.mul(out, h, out)
+    return op.mul(out, 2, out)
+
+
+_CAST_ROWS = SimpleNamespace(sub=lambda a, b, out: np.subtract(a, b, out=out, casting="unsafe"),
+                             mul=lambda a, b, out: np.multiply(a, b, out=out, casting="unsafe"))
+"""`_ops.ARRAYS`' operations into rows of another float dtype than an operand's."""
+
+
+def _squad_floats(Q0, A, B, Q1, h):
+    """`_squad_block` of one float64 quadruple (lists of four floats) at a float `h`, by
+    `_slerp_floats` (the block kernels' formulas on floats), or None where one of its three
+    SLERPs needs the block kernel."""
+    P = _slerp_floats(Q0, Q1, h, False)
+    S = None if P is None else _slerp_floats(A, B, h, False)
+    return None if S is None else _slerp_floats(P, S, squad_param(h, None, _ops.FLOATS), False)
 
 
 def squad_blend(P, S, h, O):
@@ -751,7 +768,14 @@ def _squad_block(Q0, A, B, Q1, h, O):
 
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
-    return _pairwise(_squad_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
+    quats = (q0, a, b, q1)
+    if t.size == 1 and t.dtype == np.float64 and t.ndim < q0.ndim and all(q.shape == q0.shape for q in quats):
+        one = [_ops.floats64(q) for q in quats]
+        if None not in one:   # one float64 quadruple: the same formulas on its floats
+            one = _squad_floats(*one, t.item(0))
+            if one is not None:
+                return _ops.to_array(one, q0.shape)
+    return _pairwise(_squad_block, quats, t, result_dtype(*quats))
 
 
 def bezier_levels(L, h, O):
