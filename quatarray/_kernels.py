@@ -745,7 +745,8 @@ def _log_floats(comps):
 
 
 def _arctan2_float(y, x, out=None):
-    return arctan2(y, x)
+    """`arctan2` of one pair of floats (`out` ignored), NumPy's loop at once where it is SIMD."""
+    return float(np.arctan2(y, x)) if _trig.SIMD_TAN else arctan2(y, x)
 
 
 def _small_vectors(q, vn, theta, scale, v0):
