@@ -546,9 +546,11 @@ def frame_core(F, phi, u, O):
         np.divide(_TWO64, c, out=c)          # 2 / (1 + tau²)
         sn *= c                              # sin
         c -= _ONE64                          # cos
-    Fv = F.reshape((2, 4) + s)
-    np.multiply(Fv, CS[:, None], out=Fv)
-    np.add(Fv[0], Fv[1], out=O)
+    # (two multiplies of four rows: one on the (2, 4, *s) view broadcasting (2, 1, *s) costs
+    # more than both at small sizes, NumPy's iterator on 3-D and 4-D operands)
+    np.multiply(F[:4], c, out=F[:4])
+    np.multiply(F[4:], sn, out=F[4:])
+    np.add(F[:4], F[4:], out=O)
     return O
 
 

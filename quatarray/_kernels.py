@@ -32,8 +32,9 @@ def result_dtype(*arrays):
     >>> result_dtype(np.zeros(4, np.float32), np.zeros(4))
     dtype('float64')
     """
-    if len(arrays) == 1 and getattr(arrays[0], "dtype", None) in _COMPLEX:   # one float array: its own
-        return arrays[0].dtype
+    dtype = getattr(arrays[0], "dtype", None)
+    if dtype in _COMPLEX and all(getattr(a, "dtype", None) == dtype for a in arrays[1:]):
+        return dtype   # float arrays of one dtype: theirs (np.result_type costs about 0.5 µs)
     return np.result_type(*arrays, np.float32)
 
 
