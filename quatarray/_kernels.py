@@ -919,12 +919,18 @@ def power(q, t):
     True
     """
     q = np.asarray(q)
-    t = np.asarray(t)
-    one = _ops.floats64(q) if t.size == 1 and t.ndim <= q.ndim - 1 else None
+    if type(t) is float:   # (the common `q ** 0.5`: no 0-d array to make and ask)
+        one = _ops.floats64(q)
+        tf = t
+    else:
+        t = np.asarray(t)
+        one = _ops.floats64(q) if t.size == 1 and t.ndim <= q.ndim - 1 else None
+        tf = float(t.item(0)) if one is not None else None
     if one is not None:   # one float64 quaternion, one exponent: the same formula on floats
-        one = _power_floats(one, float(t.item(0)))
+        one = _power_floats(one, tf)
         if one is not None:
             return _ops.to_array(one, q.shape)
+    t = np.asarray(t)
     dtype = result_dtype(q)
     batch = np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
