@@ -89,23 +89,18 @@ def largest(a):
     >>> largest(np.array([1.0, 3.0, 2.0]))
     3.0
     """
-    if a.size <= _FEW:
-        return _bounds(a, _FEW)[1]
-    return float(np.maximum.reduce(a, axis=None))
+    return _extreme(a, 1, np.maximum)
 
 
 def smallest(a):
     """The smallest element of `a` as a Python float (NaN where `a` holds a NaN, inf when
-    empty), as `largest`.
+    empty), as `largest`: ``smallest(np.array([1.0, 3.0]))`` is 1.0."""
+    return _extreme(a, 0, np.minimum)
 
-    >>> import numpy as np
-    >>> from quatarray._scale import smallest
-    >>> smallest(np.array([1.0, 3.0, 2.0]))
-    1.0
-    """
-    if a.size <= _FEW:
-        return _bounds(a, _FEW)[0]
-    return float(np.minimum.reduce(a, axis=None))
+
+def _extreme(a, side, ufunc):
+    """`_bounds`' item `side` up to `_FEW` elements, else the reduction by `ufunc`."""
+    return _bounds(a, _FEW)[side] if a.size <= _FEW else float(ufunc.reduce(a, axis=None))
 
 
 def any_zero(a):
