@@ -99,8 +99,22 @@ def smallest(a):
 
 
 def _extreme(a, side, ufunc):
-    """`_bounds`' item `side` up to `_FEW` elements, else the reduction by `ufunc`."""
-    return _bounds(a, _FEW)[side] if a.size <= _FEW else float(ufunc.reduce(a, axis=None))
+    """`_bounds`' item `side` (0: min, 1: max): by Python's min or max and a sum (for NaN) up
+    to `_FEW_ONE` elements, else the reduction by `ufunc`."""
+    if a.size > _FEW_ONE:
+        return float(ufunc.reduce(a, axis=None))
+    if not a.size:
+        return (math.inf, -math.inf)[side]
+    x = a.ravel().tolist()
+    total = sum(x)
+    if total != total:
+        return math.nan
+    return max(x) if side else min(x)
+
+
+#: One side of the bounds by Python up to this many elements (0.9 µs at 20 against a
+#: reduction's 1.0; both sides pay up to `_FEW`).
+_FEW_ONE = 20
 
 
 def any_zero(a):
