@@ -65,7 +65,7 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     [0.707106781187, 0.707106781187]
     """
     if type(angle) is float:   # one rotation's float64 angle: the same formula
-        return _cos_sin_tan(angle, _ops.FLOATS, _trig.tan_float, None, None, _ops.NONE)
+        return _cos_sin_of_tangent_floats(_trig.tan_float(angle * 0.5))
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)
@@ -76,12 +76,18 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
 
 
 def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None):
-    """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`
-    (`bounds`: of angle / 2, for `tan`)."""
+    """`cos_sin`'s float64 formula on rows (`_ops.ARRAYS`) with the tangent `tan` (`bounds`: of
+    angle / 2, for `tan`); on a float, `cos_sin` takes `_cos_sin_of_tangent_floats`."""
     u, v = rows[:2]
     half, one, two = _COS_SIN[op is _ops.FLOATS]
     s = op.mul(angle, half, s)
     t = tan(s, out=s, rows=(c, u, v), bounds=bounds)
+    return _cos_sin_of_tangent(t, op, half, one, two, c, u, v)
+
+
+def _cos_sin_of_tangent(t, op, half, one, two, c, u, v):
+    """(cos a, sin a) from t = tan(a / 2), `cos_sin`'s formula, in `op`'s arithmetic with the
+    constants 0.5, 1 and 2 of its kind, into the rows `c`, `u`, `v` (t's row takes sin a)."""
     c = op.mul(t, t, c)
     c = op.add(c, one, c)
     d = op.div(two, c, c)                   # 2 / (1 + t²)
@@ -94,6 +100,10 @@ def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None):
 
 
 _COS_SIN = _ops.operands(0.5, 1.0, 2.0)
+
+_cos_sin_of_tangent_floats = _ops.compiled(
+    lambda op, stack, t: _cos_sin_of_tangent(t, op, 0.5, 1.0, 2.0, None, None, None), 1)
+"""`_cos_sin_of_tangent` on one float64 tangent (`_ops.compiled`: the same operations)."""
 
 
 def half_angle(angle, scale):
@@ -624,7 +634,7 @@ def _exp_floats(comps):
 
 def _cos_sin_floats(angle, c, s, rows):
     """`cos_sin` of one float64 angle (a Python float), in the signature of the kernels'."""
-    return _cos_sin_tan(angle, _ops.FLOATS, _trig.tan_float, None, None, _ops.NONE)
+    return cos_sin(angle)
 
 
 _FLOAT64 = np.dtype(np.float64)
