@@ -166,19 +166,30 @@ def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
 
 
 def _tangent_formula(r2, b2, h, op, fns, floor, tiny, one, w0, tau, t2, rho, a2):
-    """`_tangent_weights`' formula, written once, in `op`'s arithmetic with ``fns = (arctan,
-    tan, times)`` (``times(tau, h)``: tau·h, h of any real dtype) and the constants `floor`,
-    `tiny` and `one` of the operands' kind (rows: the rows made read-only, and a 0-d array;
-    floats: floats).  Returns (w0, w1)."""
+    """`_tangent_weights`' formula on rows, in `op`'s arithmetic with ``fns = (arctan, tan,
+    times)`` (``times(tau, h)``: tau·h, h of any real dtype) and the constants `floor`, `tiny`
+    (rows made read-only) and `one` (a 0-d array): `_tangent_angle`, the tangent, then
+    `_tangent_blend`.  Returns (w0, w1)."""
     arctan, tan_, times = fns
+    r2, rho, tau = _tangent_angle(r2, b2, h, op, arctan, times, floor, tiny, rho, tau)
+    tau = tan_(tau, out=tau, rows=(t2, w0, a2))
+    return _tangent_blend(tau, r2, rho, op, one, w0, t2, a2)
+
+
+def _tangent_angle(r2, b2, h, op, arctan, times, floor, tiny, rho, tau):
+    """The first half of the weights' formula, written once: (rho², rho, h Ω / 2) from
+    a² (`r2`, overwritten) and b², rho = a / b = tan(Ω / 2) (`_tangent_formula`)."""
     # b² = 0 only for zero input (or B = -A followed as given, see `arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
     b2 = op.max(b2, floor, b2)
     r2 = op.div(r2, b2, r2)
     rho = op.sqrt(r2, rho)
     rho = op.max(rho, tiny, rho)
-    tau = times(arctan(rho, tau), h)
-    tau = tan_(tau, out=tau, rows=(t2, w0, a2))
+    return r2, rho, times(arctan(rho, tau), h)
+
+
+def _tangent_blend(tau, r2, rho, op, one, w0, t2, a2):
+    """The second half, written once: (w0, w1) from tau = tan(h Ω / 2), rho² and rho."""
     t2 = op.mul(tau, tau, t2)
     v = op.div(tau, rho, tau)            # tau / rho  (-> h for tiny angles)
     g = op.add(t2, one, rho)
@@ -191,13 +202,12 @@ def _tangent_formula(r2, b2, h, op, fns, floor, tiny, one, w0, tau, t2, rho, a2)
     w1 = op.add(r2, one, a2)
     w1 = op.mul(w1, v, w1)
     w1 = op.mul(w1, g, w1)
-    return w0, w1
+    return [w0, w1]
 
 
 _ONE64, _TWO64 = _ops.const(1.0, np.float64), _ops.const(2.0, np.float64)   # (a Python scalar operand costs a conversion)
 _TANGENT_ROWS = (lambda x, out: np.arctan(x, out=out), tan,
                  lambda tau, h: np.multiply(tau, h, out=tau, casting="unsafe"))
-_TANGENT_FLOATS = (lambda x, out: _ops.arctan_float(x), tan_float, lambda tau, h: tau * h)
 
 
 def hemisphere(A, B, a2, b2, out):
@@ -593,7 +603,7 @@ def _slerp_floats(A, B, h, shortest):
     four floats, or None where the block kernel has more to do (|A|² + |B|² out of range,
     a wide arc followed as given, extrapolation beyond -1 and 2, non-finite input: `arcs`
     and the rescaled pass)."""
-    a2, b2 = _chords(A, B, _ops.FLOAT_STACKS, _ops.NONE, None)
+    a2, b2 = _chords_floats(*A, *B)
     if not (_LOW64 <= a2 + b2 <= _HIGH64 and -1.0 <= h <= 2.0):
         return None
     if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
@@ -603,15 +613,26 @@ def _slerp_floats(A, B, h, shortest):
         return None
     else:
         sign, r2 = 1.0, a2
-    w0, w1 = _tangent_formula(r2, b2, h, _ops.FLOATS, _TANGENT_FLOATS, _FLOOR64, _TINY64, 1.0, None, None, None,
-                              None, None)
+    r2, rho, tau = _tangent_angle_floats(r2, b2, h)
+    w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
     if shortest:
         w1 = w1 * sign
-    return _blend(A, B, w0, w1, _ops.FLOAT_STACKS, _ops.NONE[:8], None)
+    return _blend_floats(*A, *B, w0, w1)
 
 
 _LOW64, _HIGH64 = (_scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)])
 _FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
+
+# The formulas on one pair's floats as plain Python statements (`_ops.compiled`: the same
+# operations in the same order, without a namespace call per operation)
+_chords_floats = _ops.compiled(lambda op, stack, *c: _chords(list(c[:4]), list(c[4:]), stack, _ops.NONE, None), 8)
+_tangent_angle_floats = _ops.compiled(
+    lambda op, stack, r2, b2, h: _tangent_angle(r2, b2, h, op, op.arctan, lambda x, y: op.mul(x, y, None),
+                                                _FLOOR64, _TINY64, None, None), 3)
+_tangent_blend_floats = _ops.compiled(
+    lambda op, stack, tau, r2, rho: _tangent_blend(tau, r2, rho, op, 1.0, None, None, None), 3)
+_blend_floats = _ops.compiled(
+    lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], c[9], stack, _ops.NONE, None), 10)
 
 
 def _slerp_one(q0, q1, t, shortest):

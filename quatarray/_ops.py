@@ -171,7 +171,8 @@ def compiled(formula, nargs):
     with no branch on values) as a plain Python function of `nargs` floats: the formula is
     run once on names, each operation recorded as the expression `FLOATS` evaluates, and
     the statements compiled.  `stack` does what `FLOAT_STACKS` and `FLOAT_ROWS` do on lists
-    (element by element, a single value applying to every element; ``scale``, ``shifts``).
+    (element by element, a single value applying to every element; ``scale``, ``shifts``,
+    ``interleave``).
     The result has their and `FLOATS`' bits (the same operations on the same operands, in
     the same order) without a call per operation: a third of the cost of a single
     rotation's formula on `FLOATS`.
@@ -208,7 +209,8 @@ def compiled(formula, nargs):
     trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul")}
-    stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts)
+    stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,
+                            interleave=FLOAT_STACKS.interleave)
     names = [_Name(f"a{i}") for i in range(nargs)]
     result = formula(trace, stack, *names)
     if type(result) in (list, tuple):
