@@ -713,7 +713,7 @@ def _ln_formula(w, vv, n2, op, one, half, ratio, d, u, ln):
     u = op.add(w, one, u)
     d = op.mul(d, u, d)
     d = op.add(d, vv, d)                  # |q|² - 1 = (w - 1)(w + 1) + |v|²
-    ln = ratio(_LOG[op is _ops.FLOATS](n2, ln), d, op.sub(n2, one, u), n2)   # u - 1 exact for |q|² in [1/2, 2]
+    ln = ratio(op.log(n2, ln), d, op.sub(n2, one, u), n2)   # u - 1 exact for |q|² in [1/2, 2]
     return op.mul(ln, half, ln)
 
 
@@ -726,12 +726,19 @@ def _ln_ratio_rows(ln, d, um1, n2):
     return ln
 
 
-def _ln_ratio_float(ln, d, um1, n2):
-    return ln * (d / um1) if um1 != 0.0 else d
+def _sqnorms_formula(op, stack, w, x, y, z):
+    """(|v|², |q|²) of one quaternion's floats, in `sum_squares`' and `_log_parts`' order."""
+    vv = _scale.squares([x, y, z], op, None, None)
+    return [vv, _sqnorm_formula(w, vv, op, None)]
 
 
-_LOG = {False: lambda x, out: np.log(x, out=out), True: lambda x, out: float(np.log(x))}
-"""NumPy's log on rows, and on a float (the array loop's bits), by ``op is _ops.FLOATS``."""
+# `_log_parts`' formulas on one quaternion's floats, as plain Python statements (`_ops.compiled`:
+# the same operations in the same order); ln|q| in two forms, by the test |q|² = 1 of the rows'
+_sqnorms_floats = _ops.compiled(_sqnorms_formula, 4)
+_ln_floats = _ops.compiled(lambda op, stack, w, vv, n2: [_ln_formula(
+    w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: op.mul(ln, op.div(d, um1, None), None), None, None, None)], 3)
+_ln_unit_floats = _ops.compiled(lambda op, stack, w, vv, n2: [_ln_formula(
+    w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: d, None, None, None)], 3)
 
 
 def _angle_formula(vn, w, op, atan2, theta, scale):
@@ -744,12 +751,11 @@ def _log_floats(comps):
     """`_log_parts` on the four floats of one float64 quaternion: (ln|q|, θ, |v|, θ/|v|, |q|²),
     or None where the block kernel has more to do (|q|² to rescale, |v|² below the range,
     zero vector, non-finite input)."""
-    w, x, y, z = comps
-    vv = _scale.squares([x, y, z], _ops.FLOATS, None, None)   # `sum_squares`' order
-    n2 = _sqnorm_formula(w, vv, _ops.FLOATS, None)
+    w = comps[0]
+    vv, n2 = _sqnorms_floats(*comps)
     if not (_LOW64 <= n2 <= _HIGH64 and vv >= _LOW64):
         return None
-    ln = _ln_formula(w, vv, n2, _ops.FLOATS, 1.0, 0.5, _ln_ratio_float, None, None, None)
+    ln = (_ln_unit_floats if n2 == 1.0 else _ln_floats)(w, vv, n2)[0]
     vn = math.sqrt(vv)
     theta, scale = _angle_formula(vn, w, _ops.FLOATS, _arctan2_float, None, None)
     return ln, theta, vn, scale, n2
@@ -851,7 +857,7 @@ def _k_power(q, t, o):
             return np.copyto(f, np.where(lim, t * scale, sn / np.where(real, 1, vn))) or f
         return np.divide(sn, vn, out=f)
 
-    _, f, ang = _power_formula(t, ln, theta, _ops.ARRAYS, _POWER_ROWS, magnitude, ratio, mag, ang, c, sn, o[0])
+    _, f, ang = _power_formula(t, ln, theta, _ops.ARRAYS, magnitude, ratio, mag, ang, c, sn, o[0])
     if zero is not None and zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         ang[zero] = 0.0
     for k in (1, 2, 3):
@@ -868,28 +874,34 @@ def _k_power(q, t, o):
             np.copyto(o[1], mag * sn, where=neg_real)
 
 
-def _power_formula(t, ln, theta, op, fns, magnitude, ratio, mag, ang, c, sn, o0):
+def _power_formula(t, ln, theta, op, magnitude, ratio, mag, ang, c, sn, o0):
     """The power's formula, written once: |q|^t = exp(t ln|q|) (``magnitude(mag)`` then
     adjusts it: the rows far from |q| = 1, rescaled or zero), and (the real part |q|^t cos(tθ)
     into `o0`, sin(tθ) / |v|, that times |q|^t): the last two, the factors of the vector part
     (``ratio(sn, f)`` divides sin(tθ) by |v| into `f`, the row of tθ).  In `op`'s
-    arithmetic with `fns` (exp, cos, sin; `_POWER_ROWS` or `_POWER_FLOATS`).  sin and cos,
-    not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2 (principal roots of
-    negative reals)."""
-    exp, cos, sin = fns
-    mag = magnitude(exp(op.mul(t, ln, mag), mag))
+    arithmetic (its exp, cos and sin: NumPy's).  sin and cos, not `cos_sin`: cos(tθ) keeps
+    its relative accuracy near tθ = π/2 (principal roots of negative reals)."""
+    mag = magnitude(op.exp(op.mul(t, ln, mag), mag))
     ang = op.mul(t, theta, ang)
-    c = cos(ang, c)
-    sn = sin(ang, sn)
+    c = op.cos(ang, c)
+    sn = op.sin(ang, sn)
     w = op.mul(mag, c, o0)
     f = ratio(sn, ang)
     return w, f, op.mul(f, mag, c)   # (c is free: the real part is written)
 
 
-_POWER_ROWS = (lambda x, out: np.exp(x, out=out), lambda x, out: np.cos(x, out=out),
-               lambda x, out: np.sin(x, out=out))
-_POWER_FLOATS = (lambda x, out: float(np.exp(x)), lambda x, out: float(np.cos(x)),
-                 lambda x, out: float(np.sin(x)))   # NumPy's loops on a float: the arrays' bits
+def _power_floats_formula(far):
+    """`_power_formula` on one quaternion's floats ``(t, ln|q|, θ, |v|, |q|²)``, compiled
+    (`_ops.compiled`) for a modulus near 1 (exp(t ln|q|)) or `far` from it ((|q|²)^(t/2))."""
+    def formula(op, stack, t, ln, theta, vn, n2):
+        def magnitude(mag):
+            return op.power(n2, op.mul(t, 0.5, None), None) if far else mag
+        return _power_formula(t, ln, theta, op, magnitude, lambda sn, f: op.div(sn, vn, None),
+                              None, None, None, None, None)
+    return _ops.compiled(formula, 5)
+
+
+_POWER_FLOATS = {False: _power_floats_formula(False), True: _power_floats_formula(True)}
 
 
 def _power_floats(comps, t):
@@ -902,13 +914,8 @@ def _power_floats(comps, t):
     ln, theta, vn, _, n2 = parts
     if not (abs(t * ln) < 700.0 and abs(t * theta) < _POWER_ANGLE):
         return None
-    far = abs(ln) > 0.5   # `_k_power`'s choice of the modulus' formula, for this quaternion
-
-    def magnitude(mag):
-        return float(np.power(n2, t * 0.5)) if far else mag
-
-    w, _, g = _power_formula(t, ln, theta, _ops.FLOATS, _POWER_FLOATS, magnitude, lambda sn, f: sn / vn,
-                             None, None, None, None, None)
+    # (abs(ln) > 0.5: `_k_power`'s choice of the modulus' formula, for this quaternion)
+    w, _, g = _POWER_FLOATS[abs(ln) > 0.5](t, ln, theta, vn, n2)
     if not abs(g) < math.inf:   # sin(tθ)/|v| · |q|^t overflowed: the block kernel's fix
         return None
     return [w, *_ops.FLOAT_STACKS.scale(comps[1:], g, None)]
