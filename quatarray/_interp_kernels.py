@@ -38,7 +38,7 @@ from . import _ops
 from . import _scale
 from ._blocks import soa
 from ._kernels import normalize, normalize_block, result_dtype
-from ._trig import atan_unit32, tan, tan_float
+from ._trig import SIMD_TAN, atan_unit32, tan, tan_float
 from ._validate import all_finite
 
 __all__ = [
@@ -550,7 +550,7 @@ def frame_core(F, phi, u, O):
         np.cos(sn, out=c)
         np.sin(sn, out=sn)
     else:
-        tan(sn, out=sn, rows=_rows(3, s, O.dtype))   # tau
+        tan(sn, out=sn, rows=None if SIMD_TAN else _rows(3, s, O.dtype))   # tau (NumPy's SIMD tan needs no rows)
         np.multiply(sn, sn, out=c)
         c += _ONE64
         np.divide(_TWO64, c, out=c)          # 2 / (1 + tau²)
