@@ -205,7 +205,8 @@ def _tangent_blend(tau, r2, rho, op, one, w0, t2, a2):
     return [w0, w1]
 
 
-_ONE64, _TWO64 = _ops.const(1.0, np.float64), _ops.const(2.0, np.float64)   # (a Python scalar operand costs a conversion)
+# (0-d arrays: a Python scalar operand costs a conversion per ufunc call)
+_ONE64, _TWO64 = _ops.const(1.0, np.float64), _ops.const(2.0, np.float64)
 _TANGENT_ROWS = (lambda x, out: np.arctan(x, out=out), tan,
                  lambda tau, h: np.multiply(tau, h, out=tau, casting="unsafe"))
 
@@ -574,7 +575,7 @@ def _pairwise(kernel, quats, t, dtype, flagged=False, **params):
     kernel returned True (`_blocks.blockwise`)."""
     batch = quats[0].shape[:-1]
     if not (t.shape == batch and all(q.shape[:-1] == batch for q in quats[1:])):   # (the common case:
-        batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)        # no 2 µs call)
+        batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)        # no costly call)
     out = np.empty(batch + (4,), dtype)
     flag = _blocks.blockwise(kernel, list(quats), [out], batch, dtype, views=[t], **params)
     return (out, flag) if flagged else out

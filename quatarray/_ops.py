@@ -65,7 +65,7 @@ ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.di
 def _numpy_float(f):
     """NumPy's ufunc `f` on Python floats, as a float: the bits of its array loops (checked for
     exp, log, cos, sin, tan, arctan and power, with and without AVX-512, on rows of one, two and
-    thousands of elements), at a NumPy call's cost (about 0.15 µs)."""
+    thousands of elements), at the cost of one NumPy call each."""
     return lambda *args: float(f(*args))
 
 

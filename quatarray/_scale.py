@@ -26,8 +26,8 @@ import numpy as np
 from . import _blocks, _ops
 
 __all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
-           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "at_most", "largest", "smallest", "any_zero", "shrink_vectors",
-           "small_norms"]
+           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "at_most", "largest", "smallest", "any_zero",
+           "shrink_vectors", "small_norms"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 ZERO = "expected non-zero quaternions, got a zero quaternion (it is no rotation)"
@@ -112,14 +112,14 @@ def _extreme(a, side, ufunc):
     return max(x) if side else min(x)
 
 
-#: One side of the bounds by Python up to this many elements (0.9 µs at 20 against a
-#: reduction's 1.0; both sides pay up to `_FEW`).
+#: One side of the bounds by Python up to this many elements (both sides pay up to `_FEW`;
+#: where each beats NumPy's reductions: benchmarks/README.md).
 _FEW_ONE = 20
 
 
 def any_zero(a):
     """True when an element of `a` is zero (``not a.all()``: NaN is not zero): up to `_FEW`
-    elements by a Python test on the list of them (a NumPy reduction costs about 1 µs).
+    elements by a Python test on the list of them (cheaper than a NumPy reduction there).
 
     >>> import numpy as np
     >>> from quatarray._scale import any_zero
@@ -264,9 +264,8 @@ def guarded_sqnorm(q, zero=False):
 def _bounds(a, few=_FEW):
     """(min, max) of `a` as Python floats: NaN for both where `a` holds a NaN (every
     comparison with them fails, the safe answer), (inf, -inf) when empty.  Up to `few`
-    elements by Python's min, max and sum, cheaper than two reductions (about 1 µs each)
-    up to about 32 elements (at 80, 1.7 times dearer: Python's min and max cost about
-    15 ns an element)."""
+    elements by Python's min, max and sum, cheaper than two reductions up to about 32
+    elements (beyond, Python's cost per element decides: benchmarks/README.md)."""
     if a.size <= few:
         if not a.size:
             return math.inf, -math.inf
