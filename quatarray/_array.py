@@ -680,9 +680,12 @@ _SYMBOLS = {np.multiply: "*", np.divide: "/", np.add: "+", np.subtract: "-", np.
 
 
 def _batch_of(x, is_quat):
-    if type(x) in (int, float):   # a Python number (`_real` keeps them): no batch, without np.shape's array
+    if isinstance(x, np.ndarray):
+        shape = x.shape
+    elif type(x) in (int, float):   # a Python number (`_real` keeps them): no batch, without np.shape's array
         return ()
-    shape = x.shape if isinstance(x, np.ndarray) else np.shape(x)
+    else:
+        shape = np.shape(x)
     return shape[:-1] if is_quat else shape
 
 

@@ -33,8 +33,11 @@ def result_dtype(*arrays):
     dtype('float64')
     """
     dtype = getattr(arrays[0], "dtype", None)
-    if dtype in _COMPLEX and all(getattr(a, "dtype", None) == dtype for a in arrays[1:]):
-        return dtype   # float arrays of one dtype: theirs, without np.result_type's cost
+    if dtype in _COMPLEX:   # float arrays of one dtype: theirs, without np.result_type's cost
+        if len(arrays) == 1:
+            return dtype
+        if all(getattr(a, "dtype", None) == dtype for a in arrays[1:]):
+            return dtype
     return np.result_type(*arrays, np.float32)
 
 
