@@ -698,7 +698,12 @@ _SYMBOLS = {np.multiply: "*", np.divide: "/", np.add: "+", np.subtract: "-", np.
 
 
 def _batch_of(x, is_quat):
-    shape = x.shape if isinstance(x, np.ndarray) else np.shape(x)
+    if isinstance(x, np.ndarray):
+        shape = x.shape
+    elif type(x) in (int, float):   # a Python number (`_real` keeps them): no batch, without np.shape's array
+        return ()
+    else:
+        shape = np.shape(x)
     return shape[:-1] if is_quat else shape
 
 

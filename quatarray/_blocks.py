@@ -97,6 +97,8 @@ VIEWS_MAX = 512
 #: a view from the kept buffer (what a small batch pays per row set).
 SMALL_ROWS = 32 * 1024
 
+_FEW_ROWS = SMALL_ROWS // 8   # elements of a component-major copy that are always fresh rows
+
 #: Bytes of scratch a thread keeps between calls: 24 rows of a float64 block
 #: (6 MiB; two threads keep 12 MiB, 0.4 of a 10⁶-quaternion float64 output).
 #: The few kernels that need more rows (Bézier, squad) get fresh arrays for the
@@ -271,6 +273,10 @@ def soa(a):
 
 # --------------------------------------------------------------------------- scratch
 
+_DTYPES = {d: np.dtype(d) for d in (np.float32, np.float64, bool)}
+_DTYPES.update({d: d for d in list(_DTYPES.values())})   # (a dict lookup: cheaper than np.dtype())
+
+
 class Scratch:
     """A thread's scratch: a stack of rows carved from one buffer kept between calls.
 
@@ -290,7 +296,7 @@ class Scratch:
 
     def rows(self, n, shape, dtype):
         shape = (n, *shape)
-        dtype = np.dtype(dtype)
+        dtype = _DTYPES.get(dtype) or np.dtype(dtype)
         nbytes = prod(shape) * dtype.itemsize
         if nbytes <= SMALL_ROWS:   # fresh small memory costs no page faults, and less than a view
             return np.empty(shape, dtype)
@@ -483,14 +489,17 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         finally:
             work.top = top
         return r is True or r is np.True_
-    if not batch:   # kernels index rows of blocks: give them one batch axis
-        return blockwise(kernel, [a[None] for a in ins], [o[None] for o in outs], (1,), dtype,
-                         [np.asarray(v)[None] for v in views], **params)
     nb = len(batch)
     if 0 in batch:
         return False
-    size = block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]), *[o.dtype for o in outs])
-    if prod(batch) <= size:   # one block: the same kernel call, without splitting or the pool
+    n = prod(batch)
+    if n == 1:   # one element (a single quaternion, or a batch of one)
+        return _pair_of_one(kernel, ins, outs, dtype, views, params)
+    # (up to BLOCK elements it is one block for every dtype: no need to ask `block_size`)
+    size = BLOCK if n <= BLOCK else block_size(*([dtype] if dtype is not None else [a.dtype for a in ins]),
+                                               *[o.dtype for o in outs])
+    if n <= size:
+        # one block: the same kernel call, without splitting or the pool
         work = scratch()
         top = work.top
         try:
@@ -500,11 +509,16 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
                         and (dtype is None or a.dtype == dtype)):
                     iv.append(soa(a))
                     continue
-                buf = work.rows(a.shape[-1], batch, dtype or a.dtype)
-                buf[...] = soa(a if a.ndim == nb + 1 else a.reshape((1,) * (nb + 1 - a.ndim) + a.shape))
+                k = a.shape[-1]
+                # (a few: fresh rows, as `Scratch.rows` gives them, without its bookkeeping)
+                buf = (np.empty((k, *batch), dtype or a.dtype) if n * k <= _FEW_ROWS
+                       else work.rows(k, batch, dtype or a.dtype))
+                np.copyto(buf, soa(a if a.ndim == nb + 1 else a.reshape((1,) * (nb + 1 - a.ndim) + a.shape)),
+                          casting="unsafe")
                 iv.append(buf)
-            if views:
-                iv += [np.asarray(v).reshape((1,) * (nb - np.ndim(v)) + np.shape(v)) for v in views]
+            for v in views:
+                v = np.asarray(v)
+                iv.append(v if v.ndim == nb else v.reshape((1,) * (nb - v.ndim) + v.shape))
             r = kernel(*iv, *[soa(o) for o in outs], **params)
         finally:
             work.top = top
@@ -526,7 +540,41 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         ov = [soa(o[idx]) for o in outs]
         return kernel(*iv, *ov, **params)
 
-    return any(r is True or r is np.True_ for r in run(block, split(batch, size), prod(batch)))
+    return any(r is True or r is np.True_ for r in run(block, split(batch, size), n))
+
+
+def _pair_of_one(kernel, ins, outs, dtype, views, params):
+    """`blockwise` for a batch of one element: the kernel on rows of two equal columns, the
+    first column copied out.
+
+    NumPy takes its slow iterator for a ufunc that writes over an input of one element
+    (its test that the operands are equally iterable counts a one-element array as having
+    stride 0, which never "strides ahead" of itself), several times the direct loop's cost
+    at this size (benchmarks/README.md), and the kernels work in place on their rows.  Two
+    columns take the direct loop.  Each column is computed by the same ufunc calls on the
+    same numbers as any element of any batch (every kernel is element by element, and its
+    block-wide tests see the same element twice), so the first column has the bits the
+    element has anywhere."""
+    work = scratch()
+    top = work.top
+    try:
+        iv = []
+        for a in ins:
+            buf = np.empty((a.shape[-1], 2), dtype or a.dtype)
+            buf[...] = a.reshape(-1, 1)   # (k, 1) broadcast to both columns (casting as np.copyto)
+            iv.append(buf)
+        iv += [np.asarray(v).reshape(1) for v in views]
+        ov = []
+        for o in outs:   # the output's own values in both columns: a kernel may read an output
+            buf = np.empty((o.shape[-1], 2), o.dtype)
+            buf[...] = o.reshape(-1, 1)
+            ov.append(buf)
+        r = kernel(*iv, *ov, **params)
+        for o, buf in zip(outs, ov):
+            o[...] = buf[:, 0].reshape(o.shape)
+    finally:
+        work.top = top
+    return r is True or r is np.True_
 
 
 def on_views(kernel, a, out, **params):

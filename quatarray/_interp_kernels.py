@@ -27,7 +27,9 @@ sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
 every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
+import math
 from math import prod
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -36,7 +38,7 @@ from . import _ops
 from . import _scale
 from ._blocks import soa
 from ._kernels import normalize, normalize_block, result_dtype
-from ._trig import atan_unit32, tan
+from ._trig import SIMD_TAN, atan_unit32, tan, tan_float
 from ._validate import all_finite
 
 __all__ = [
@@ -159,31 +161,54 @@ def _sine_weights(r2, b2, h, w0, th, s2, w1):
 def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
     """float64 weights from rho = tan(Ω/2) and tau = tan(h Ω/2) (module docstring)."""
     dtype = r2.dtype
+    return _tangent_formula(r2, b2, h, _ops.ARRAYS, _TANGENT_ROWS, _ops.row(_floor(dtype), dtype, b2.shape),
+                            _ops.row(_tiny(dtype), dtype, rho.shape), _ONE64, w0, tau, t2, rho, a2)
+
+
+def _tangent_formula(r2, b2, h, op, fns, floor, tiny, one, w0, tau, t2, rho, a2):
+    """`_tangent_weights`' formula on rows, in `op`'s arithmetic with ``fns = (arctan, tan,
+    times)`` (``times(tau, h)``: tau·h, h of any real dtype) and the constants `floor`, `tiny`
+    (rows made read-only) and `one` (a 0-d array): `_tangent_angle`, the tangent, then
+    `_tangent_blend`.  Returns (w0, w1)."""
+    arctan, tan_, times = fns
+    r2, rho, tau = _tangent_angle(r2, b2, h, op, arctan, times, floor, tiny, rho, tau)
+    tau = tan_(tau, out=tau, rows=(t2, w0, a2))
+    return _tangent_blend(tau, r2, rho, op, one, w0, t2, a2)
+
+
+def _tangent_angle(r2, b2, h, op, arctan, times, floor, tiny, rho, tau):
+    """The first half of the weights' formula, written once: (rho², rho, h Ω / 2) from
+    a² (`r2`, overwritten) and b², rho = a / b = tan(Ω / 2) (`_tangent_formula`)."""
     # b² = 0 only for zero input (or B = -A followed as given, see `arcs`):
     # a floor keeps the division finite and quiet (no errstate needed)
-    np.maximum(b2, _ops.row(_floor(dtype), dtype, b2.shape), out=b2)
-    np.divide(r2, b2, out=r2)
-    np.sqrt(r2, out=rho)
-    np.maximum(rho, _ops.row(_tiny(dtype), dtype, rho.shape), out=rho)
-    np.arctan(rho, out=tau)
-    np.multiply(tau, h, out=tau, casting="unsafe")
-    tan(tau, out=tau, rows=(t2, w0, a2))
-    np.multiply(tau, tau, out=t2)
-    v = tau
-    np.divide(tau, rho, out=v)           # tau / rho  (-> h for tiny angles)
-    g = rho
-    np.add(t2, 1, out=g)
-    np.divide(1, g, out=g)               # 1 / (1 + tau²)
-    np.subtract(1, r2, out=w0)
-    w0 *= v
-    np.add(t2, w0, out=w0)               # tau² + (1 - rho²) v
-    np.subtract(1, w0, out=w0)
-    w0 *= g
-    w1 = a2
-    np.add(r2, 1, out=w1)
-    w1 *= v
-    w1 *= g
-    return w0, w1
+    b2 = op.max(b2, floor, b2)
+    r2 = op.div(r2, b2, r2)
+    rho = op.sqrt(r2, rho)
+    rho = op.max(rho, tiny, rho)
+    return r2, rho, times(arctan(rho, tau), h)
+
+
+def _tangent_blend(tau, r2, rho, op, one, w0, t2, a2):
+    """The second half, written once: (w0, w1) from tau = tan(h Ω / 2), rho² and rho."""
+    t2 = op.mul(tau, tau, t2)
+    v = op.div(tau, rho, tau)            # tau / rho  (-> h for tiny angles)
+    g = op.add(t2, one, rho)
+    g = op.div(one, g, g)                # 1 / (1 + tau²)
+    w0 = op.sub(one, r2, w0)
+    w0 = op.mul(w0, v, w0)
+    w0 = op.add(t2, w0, w0)              # tau² + (1 - rho²) v
+    w0 = op.sub(one, w0, w0)
+    w0 = op.mul(w0, g, w0)
+    w1 = op.add(r2, one, a2)
+    w1 = op.mul(w1, v, w1)
+    w1 = op.mul(w1, g, w1)
+    return [w0, w1]
+
+
+# (0-d arrays: a Python scalar operand costs a conversion per ufunc call)
+_ONE64, _TWO64 = _ops.const(1.0, np.float64), _ops.const(2.0, np.float64)
+_TANGENT_ROWS = (lambda x, out: np.arctan(x, out=out), tan,
+                 lambda tau, h: np.multiply(tau, h, out=tau, casting="unsafe"))
 
 
 def hemisphere(A, B, a2, b2, out):
@@ -279,19 +304,31 @@ def slerp_core(A, B, h, O, shortest):
     return O
 
 
+def _chords(A, B, vec, T, ab):
+    """(a², b²) = (|B - A|², |B + A|²), written once: `vec` is `_ops.STACKS` on rows (T: 8
+    rows, ab: 2) or `_ops.FLOAT_STACKS` on floats.  The differences and sums are held
+    interleaved (D0, S0, D1, S1, ...), squared together, and both norms summed in one
+    order from contiguous pairs of rows (2-D views of rows four apart cost a ufunc call
+    about three times a contiguous one's at small sizes)."""
+    T = vec.interleave(vec.sub(B, A, T[0::2]), vec.add(B, A, T[1::2]), T)
+    T = vec.mul(T, T, T)
+    ab = vec.add(T[0:2], T[2:4], ab)
+    ab = vec.add(ab, T[4:6], ab)
+    return vec.add(ab, T[6:8], ab)
+
+
+def _blend(A, B, w0, w1, vec, T, O):
+    """O = w0 A + w1 B, the SLERP blend, written once (`vec` as in `_chords`)."""
+    return vec.add(vec.scale(A, w0, T[:4]), vec.scale(B, w1, T[4:]), O)
+
+
 def _slerp_rows(A, B, h, O, shortest):
     """`slerp_core`'s formula; returns where |A|² + |B|² is out of range (None: nowhere)."""
     s = O.shape[1:]
     with _blocks.scratch().frame() as work:
         T = work.rows(8, s, O.dtype)
-        np.subtract(B, A, out=T[:4])
-        np.add(B, A, out=T[4:])
-        np.multiply(T, T, out=T)
-        Tv = T.reshape((2, 4) + s)
         ab = work.rows(3, s, O.dtype)
-        np.add(Tv[:, 0], Tv[:, 1], out=ab[:2])
-        ab[:2] += Tv[:, 2]
-        ab[:2] += Tv[:, 3]
+        _chords(A, B, _ops.STACKS, T, ab[:2])
         a2, b2, sign = ab
         # |B - A|² + |B + A|² = 2 (|A|² + |B|²), in range for every unit pair
         out_of_range = None if _scale.fits(np.add(a2, b2, out=sign)) else _scale.outside(sign)
@@ -302,9 +339,7 @@ def _slerp_rows(A, B, h, O, shortest):
             sign = None
             wide = b2 < a2
         w0, w1 = slerp_weights(a2, b2, h, sign)
-        np.multiply(A, w0, out=T[:4])
-        np.multiply(B, w1, out=T[4:])
-        np.add(T[:4], T[4:], out=O)
+        _blend(A, B, w0, w1, _ops.STACKS, T, O)
         if wide is not None and wide.any():
             arcs(A, B, h, O, wide)
         if not _scale.inside(np.asarray(h), 2.0, -1.0):   # extrapolation beyond a segment's length
@@ -316,12 +351,28 @@ def _slerp_rows(A, B, h, O, shortest):
     return out_of_range
 
 
-def squad_param(h, out=None):
-    """2 h (1 - h): the parameter of squad's outer SLERP (its derivative is 2 - 4 h)."""
-    out = np.subtract(1, h, out=out, casting="unsafe")
-    np.multiply(out, h, out=out, casting="unsafe")
-    out *= 2
-    return out
+def squad_param(h, out=None, op=None):
+    """2 h (1 - h): the parameter of squad's outer SLERP (its derivative is 2 - 4 h), written
+    once: on rows (`out`: a row of any float dtype, or None for a new one), or with
+    ``op=_ops.FLOATS`` on a float."""
+    op = op or _CAST_ROWS
+    out = op.sub(1, h, out)
+    out = op.mul(out, h, out)
+    return op.mul(out, 2, out)
+
+
+_CAST_ROWS = SimpleNamespace(sub=lambda a, b, out: np.subtract(a, b, out=out, casting="unsafe"),
+                             mul=lambda a, b, out: np.multiply(a, b, out=out, casting="unsafe"))
+"""`_ops.ARRAYS`' operations into rows of another float dtype than an operand's."""
+
+
+def _squad_floats(Q0, A, B, Q1, h):
+    """`_squad_block` of one float64 quadruple (lists of four floats) at a float `h`, by
+    `_slerp_floats` (the block kernels' formulas on floats), or None where one of its three
+    SLERPs needs the block kernel."""
+    P = _slerp_floats(Q0, Q1, h, False)
+    S = None if P is None else _slerp_floats(A, B, h, False)
+    return None if S is None else _slerp_floats(P, S, squad_param(h, None, _ops.FLOATS), False)
 
 
 def squad_blend(P, S, h, O):
@@ -500,15 +551,17 @@ def frame_core(F, phi, u, O):
         np.cos(sn, out=c)
         np.sin(sn, out=sn)
     else:
-        tan(sn, out=sn, rows=_rows(3, s, O.dtype))   # tau
+        tan(sn, out=sn, rows=None if SIMD_TAN else _rows(3, s, O.dtype))   # tau (NumPy's SIMD tan needs no rows)
         np.multiply(sn, sn, out=c)
-        c += 1
-        np.divide(2, c, out=c)               # 2 / (1 + tau²)
+        c += _ONE64
+        np.divide(_TWO64, c, out=c)          # 2 / (1 + tau²)
         sn *= c                              # sin
-        c -= 1                               # cos
-    Fv = F.reshape((2, 4) + s)
-    np.multiply(Fv, CS[:, None], out=Fv)
-    np.add(Fv[0], Fv[1], out=O)
+        c -= _ONE64                          # cos
+    # (two multiplies of four rows: one on the (2, 4, *s) view broadcasting (2, 1, *s) costs
+    # more than both at small sizes, NumPy's iterator on 3-D and 4-D operands)
+    np.multiply(F[:4], c, out=F[:4])
+    np.multiply(F[4:], sn, out=F[4:])
+    np.add(F[:4], F[4:], out=O)
     return O
 
 
@@ -520,7 +573,9 @@ def _pairwise(kernel, quats, t, dtype, flagged=False, **params):
     """Run ``kernel(*quats_block, t_block, O, **params)`` on the block engine;
     returns the (batch, 4) output, and with `flagged` also whether any block's
     kernel returned True (`_blocks.blockwise`)."""
-    batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)
+    batch = quats[0].shape[:-1]
+    if not (t.shape == batch and all(q.shape[:-1] == batch for q in quats[1:])):   # (the common case:
+        batch = np.broadcast_shapes(*(q.shape[:-1] for q in quats), t.shape)        # no costly call)
     out = np.empty(batch + (4,), dtype)
     flag = _blocks.blockwise(kernel, list(quats), [out], batch, dtype, views=[t], **params)
     return (out, flag) if flagged else out
@@ -535,10 +590,62 @@ def slerp(q0, q1, t, shortest=True, check=False):
     inputs only then.
     """
     dtype = result_dtype(q0, q1)
+    one = _slerp_one(q0, q1, t, shortest)
+    if one is not None:   # (finite: the float path takes finite input only)
+        return (one, True) if check else one
     if not check:
         return _pairwise(slerp_core, (q0, q1), t, dtype, shortest=shortest)
     out, bad = _pairwise(_slerp_checked, (q0, q1), t, dtype, flagged=True, shortest=shortest)
     return out, not bad
+
+
+def _slerp_floats(A, B, h, shortest):
+    """`slerp_core` of one float64 pair (lists of four floats) at a float `h`, on floats: the
+    four floats, or None where the block kernel has more to do (|A|² + |B|² out of range,
+    a wide arc followed as given, extrapolation beyond -1 and 2, non-finite input: `arcs`
+    and the rescaled pass)."""
+    a2, b2 = _chords_floats(*A, *B)
+    if not (_LOW64 <= a2 + b2 <= _HIGH64 and -1.0 <= h <= 2.0):
+        return None
+    if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
+        sign = math.copysign(1.0, b2 - a2)
+        r2, b2 = min(a2, b2), max(a2, b2)
+    elif b2 < a2:
+        return None
+    else:
+        sign, r2 = 1.0, a2
+    r2, rho, tau = _tangent_angle_floats(r2, b2, h)
+    w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
+    if shortest:
+        w1 = w1 * sign
+    return _blend_floats(*A, *B, w0, w1)
+
+
+_LOW64, _HIGH64 = (_scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)])
+_FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
+
+# The formulas on one pair's floats as plain Python statements (`_ops.compiled`: the same
+# operations in the same order, without a namespace call per operation)
+_chords_floats = _ops.compiled(lambda op, stack, *c: _chords(list(c[:4]), list(c[4:]), stack, _ops.NONE, None), 8)
+_tangent_angle_floats = _ops.compiled(
+    lambda op, stack, r2, b2, h: _tangent_angle(r2, b2, h, op, op.arctan, lambda x, y: op.mul(x, y, None),
+                                                _FLOOR64, _TINY64, None, None), 3)
+_tangent_blend_floats = _ops.compiled(
+    lambda op, stack, tau, r2, rho: _tangent_blend(tau, r2, rho, op, 1.0, None, None, None), 3)
+_blend_floats = _ops.compiled(
+    lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], c[9], stack, _ops.NONE, None), 10)
+
+
+def _slerp_one(q0, q1, t, shortest):
+    """`_slerp_floats` of one float64 pair of one shape at one float64 t (t's shape within
+    theirs) as an array of their shape, or None."""
+    if q0.shape != q1.shape or t.size != 1 or t.ndim >= q0.ndim or t.dtype != np.float64:
+        return None
+    a, b = _ops.floats64(q0), _ops.floats64(q1)
+    if a is None or b is None:
+        return None
+    one = _slerp_floats(a, b, t.item(0), shortest)
+    return None if one is None else _ops.to_array(one, q0.shape)
 
 
 def _slerp_checked(A, B, h, O, shortest):
@@ -685,7 +792,14 @@ def _squad_block(Q0, A, B, Q1, h, O):
 
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
-    return _pairwise(_squad_block, (q0, a, b, q1), t, result_dtype(q0, a, b, q1))
+    quats = (q0, a, b, q1)
+    if t.size == 1 and t.dtype == np.float64 and t.ndim < q0.ndim and all(q.shape == q0.shape for q in quats):
+        one = [_ops.floats64(q) for q in quats]
+        if None not in one:   # one float64 quadruple: the same formulas on its floats
+            one = _squad_floats(*one, t.item(0))
+            if one is not None:
+                return _ops.to_array(one, q0.shape)
+    return _pairwise(_squad_block, quats, t, result_dtype(*quats))
 
 
 def bezier_levels(L, h, O):

@@ -32,8 +32,12 @@ def result_dtype(*arrays):
     >>> result_dtype(np.zeros(4, np.float32), np.zeros(4))
     dtype('float64')
     """
-    if len(arrays) == 1 and getattr(arrays[0], "dtype", None) in _COMPLEX:   # one float array: its own
-        return arrays[0].dtype
+    dtype = getattr(arrays[0], "dtype", None)
+    if dtype in _COMPLEX:   # float arrays of one dtype: theirs, without np.result_type's cost
+        if len(arrays) == 1:
+            return dtype
+        if all(getattr(a, "dtype", None) == dtype for a in arrays[1:]):
+            return dtype
     return np.result_type(*arrays, np.float32)
 
 
@@ -64,7 +68,7 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     [0.707106781187, 0.707106781187]
     """
     if type(angle) is float:   # one rotation's float64 angle: the same formula
-        return _cos_sin_tan(angle, _ops.FLOATS, _trig.tan_float, None, None, _ops.NONE)
+        return _cos_sin_of_tangent_floats(_trig.tan_float(angle * 0.5))
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)
@@ -75,12 +79,18 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
 
 
 def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None):
-    """`cos_sin`'s float64 formula in `op`'s arithmetic (`_ops`) with the tangent `tan`
-    (`bounds`: of angle / 2, for `tan`)."""
+    """`cos_sin`'s float64 formula on rows (`_ops.ARRAYS`) with the tangent `tan` (`bounds`: of
+    angle / 2, for `tan`); on a float, `cos_sin` takes `_cos_sin_of_tangent_floats`."""
     u, v = rows[:2]
     half, one, two = _COS_SIN[op is _ops.FLOATS]
     s = op.mul(angle, half, s)
     t = tan(s, out=s, rows=(c, u, v), bounds=bounds)
+    return _cos_sin_of_tangent(t, op, half, one, two, c, u, v)
+
+
+def _cos_sin_of_tangent(t, op, half, one, two, c, u, v):
+    """(cos a, sin a) from t = tan(a / 2), `cos_sin`'s formula, in `op`'s arithmetic with the
+    constants 0.5, 1 and 2 of its kind, into the rows `c`, `u`, `v` (t's row takes sin a)."""
     c = op.mul(t, t, c)
     c = op.add(c, one, c)
     d = op.div(two, c, c)                   # 2 / (1 + t²)
@@ -93,6 +103,10 @@ def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None):
 
 
 _COS_SIN = _ops.operands(0.5, 1.0, 2.0)
+
+_cos_sin_of_tangent_floats = _ops.compiled(
+    lambda op, stack, t: _cos_sin_of_tangent(t, op, 0.5, 1.0, 2.0, None, None, None), 1)
+"""`_cos_sin_of_tangent` on one float64 tangent (`_ops.compiled`: the same operations)."""
 
 
 def half_angle(angle, scale):
@@ -563,25 +577,28 @@ def inverse(q):
 def _k_exp(q, o):
     with _blocks.scratch().frame() as work:
         vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
-        with np.errstate(over="ignore"):   # only there: e**w that overflows still warns
+        np.exp(q[0], out=ew)   # outside the errstate below: e**w that overflows warns (alone)
+        # one errstate for the rest (squares that overflow are rescaled; where e**w overflowed,
+        # inf · 0 and inf - inf are repaired below), not one per step: each costs a few ufunc calls
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
-        np.exp(q[0], out=ew)
-        over = ew.size and ew.max() == np.inf   # e**w overflowed somewhere
-        # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
-        np.maximum(vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), out=vn)
-        cos_sin(vn, c, s, (u, v))
-        s /= vn
-        if over:
-            big = ew == np.inf
-            sb = s[big]
-        s *= ew
-        if e is not None:
-            np.ldexp(s, e, out=s)
-        for k in (1, 2, 3):
-            np.multiply(q[k], s, out=o[k])
-        np.multiply(c, ew, out=o[0])
-        if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
-            with np.errstate(over="ignore"):   # (e**w has warned)
+            over = ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
+            if over:
+                big = ew == np.inf
+            kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
+
+            def scale(s):
+                if over:
+                    kept.append(s[big])
+                s *= ew
+                if e is not None:
+                    np.ldexp(s, e, out=s)
+                return s
+
+            _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
+                         _ops.ARRAYS, c, s, (u, v), o)
+            if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
+                sb = kept[0]
                 half = np.exp(q[0][big] * 0.5)
                 if e is not None:
                     sb = np.ldexp(sb, e[big])
@@ -589,6 +606,42 @@ def _k_exp(q, o):
                 for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
                     qk = q[k][big] * sb
                     o[k][big] = np.where(qk == 0, qk, qk * half * half)
+
+
+def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, c, s, rows, o):
+    """The exponential's formula, written once: ``o = e^w (cos|v|, sin|v| v/|v|)`` from the
+    vector part `v` (three rows or floats), |v| in `vn` (overwritten), its positive `floor`,
+    e^w in `ew`, in `op`'s arithmetic (`_ops`), with ``cos_sin(vn, c, s, rows)`` (`cos_sin`
+    or its float form) and ``scale(s)`` multiplying sin|v| / |v| by e^w (the block kernel
+    also keeps, and undoes a rescale of, some rows there).  Returns `o` (four rows, or
+    the four floats)."""
+    vn = op.max(vn, floor, vn)   # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
+    c, s = cos_sin(vn, c, s, rows)
+    s = op.div(s, vn, s)
+    s = scale(s)
+    return [op.mul(c, ew, o[0]), *[op.mul(v[k], s, o[k + 1]) for k in range(3)]]
+
+
+def _exp_floats(comps):
+    """`_k_exp` on the four floats of one float64 quaternion, or None where the block kernel
+    has more to do (|v|² beyond `_scale.HIGH`, e^w near overflow, non-finite input)."""
+    w, x, y, z = comps
+    vv = _scale.squares([x, y, z], _ops.FLOATS, None, None)   # `sum_squares`' order
+    if not vv <= _HIGH64:
+        return None
+    if not w < 709.0:   # e**w near or past the float maximum (its warning: the block kernel's)
+        return None
+    ew = float(np.exp(w))   # NumPy's exp: the array loop's bits
+    return _exp_formula([x, y, z], math.sqrt(vv), ANGLE_FLOOR[_FLOAT64], ew, _cos_sin_floats,
+                        lambda s: s * ew, _ops.FLOATS, None, None, None, _ops.NONE)
+
+
+def _cos_sin_floats(angle, c, s, rows):
+    """`cos_sin` of one float64 angle (a Python float), in the signature of the kernels'."""
+    return cos_sin(angle)
+
+
+_FLOAT64 = np.dtype(np.float64)
 
 
 def exp(q):
@@ -600,9 +653,13 @@ def exp(q):
     True
     """
     q = np.asarray(q)
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: the same formula on its floats
+        one = _exp_floats(one)
+        if one is not None:
+            return _ops.to_array(one, q.shape)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)
+    _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)   # (the kernel sets its own errstate)
     return res
 
 
@@ -625,36 +682,91 @@ def _log_parts(q):
     whose scale is a limit (`_small_vectors`); the seventh |q|² (of q as rescaled)."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
     w = q[0]
+    one, half = _ops.const(1.0, q.dtype), _ops.const(0.5, q.dtype)
     _scale.sum_squares(q, vv, 1)
-    np.multiply(w, w, out=n2)
-    n2 += vv                              # w² + |v|², as the one-quaternion path
+    _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
     e = v0 = None
     if not _scale.fits(n2):               # extreme magnitudes: the vectors kept, whose axes
         v0 = q[1:].copy()                 # a rescale may lose (`_small_vectors`)
         e = _scale.guard(q, n2)
     if e is not None:                     # q was rescaled: |v|² again
         _scale.sum_squares(q, vv, 1)
-        np.multiply(w, w, out=n2)
-        n2 += vv
-    np.subtract(w, 1, out=d)
-    np.add(w, 1, out=u)
-    d *= u
-    d += vv                               # |q|² - 1 = (w - 1)(w + 1) + |v|²
-    np.log(n2, out=ln)
-    um1 = np.subtract(n2, 1, out=u)       # exact for |q|² in [1/2, 2]
-    unit = not um1.all()                  # one reduction instead of a mask when none
+        _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
+    _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, _ln_ratio_rows, d, u, ln)
+    # one reduction instead of a mask and a test when no vector is zero or below the range
+    few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
+    vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
+    _angle_formula(vn, w, _ops.ARRAYS, arctan2, theta, scale)
+    lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
+    return ln, theta, vn, scale, e, lim, n2
+
+
+def _sqnorm_formula(w, vv, op, n2):
+    """|q|² = w² + |v|² from |v|² (`_log_parts`' order, in `op`'s arithmetic)."""
+    n2 = op.mul(w, w, n2)
+    return op.add(n2, vv, n2)
+
+
+def _ln_formula(w, vv, n2, op, one, half, ratio, d, u, ln):
+    """ln|q| = log1p(d) / 2 by Kahan's ``log(u) d / (u - 1)`` (`_log_parts`), written once:
+    d = (w - 1)(w + 1) + |v|², u = |q|² `n2`, in `op`'s arithmetic with the constants `one`,
+    `half` of the operands' dtype; ``ratio(ln, d, um1, n2)`` is ``ln · d / um1``, d where
+    |q|² = 1 (rows: a division and a mask; a float: a test).  Returns ln."""
+    d = op.sub(w, one, d)
+    u = op.add(w, one, u)
+    d = op.mul(d, u, d)
+    d = op.add(d, vv, d)                  # |q|² - 1 = (w - 1)(w + 1) + |v|²
+    ln = ratio(op.log(n2, ln), d, op.sub(n2, one, u), n2)   # u - 1 exact for |q|² in [1/2, 2]
+    return op.mul(ln, half, ln)
+
+
+def _ln_ratio_rows(ln, d, um1, n2):
+    unit = _scale.any_zero(um1)           # one reduction instead of a mask when none
     np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
     ln *= um1
     if unit:
         np.copyto(ln, d, where=n2 == 1)
-    ln *= 0.5
-    # one reduction instead of a mask and a test when no vector is zero or below the range
-    few = vv.min() < _scale.LOW[vv.dtype]
-    vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
-    arctan2(vn, w, out=theta)
-    np.divide(theta, vn, out=scale)
-    lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
-    return ln, theta, vn, scale, e, lim, n2
+    return ln
+
+
+def _sqnorms_formula(op, stack, w, x, y, z):
+    """(|v|², |q|²) of one quaternion's floats, in `sum_squares`' and `_log_parts`' order."""
+    vv = _scale.squares([x, y, z], op, None, None)
+    return [vv, _sqnorm_formula(w, vv, op, None)]
+
+
+# `_log_parts`' formulas on one quaternion's floats, as plain Python statements (`_ops.compiled`:
+# the same operations in the same order); ln|q| in two forms, by the test |q|² = 1 of the rows'
+_sqnorms_floats = _ops.compiled(_sqnorms_formula, 4)
+_ln_floats = _ops.compiled(lambda op, stack, w, vv, n2: [_ln_formula(
+    w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: op.mul(ln, op.div(d, um1, None), None), None, None, None)], 3)
+_ln_unit_floats = _ops.compiled(lambda op, stack, w, vv, n2: [_ln_formula(
+    w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: d, None, None, None)], 3)
+
+
+def _angle_formula(vn, w, op, atan2, theta, scale):
+    """θ = atan2(|v|, w) and the scale θ / |v| of the log's vector part (`_log_parts`)."""
+    theta = atan2(vn, w, out=theta)
+    return theta, op.div(theta, vn, scale)
+
+
+def _log_floats(comps):
+    """`_log_parts` on the four floats of one float64 quaternion: (ln|q|, θ, |v|, θ/|v|, |q|²),
+    or None where the block kernel has more to do (|q|² to rescale, |v|² below the range,
+    zero vector, non-finite input)."""
+    w = comps[0]
+    vv, n2 = _sqnorms_floats(*comps)
+    if not (_LOW64 <= n2 <= _HIGH64 and vv >= _LOW64):
+        return None
+    ln = (_ln_unit_floats if n2 == 1.0 else _ln_floats)(w, vv, n2)[0]
+    vn = math.sqrt(vv)
+    theta, scale = _angle_formula(vn, w, _ops.FLOATS, _arctan2_float, None, None)
+    return ln, theta, vn, scale, n2
+
+
+def _arctan2_float(y, x, out=None):
+    """`arctan2` of one pair of floats (`out` ignored), NumPy's loop at once where it is SIMD."""
+    return float(np.arctan2(y, x)) if _trig.SIMD_TAN else arctan2(y, x)
 
 
 def _small_vectors(q, vn, theta, scale, v0):
@@ -683,12 +795,18 @@ def _small_vectors(q, vn, theta, scale, v0):
 
 def _k_log(q, o):
     ln, theta, vn, scale, e, lim, _ = _log_parts(q)
-    np.multiply(q[1:], scale, out=o[1:])
+    _log_vector(q[1:], scale, _ops.STACKS, o[1:])
     np.copyto(o[0], ln)
     if e is not None:   # ln|q| = ln|q 2**-e| + e ln 2
         o[0] += e * np.log(o.dtype.type(2))
     if lim is not None:   # a real quaternion in the block: the negative ones get θ = π about x
         np.copyto(o[1], np.pi, where=(vn == 0) & (q[0] < 0))
+
+
+def _log_vector(v, scale, stack, out):
+    """The log's vector part v θ/|v| from `_log_parts`' scale (a stack of rows, `_ops.STACKS`,
+    or floats, `_ops.FLOAT_STACKS`)."""
+    return stack.scale(v, scale, out)
 
 
 def log(q):
@@ -703,6 +821,11 @@ def log(q):
     True
     """
     q = np.asarray(q)
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: the same formula on its floats
+        parts = _log_floats(one)
+        if parts is not None:
+            return _ops.to_array([parts[0], *_log_vector(one[1:], parts[3], _ops.FLOAT_STACKS, None)], q.shape)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
@@ -713,35 +836,31 @@ def _k_power(q, t, o):
     t = t[0]
     ln, theta, vn, scale, e, lim, n2 = _log_parts(q)
     mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
-    np.multiply(t, ln, out=mag)
-    np.exp(mag, out=mag)
-    if not _scale.inside(ln, 0.5):
-        # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
-        # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
-        # (Of the rows as rescaled, if they were: each row's choice is its own.)
-        far = np.abs(ln) > 0.5
-        mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
-    if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
-        mag *= np.exp2(t * e)
     real = zero = None   # (masks only for a block with real quaternions or vectors below the range)
     if lim is not None:
         real = vn == 0
         zero = real & (q[0] == 0)
-        if zero.any():
+
+    def magnitude(mag):
+        if not _scale.inside(ln, 0.5):
+            # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
+            # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
+            # (Of the rows as rescaled, if they were: each row's choice is its own.)
+            far = np.abs(ln) > 0.5
+            mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
+        if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
+            mag *= np.exp2(t * e)
+        if zero is not None and zero.any():
             np.copyto(mag, np.where(zero, np.where(t > 0, 0.0, np.where(t == 0, 1.0, np.inf)), mag))
-    np.multiply(t, theta, out=ang)
-    # sin and cos, not `cos_sin`: cos(tθ) keeps its relative accuracy near tθ = π/2
-    # (principal roots of negative reals)
-    np.cos(ang, out=c)
-    np.sin(ang, out=sn)
-    np.multiply(mag, c, out=o[0])
-    # sin(tθ) / |v|  (the axis is v/|v|); where θ is 0 or below the range its limit t·scale
-    f = ang
-    if lim is not None:
-        np.copyto(f, np.where(lim, t * scale, sn / np.where(real, 1, vn)))
-    else:
-        np.divide(sn, vn, out=f)
-    ang = np.multiply(f, mag, out=c)   # (c is free: the real part is written)
+        return mag
+
+    def ratio(sn, f):
+        # sin(tθ) / |v|  (the axis is v/|v|); where θ is 0 or below the range its limit t·scale
+        if lim is not None:
+            return np.copyto(f, np.where(lim, t * scale, sn / np.where(real, 1, vn))) or f
+        return np.divide(sn, vn, out=f)
+
+    _, f, ang = _power_formula(t, ln, theta, _ops.ARRAYS, magnitude, ratio, mag, ang, c, sn, o[0])
     if zero is not None and zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         ang[zero] = 0.0
     for k in (1, 2, 3):
@@ -758,6 +877,56 @@ def _k_power(q, t, o):
             np.copyto(o[1], mag * sn, where=neg_real)
 
 
+def _power_formula(t, ln, theta, op, magnitude, ratio, mag, ang, c, sn, o0):
+    """The power's formula, written once: |q|^t = exp(t ln|q|) (``magnitude(mag)`` then
+    adjusts it: the rows far from |q| = 1, rescaled or zero), and (the real part |q|^t cos(tθ)
+    into `o0`, sin(tθ) / |v|, that times |q|^t): the last two, the factors of the vector part
+    (``ratio(sn, f)`` divides sin(tθ) by |v| into `f`, the row of tθ).  In `op`'s
+    arithmetic (its exp, cos and sin: NumPy's).  sin and cos, not `cos_sin`: cos(tθ) keeps
+    its relative accuracy near tθ = π/2 (principal roots of negative reals)."""
+    mag = magnitude(op.exp(op.mul(t, ln, mag), mag))
+    ang = op.mul(t, theta, ang)
+    c = op.cos(ang, c)
+    sn = op.sin(ang, sn)
+    w = op.mul(mag, c, o0)
+    f = ratio(sn, ang)
+    return w, f, op.mul(f, mag, c)   # (c is free: the real part is written)
+
+
+def _power_floats_formula(far):
+    """`_power_formula` on one quaternion's floats ``(t, ln|q|, θ, |v|, |q|²)``, compiled
+    (`_ops.compiled`) for a modulus near 1 (exp(t ln|q|)) or `far` from it ((|q|²)^(t/2))."""
+    def formula(op, stack, t, ln, theta, vn, n2):
+        def magnitude(mag):
+            return op.power(n2, op.mul(t, 0.5, None), None) if far else mag
+        return _power_formula(t, ln, theta, op, magnitude, lambda sn, f: op.div(sn, vn, None),
+                              None, None, None, None, None)
+    return _ops.compiled(formula, 5)
+
+
+_POWER_FLOATS = {False: _power_floats_formula(False), True: _power_floats_formula(True)}
+
+
+def _power_floats(comps, t):
+    """`_k_power` on the four floats of one float64 quaternion and a float exponent, or None
+    where the block kernel has more to do (as `_log_floats`; |t ln|q|| or tθ too large for
+    exp, cos and sin to stay quiet and finite; sin(tθ)/|v| · |q|^t overflowing)."""
+    parts = _log_floats(comps)
+    if parts is None:
+        return None
+    ln, theta, vn, _, n2 = parts
+    if not (abs(t * ln) < 700.0 and abs(t * theta) < _POWER_ANGLE):
+        return None
+    # (abs(ln) > 0.5: `_k_power`'s choice of the modulus' formula, for this quaternion)
+    w, _, g = _POWER_FLOATS[abs(ln) > 0.5](t, ln, theta, vn, n2)
+    if not abs(g) < math.inf:   # sin(tθ)/|v| · |q|^t overflowed: the block kernel's fix
+        return None
+    return [w, *_ops.FLOAT_STACKS.scale(comps[1:], g, None)]
+
+
+_POWER_ANGLE = 2.0 ** 50   # tθ beyond it: the block kernel (sin and cos keep few digits there anyway)
+
+
 def power(q, t):
     """Quaternion power exp(t log q) for real `t` (scalar or batch-shaped).
 
@@ -770,6 +939,17 @@ def power(q, t):
     True
     """
     q = np.asarray(q)
+    if type(t) is float:   # (the common `q ** 0.5`: no 0-d array to make and ask)
+        one = _ops.floats64(q)
+        tf = t
+    else:
+        t = np.asarray(t)
+        one = _ops.floats64(q) if t.size == 1 and t.ndim <= q.ndim - 1 else None
+        tf = float(t.item(0)) if one is not None else None
+    if one is not None:   # one float64 quaternion, one exponent: the same formula on floats
+        one = _power_floats(one, tf)
+        if one is not None:
+            return _ops.to_array(one, q.shape)
     t = np.asarray(t)
     dtype = result_dtype(q)
     batch = np.broadcast_shapes(q.shape[:-1], t.shape)

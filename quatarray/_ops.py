@@ -7,7 +7,8 @@ returned.  ``+ − × ÷`` and ``sqrt`` round alike on floats and float64 arrays
 multiply-add in either), so one formula evaluated in one order gives the same bits on both:
 a single rotation skips the 16–60 ufunc calls of the block kernel without a second copy of
 its maths.  Functions whose results differ between `math` and NumPy (atan2, sin, ...) are
-not offered on floats, except ``arctan``, which has the bits of NumPy's loop (`arctan_float`).
+not offered on floats as `math`'s; ``arctan`` has the bits of NumPy's loop (`arctan_float`), and
+``exp``, ``log``, ``cos``, ``sin`` and ``power`` are NumPy's own ufuncs called on the floats.
 `compiled` turns such a formula into plain Python statements on floats, once: the same
 operations in the same order, without a call per operation.
 """
@@ -55,9 +56,21 @@ from the C library's in about 1 case in 1000."""
 ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
                          where=np.where, max=lambda a, b, out: np.maximum(a, b, out=out),
                          abs=np.absolute, copysign=np.copysign, rint=np.rint, arctan=np.arctan,
-                         copy=lambda a, out: np.copyto(out, a) or out)
+                         copy=lambda a, out: np.copyto(out, a) or out,
+                         exp=np.exp, log=np.log, cos=np.cos, sin=np.sin, power=np.power)
 """Each operation writes into its last argument (a row of the block) and returns it;
 ``where(c, a, b)`` picks by a condition."""
+
+
+def _numpy_float(f):
+    """NumPy's ufunc `f` on Python floats, as a float: the bits of its array loops (checked for
+    exp, log, cos, sin, tan, arctan and power, with and without AVX-512, on rows of one, two and
+    thousands of elements), at the cost of one NumPy call each."""
+    return lambda *args: float(f(*args))
+
+
+_NUMPY_FLOATS = {name: _numpy_float(getattr(np, name)) for name in ("exp", "log", "cos", "sin")}
+_NUMPY_FLOATS["power"] = _numpy_float(np.power)
 
 FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
                          mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
@@ -65,7 +78,10 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
                          max=lambda a, b, out: max(a, b), abs=lambda a, out: abs(a),
                          copysign=lambda a, b, out: math.copysign(a, b), copy=lambda a, out: a,
                          rint=lambda a, out: float(round(a)),   # round: half to even, as np.rint
-                         arctan=lambda a, out: arctan_float(a))   # the array loop's bits
+                         arctan=lambda a, out: arctan_float(a),   # the array loop's bits
+                         exp=lambda a, out: _NUMPY_FLOATS["exp"](a), log=lambda a, out: _NUMPY_FLOATS["log"](a),
+                         cos=lambda a, out: _NUMPY_FLOATS["cos"](a), sin=lambda a, out: _NUMPY_FLOATS["sin"](a),
+                         power=lambda a, b, out: _NUMPY_FLOATS["power"](a, b))
 """The same operations on Python floats; the row argument is ignored.  ``arctan`` is
 `arctan_float`, with the bits of NumPy's array loop."""
 
@@ -73,15 +89,19 @@ STACKS = SimpleNamespace(
     sub=lambda a, b, out: np.subtract(a, b, out=out, order="C"),
     add=lambda a, b, out: np.add(a, b, out=out, order="C"),
     mul=lambda a, b, out: np.multiply(a, b, out=out, order="C"),
-    scale=lambda a, x, out: np.multiply(a, x, out=out, order="C"))
+    scale=lambda a, x, out: np.multiply(a, x, out=out, order="C"),
+    interleave=lambda a, b, out: out)
 """`ARRAYS`' operations on stacks of k rows (k, ...), one call for the stack: ``a - b``,
-``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`.
+``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`;
+``interleave(a, b, out)`` the rows of `a` and `b` alternately, where they were written into
+`out`'s even and odd rows.
 Iterated in C order, row after row: stacks may be component-major views of (n, k)
 arrays (e.g. ``o.T``), which NumPy's default order would walk in n inner loops of k."""
 
 FLOAT_STACKS = SimpleNamespace(
     sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
-    mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a])
+    mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a],
+    interleave=lambda a, b, out: [x for pair in zip(a, b) for x in pair])
 """The same on lists of k Python floats (the stack argument is ignored)."""
 
 
@@ -151,7 +171,8 @@ class _Name(str):
 
 _TEMPLATES = {"add": "{0} + {1}", "sub": "{0} - {1}", "mul": "{0} * {1}", "div": "{0} / {1}",
               "sqrt": "_sqrt({0})", "abs": "abs({0})", "copysign": "_copysign({0}, {1})", "max": "max({0}, {1})",
-              "rint": "float(round({0}))", "arctan": "_arctan({0})"}
+              "rint": "float(round({0}))", "arctan": "_arctan({0})",
+              **{name: f"_np_{name}({{0}})" for name in ("exp", "log", "cos", "sin")}, "power": "_np_power({0}, {1})"}
 """`FLOATS`' operations as Python expressions (the same calls and operators, in place)."""
 
 
@@ -167,7 +188,8 @@ def compiled(formula, nargs):
     with no branch on values) as a plain Python function of `nargs` floats: the formula is
     run once on names, each operation recorded as the expression `FLOATS` evaluates, and
     the statements compiled.  `stack` does what `FLOAT_STACKS` and `FLOAT_ROWS` do on lists
-    (element by element, a single value applying to every element; ``scale``, ``shifts``).
+    (element by element, a single value applying to every element; ``scale``, ``shifts``,
+    ``interleave``).
     The result has their and `FLOATS`' bits (the same operations on the same operands, in
     the same order) without a call per operation: a third of the cost of a single
     rotation's formula on `FLOATS`.
@@ -204,7 +226,8 @@ def compiled(formula, nargs):
     trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul")}
-    stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts)
+    stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,
+                            interleave=FLOAT_STACKS.interleave)
     names = [_Name(f"a{i}") for i in range(nargs)]
     result = formula(trace, stack, *names)
     if type(result) in (list, tuple):
@@ -212,7 +235,8 @@ def compiled(formula, nargs):
     else:
         body = term(result)
     source = f"def formula({', '.join(names)}):\n" + "\n".join(lines + [f"    return {body}"])
-    scope = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_float, **consts}
+    scope = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_float,
+             **{f"_np_{name}": f for name, f in _NUMPY_FLOATS.items()}, **consts}
     exec(compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec"), scope)
     function = scope["formula"]
     function.source = source

@@ -26,7 +26,8 @@ import numpy as np
 from . import _blocks, _ops
 
 __all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
-           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "at_most", "shrink_vectors", "small_norms"]
+           "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "at_most", "largest", "smallest", "any_zero",
+           "shrink_vectors", "small_norms"]
 
 NONFINITE = "expected finite quaternions, got nan or inf"
 ZERO = "expected non-zero quaternions, got a zero quaternion (it is no rotation)"
@@ -88,9 +89,46 @@ def largest(a):
     >>> largest(np.array([1.0, 3.0, 2.0]))
     3.0
     """
+    return _extreme(a, 1, np.maximum)
+
+
+def smallest(a):
+    """The smallest element of `a` as a Python float (NaN where `a` holds a NaN, inf when
+    empty), as `largest`: ``smallest(np.array([1.0, 3.0]))`` is 1.0."""
+    return _extreme(a, 0, np.minimum)
+
+
+def _extreme(a, side, ufunc):
+    """`_bounds`' item `side` (0: min, 1: max): by Python's min or max and a sum (for NaN) up
+    to `_FEW_ONE` elements, else the reduction by `ufunc`."""
+    if a.size > _FEW_ONE:
+        return float(ufunc.reduce(a, axis=None))
+    if not a.size:
+        return (math.inf, -math.inf)[side]
+    x = a.ravel().tolist()
+    total = sum(x)
+    if total != total:
+        return math.nan
+    return max(x) if side else min(x)
+
+
+#: One side of the bounds by Python up to this many elements (both sides pay up to `_FEW`;
+#: where each beats NumPy's reductions: benchmarks/README.md).
+_FEW_ONE = 20
+
+
+def any_zero(a):
+    """True when an element of `a` is zero (``not a.all()``: NaN is not zero): up to `_FEW`
+    elements by a Python test on the list of them (cheaper than a NumPy reduction there).
+
+    >>> import numpy as np
+    >>> from quatarray._scale import any_zero
+    >>> any_zero(np.array([1.0, -0.0])), any_zero(np.array([np.nan, 2.0]))
+    (True, False)
+    """
     if a.size <= _FEW:
-        return _bounds(a, _FEW)[1]
-    return float(a.max())
+        return 0.0 in a.ravel().tolist()
+    return not a.all()
 
 
 def sum_squares(q, out, start=0, rows=None):
@@ -105,6 +143,8 @@ def sum_squares(q, out, start=0, rows=None):
         return np.multiply(comps[0], comps[0], out=out)
     if rows is not None and out.size <= _STACK_MAX:
         return _summed(np.multiply(comps, comps, out=rows[:len(comps)]), out)
+    if comps.nbytes <= _blocks.SMALL_ROWS:   # fresh rows, as the scratch would give, without its frame
+        return _summed(np.multiply(comps, comps), out)
     with _blocks.scratch().frame() as work:   # no temporary allocated per component
         if out.size > _STACK_MAX:   # one work row, reused while it is in cache
             return squares(list(comps), _ops.ARRAYS, out, work.rows(1, out.shape, out.dtype)[0])
@@ -221,10 +261,11 @@ def guarded_sqnorm(q, zero=False):
     return n2
 
 
-def _bounds(a, few=3 * _FEW):
+def _bounds(a, few=_FEW):
     """(min, max) of `a` as Python floats: NaN for both where `a` holds a NaN (every
     comparison with them fails, the safe answer), (inf, -inf) when empty.  Up to `few`
-    elements by Python's min, max and sum, cheaper than two reductions (about 1.5 µs each)."""
+    elements by Python's min, max and sum, cheaper than two reductions up to about 32
+    elements (beyond, Python's cost per element decides: benchmarks/README.md)."""
     if a.size <= few:
         if not a.size:
             return math.inf, -math.inf
@@ -233,7 +274,7 @@ def _bounds(a, few=3 * _FEW):
         if total != total:
             return math.nan, math.nan
         return min(x), max(x)
-    return float(a.min()), float(a.max())
+    return float(np.minimum.reduce(a, axis=None)), float(np.maximum.reduce(a, axis=None))
 
 
 def inside(v, bound, low=None):
@@ -305,7 +346,7 @@ def small_norms(v, n2):
     >>> small_norms(v, (v * v).sum(axis=0)).tolist()
     [5e-200, 5.0]
     """
-    small = n2 < LOW[n2.dtype] if n2.size and n2.min() < LOW[n2.dtype] else None
+    small = n2 < LOW[n2.dtype] if n2.size and smallest(n2) < LOW[n2.dtype] else None
     np.sqrt(n2, out=n2)
     if small is not None:
         s = v[:, small]

@@ -15,6 +15,7 @@ are great-circle frames ``[F (8), phi]`` per SLERP piece (`frame_rows`);
 a query's rotation is then ``cos(u phi) k0 + sin(u phi) k_perp``.
 """
 
+import math
 from math import prod
 
 import numpy as np
@@ -23,6 +24,7 @@ from . import _blocks
 from . import _interp_curves
 from . import _interp_kernels
 from . import _kernels
+from . import _scale
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
 from ._validate import finite, float_array
@@ -63,8 +65,8 @@ class Timeline:
         flat = np.ravel(t).astype(np.float64, copy=False)
         outside = None
         if flat.size:
-            lo, hi = float(flat.min()), float(flat.max())
-            if not (np.isfinite(lo) and np.isfinite(hi)):   # the API refuses nan and inf
+            lo, hi = _scale.smallest(flat), _scale.largest(flat)
+            if not (math.isfinite(lo) and math.isfinite(hi)):   # the API refuses nan and inf
                 finite(flat, name)
             t0, t1 = float(self.times[0]), float(self.times[-1])
             if self.extrapolate == "raise" and (lo < t0 or hi > t1):
@@ -249,7 +251,11 @@ def evaluate(timeline, table, flat, block_fn, width):
         uu = u.astype(table.dtype)[:, None]
         block_fn(G, uu, soa(out[sm, sb]))
 
-    _blocks.run(block, qt_blocks(M, B), M * B)
+    if 0 < M * B <= _blocks.BLOCK:   # one block: the same call, without splitting or the pool
+        with _blocks.scratch().frame():
+            block((slice(None), slice(None)))
+    else:
+        _blocks.run(block, qt_blocks(M, B), M * B)
     return out
 
 

@@ -84,8 +84,9 @@ def _broadcast(names, shapes):
 
 
 def _pairwise(names, quats, t):
-    if t.ndim == 0 and all(q.shape == quats[0].shape for q in quats):
-        return  # nothing to broadcast (the common single-pair call: keep it cheap)
+    shape = quats[0].shape
+    if (t.ndim == 0 or t.shape == shape[:-1]) and all(q.shape == shape for q in quats):
+        return  # nothing to broadcast (the common call: keep it cheap)
     _broadcast(names + ("t",), [q.shape[:-1] for q in quats] + [t.shape])
 
 

@@ -292,6 +292,72 @@ def test_one_rotation_at_the_kernels_branches(s):
                 _same(f(r[i]), whole[i], f"{name}, row {i}")
 
 
+def _edge_quaternions():
+    """float64 quaternions at the edges of the algebra's one-quaternion float paths: e**w near
+    overflow, |q|² and |v|² at and beyond the range, zero and underflowing vectors, negative
+    reals, near-identity and unit rows."""
+    rng = np.random.default_rng(11)
+    q = rng.standard_normal((120, 4)) * rng.choice([1e-3, 1.0, 30.0, 1e10, 1e150, 1e-150, 1e160, 1e-160], (120, 1))
+    q[::7, 1:] = 0
+    q[1::11, 0] = rng.choice([708.9, 709.0, 709.5, -800.0], len(q[1::11]))
+    q[2::13, 2:] = 1e-200
+    q[3::17] /= np.linalg.norm(q[3::17], axis=1, keepdims=True)
+    q[4::19, 0] = -np.abs(q[4::19, 0])
+    q[5::23, 1:] *= 1e-9
+    q[6::29] = [1, 0, 0, 0]
+    q[7::31] = [-2, 0, 0, 0]
+    q[8::37] = [0, 0, 0, 0]
+    return q
+
+
+@pytest.mark.parametrize("t", [0.3, -2.5, 7.0, 250.0, 1e16])
+def test_one_quaternion_algebra_at_its_float_paths_edges(t):
+    """exp, log and power of one float64 quaternion run their formulas on Python floats where
+    the block kernel takes its common path, and the block kernel elsewhere: either way the
+    bits of the same row in a batch, alone and as a batch of one."""
+    q = _edge_quaternions()
+    Q = QuatArray
+    ops = [("exp", lambda x: Q(x).exp()), ("log", lambda x: Q(x).log()), ("power", lambda x: Q(x) ** t)]
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        for name, f in ops:
+            whole = _raw(f(q))
+            for i in range(len(q)):
+                _same(_raw(f(q[i])), whole[i], f"{name}, row {i}")
+                _same(_raw(f(q[i:i + 1]))[0], whole[i], f"{name}, row {i} as a batch of one")
+
+
+@pytest.mark.parametrize("shortest", [True, False])
+def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest):
+    """slerp of one float64 pair and squad of one quadruple run the formulas on floats only
+    where the block kernel takes its common path (no wide arc followed as given, t within
+    [-1, 2], |A|² + |B|² in range): the batch's bits either way."""
+    rng = np.random.default_rng(12)
+    n = 160
+    q0 = rng.standard_normal((n, 4))
+    q0 /= np.linalg.norm(q0, axis=1, keepdims=True)
+    q1 = rng.standard_normal((n, 4))
+    q1 /= np.linalg.norm(q1, axis=1, keepdims=True)
+    q1[::3] = q0[::3] + rng.standard_normal((len(q0[::3]), 4)) * 1e-9
+    q1[::5] = -q0[::5]
+    q1[::7] = q0[::7]
+    scale = rng.choice([1.0, 1e-200, 1e200, 3.0], (n, 1))
+    q0, q1 = q0 * scale, q1 * scale
+    a, b = np.roll(q1, 1, axis=0), np.roll(q0, 2, axis=0)
+    t = rng.uniform(-1.5, 2.5, n)
+    t[::4] = rng.choice([0.0, 0.5, 1.0, -1.0, 2.0], len(t[::4]))
+    ops = [("slerp", lambda p, q, a, b, t: slerp(p, q, t, shortest=shortest)),
+           ("squad", lambda p, q, a, b, t: squad(p, a, b, q, t))]
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        for name, f in ops:
+            whole = _raw(f(q0, q1, a, b, t))
+            for i in range(n):
+                _same(_raw(f(q0[i], q1[i], a[i], b[i], t[i])), whole[i], f"{name}, pair {i}")
+                one = (x[i:i + 1] for x in (q0, q1, a, b, t))
+                _same(_raw(f(*one))[0], whole[i], f"{name}, pair {i} as a batch of one")
+
+
 @DTYPE
 @pytest.mark.parametrize("n", [32, 33, _blocks.VIEWS_MAX, _blocks.VIEWS_MAX + 1, _blocks.FEW, _blocks.FEW + 1,
                                2048, 2049, 4096, 4097])
