@@ -434,6 +434,11 @@ def norm(q):
     array([5.e+000, 0.e+000, 1.e+300])
     """
     q = np.asarray(q)
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: `_k_norm` on its floats, where it would not rescale
+        n2 = _sqnorm_floats(one)
+        if n2 is not None:
+            return np.array(math.sqrt(n2) if q.ndim == 1 else [math.sqrt(n2)])
     dtype = result_dtype(q)
     out = np.empty(q.shape[:-1] + (1,), dtype)
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
@@ -507,10 +512,15 @@ _LOW64, _HIGH64 = _scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.floa
 def normalize_floats(comps):
     """`_normalize_flat`'s q / |q| on the four floats of one float64 quaternion, or None
     where its squared norm does not `_scale.fits` (the block kernel's case)."""
+    n2 = _sqnorm_floats(comps)
+    return None if n2 is None else _divided(comps, math.sqrt(n2), _ops.FLOATS, _ops.NONE)
+
+
+def _sqnorm_floats(comps):
+    """|q|² of one float64 quaternion's four floats, in `_scale.sum_squares`' order, or None
+    where it does not `_scale.fits` (the block kernels rescale there, or find nan or inf)."""
     n2 = _scale.squares(comps, _ops.FLOATS, None, None)
-    if not _LOW64 <= n2 <= _HIGH64:
-        return None
-    return _divided(comps, math.sqrt(n2), _ops.FLOATS, _ops.NONE)
+    return n2 if _LOW64 <= n2 <= _HIGH64 else None
 
 
 def _normalize_flat(q, out):
