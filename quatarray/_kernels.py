@@ -560,12 +560,25 @@ def _k_inverse(q, o):
     e = _scale.guard(q, n2)
     if not (n2 > 0).all():
         raise ZeroDivisionError("quaternion inverse: expected non-zero quaternions, got a zero quaternion")
-    np.divide(q[0], n2, out=o[0])
-    np.negative(n2, out=n2)
-    np.divide(q[1:], n2, out=o[1:])
+    _inverse_formula(q, n2, _ops.ARRAYS, _ops.STACKS, o, _ops.const(0.0, n2.dtype))
     if e is not None:   # q was scaled by 2**-e: its inverse by 2**e
         np.negative(e, out=e)
         _scale.unscale(o, e)
+
+
+def _inverse_formula(q, n2, op, stack, o, zero):
+    """conj(q) / |q|² from the positive squared norm `n2`, in `op`'s arithmetic (`stack` its
+    stacked form: the vector's three divisions are one call): w / n2, then x, y, z over
+    ``0 - n2`` (-n2 exactly), into the four rows `o` (n2's row takes -n2); returned as w and
+    the vector."""
+    w = op.div(q[0], n2, o[0])
+    m = op.sub(zero, n2, n2)
+    return w, stack.div(q[1:], m, o[1:])
+
+
+_inverse_floats = _ops.compiled(lambda op, stack, w, x, y, z, n2: (lambda w, v: [w, *v])(*_inverse_formula(
+    [w, x, y, z], n2, op, stack, _ops.NONE, 0.0)), 5)
+"""`_inverse_formula` on one quaternion's floats and |q|² (`_ops.compiled`)."""
 
 
 def inverse(q):
@@ -578,6 +591,11 @@ def inverse(q):
     >>> inverse(np.array([0., 2, 0, 0]))
     array([ 0. , -0.5, -0. , -0. ])
     """
+    one = _ops.floats64(q)
+    if one is not None:   # one float64 quaternion: `_k_inverse` on its floats, where it would not rescale
+        n2 = _sqnorm_floats(one)
+        if n2 is not None:
+            return _ops.to_array(_inverse_floats(*one, n2), q.shape)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
         _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)

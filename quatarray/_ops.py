@@ -90,9 +90,11 @@ STACKS = SimpleNamespace(
     add=lambda a, b, out: np.add(a, b, out=out, order="C"),
     mul=lambda a, b, out: np.multiply(a, b, out=out, order="C"),
     scale=lambda a, x, out: np.multiply(a, x, out=out, order="C"),
+    div=lambda a, x, out: np.divide(a, x, out=out, order="C"),
     interleave=lambda a, b, out: out)
 """`ARRAYS`' operations on stacks of k rows (k, ...), one call for the stack: ``a - b``,
-``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`;
+``a + b``, ``a * b`` element by element, ``scale(a, x)`` each row times the row `x`,
+``div(a, x)`` each row over the row `x`;
 ``interleave(a, b, out)`` the rows of `a` and `b` alternately, where they were written into
 `out`'s even and odd rows.
 Iterated in C order, row after row: stacks may be component-major views of (n, k)
@@ -101,6 +103,7 @@ arrays (e.g. ``o.T``), which NumPy's default order would walk in n inner loops o
 FLOAT_STACKS = SimpleNamespace(
     sub=lambda a, b, out: [x - y for x, y in zip(a, b)], add=lambda a, b, out: [x + y for x, y in zip(a, b)],
     mul=lambda a, b, out: [x * y for x, y in zip(a, b)], scale=lambda a, x, out: [v * x for v in a],
+    div=lambda a, x, out: [v / x for v in a],
     interleave=lambda a, b, out: [x for pair in zip(a, b) for x in pair])
 """The same on lists of k Python floats (the stack argument is ignored)."""
 
@@ -225,7 +228,7 @@ def compiled(formula, nargs):
 
     trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
-                   for name in ("add", "sub", "mul")}
+                   for name in ("add", "sub", "mul", "div")}
     stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,
                             interleave=FLOAT_STACKS.interleave)
     names = [_Name(f"a{i}") for i in range(nargs)]

@@ -312,16 +312,18 @@ def _edge_quaternions():
 
 @pytest.mark.parametrize("t", [0.3, -2.5, 7.0, 250.0, 1e16])
 def test_one_quaternion_algebra_at_its_float_paths_edges(t):
-    """exp, log, power and norm of one float64 quaternion run their formulas on Python floats where
+    """exp, log, power, norm and inverse of one float64 quaternion run their formulas on Python floats where
     the block kernel takes its common path, and the block kernel elsewhere: either way the
     bits of the same row in a batch, alone and as a batch of one."""
     q = _edge_quaternions()
     Q = QuatArray
     ops = [("exp", lambda x: Q(x).exp()), ("log", lambda x: Q(x).log()), ("power", lambda x: Q(x) ** t),
            ("norm", lambda x: Q(x).norm())]
+    nonzero = q[np.any(q != 0, axis=1)]   # (the inverse of a zero quaternion raises)
+    ops = [(name, f, q) for name, f in ops] + [("inverse", lambda x: Q(x).inverse(), nonzero)]
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
-        for name, f in ops:
+        for name, f, q in ops:
             whole = _raw(f(q))
             for i in range(len(q)):
                 _same(_raw(f(q[i])), whole[i], f"{name}, row {i}")
