@@ -105,11 +105,8 @@ def _extreme(a, side, ufunc):
         return float(ufunc.reduce(a, axis=None))
     if not a.size:
         return (math.inf, -math.inf)[side]
-    x = a.ravel().tolist()
-    total = sum(x)
-    if total != total:
-        return math.nan
-    return max(x) if side else min(x)
+    x = _listed(a)
+    return math.nan if x is None else max(x) if side else min(x)
 
 
 #: One side of the bounds by Python up to this many elements (both sides pay up to `_FEW`;
@@ -269,12 +266,17 @@ def _bounds(a, few=_FEW):
     if a.size <= few:
         if not a.size:
             return math.inf, -math.inf
-        x = a.ravel().tolist()
-        total = sum(x)   # NaN where an element is NaN (or +inf and -inf meet: NaN bounds, the safe answer)
-        if total != total:
-            return math.nan, math.nan
-        return min(x), max(x)
+        x = _listed(a)
+        return (math.nan, math.nan) if x is None else (min(x), max(x))
     return float(np.minimum.reduce(a, axis=None)), float(np.maximum.reduce(a, axis=None))
+
+
+def _listed(a):
+    """The elements of a small non-empty `a` as a list of Python floats, or None where one is
+    NaN (their sum is NaN; so it is where +inf and -inf meet: NaN bounds, the safe answer)."""
+    x = a.ravel().tolist()
+    total = sum(x)
+    return None if total != total else x
 
 
 def inside(v, bound, low=None):
