@@ -69,8 +69,7 @@ def _numpy_float(f):
     return lambda *args: float(f(*args))
 
 
-_NUMPY_FLOATS = {name: _numpy_float(getattr(np, name)) for name in ("exp", "log", "cos", "sin")}
-_NUMPY_FLOATS["power"] = _numpy_float(np.power)
+_NUMPY_FLOATS = {name: _numpy_float(getattr(np, name)) for name in ("exp", "log", "cos", "sin", "power")}
 
 FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
                          mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
