@@ -462,9 +462,7 @@ def _atomic_dir(path, name, force):
     folder = os.path.dirname(path)
     if not os.path.isdir(folder):
         raise FileNotFoundError(errno.ENOENT, "No such file or directory (its folder does not exist)", name)
-    if os.path.lexists(path) and not os.path.isdir(path):    # never replace a file by a store
-        raise not_a_store(name, "Zarr")
-    refuse_existing(os.path.lexists(path), name, force)
+    refuse_existing(os.path.lexists(path), name, force)   # (a file there: refused by `_atomic`)
     tmp = tempfile.mkdtemp(dir=folder, prefix=f".{os.path.basename(path)}.", suffix=".part")
     old = None
     try:
