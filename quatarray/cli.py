@@ -222,7 +222,8 @@ def build_parser():
                        ".glb)",
         description="Drop keys while the curve through the kept ones stays within --tolerance of every "
                     "original key, and print keys before and after and the largest error per track. "
-                    "CSV, NPZ and Zarr tracks keep one shared set of key times (the kept rows are the keys as read, in the file's number style). "
+                    "CSV, NPZ and Zarr tracks keep one shared set of key times (the kept rows are the keys as "
+                    "read, in the file's number style). "
                     "BVH frames stay on one uniform grid: the clip is resampled at the coarsest whole "
                     "multiple of its frame time that keeps every joint within the tolerance (positions "
                     "linearly, outside the bound). glTF: each LINEAR rotation sampler gets its own fewer keys "
