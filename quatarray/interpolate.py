@@ -313,11 +313,13 @@ def bezier(q0, a, b, q1, t):
         return QuatArray._wrap(_interp_kernels.bezier(*qs, t))
 
 
-def _prepared_keys(keys, times, name="keys", times_name="times", unit=False):
-    """Validated, normalised and unflipped keys (K, ..., 4) and float64 times (or None).
-
-    ``unit=True``: the keys are a Rotation's (unit already; see `unit_keys`)."""
-    keys = float_array(keys, name)
+def _prepared_keys(keys, times, name="keys", times_name="times"):
+    """Validated, normalised and unflipped keys (K, ..., 4) and float64 times (or None), from
+    array_like keys or a Rotation of shape (K, ...): its unit quaternions (`_rotation_quats`,
+    unit already: not normalised again, see `unit_keys`)."""
+    q = _rotation_quats(keys, name)
+    unit = q is not None
+    keys = float_array(keys if q is None else q, name)
     if keys.ndim < 2 or keys.shape[-1] != 4:
         raise ValueError(f"expected {name} of shape (K, ..., 4), got {keys.shape}")
     K = keys.shape[0]
@@ -375,8 +377,7 @@ def squad_control_points(keys, times=None):
     >>> np.allclose(s, keys)
     True
     """
-    q = _rotation_quats(keys, "keys")
-    keys, times = _prepared_keys(keys if q is None else q, times, unit=q is not None)
+    keys, times = _prepared_keys(keys, times)
     return QuatArray._wrap(_interp_curves.squad_controls(keys, times))
 
 
@@ -422,8 +423,7 @@ def bezier_control_points(keys, times=None):
     >>> np.allclose(a[0], slerp(keys[0], keys[1], 1 / 3))
     True
     """
-    q = _rotation_quats(keys, "keys")
-    keys, times = _prepared_keys(keys if q is None else q, times, unit=q is not None)
+    keys, times = _prepared_keys(keys, times)
     a, b = _interp_curves.bezier_controls(keys, times)
     return QuatArray._wrap(a), QuatArray._wrap(b)
 
@@ -490,16 +490,15 @@ class Track:
     """
 
     def __init__(self, times, keys, *, method="slerp", extrapolate="raise"):
-        q = _rotation_quats(keys, "keys")   # a Rotation's unit quaternions (no copy where known unit)
-        self._setup(times, keys if q is None else q, method, extrapolate, "times", "keys", q is not None)
+        self._setup(times, keys, method, extrapolate, "times", "keys")
 
-    def _setup(self, times, keys, method, extrapolate, times_name, keys_name, unit=False, prepared=False):
+    def _setup(self, times, keys, method, extrapolate, times_name, keys_name, prepared=False):
         """`prepared`: the caller has checked `times` (float64 (K,), finite, strictly
         increasing) and made `keys` unit and unflipped (as `_prepared_keys` would)."""
         self._method = choice(method, "method", METHODS)
         extrapolate = choice(extrapolate, "extrapolate", EXTRAPOLATE)
         if not prepared:
-            keys, _ = _prepared_keys(keys, None, keys_name, unit=unit)
+            keys, _ = _prepared_keys(keys, None, keys_name)
             times = _check_times(times, keys.shape[0], times_name, keys_name)
         times = times.copy()
         times.flags.writeable = False
