@@ -636,15 +636,26 @@ _blend_floats = _ops.compiled(
     lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], c[9], stack, _ops.NONE, None), 10)
 
 
+def _floats_of_one(quats, t):
+    """The float paths' operands: the four floats of each of `quats`, one float64 quaternion
+    each of one shape, and one float64 `t` (its shape within theirs) as a float; or None."""
+    shape = quats[0].shape
+    if t.size != 1 or t.ndim >= len(shape) or t.dtype != np.float64:
+        return None
+    comps = []
+    for q in quats:   # (a loop, not a generator and a comprehension: this is the cost of one call)
+        c = _ops.floats64(q) if q.shape == shape else None
+        if c is None:
+            return None
+        comps.append(c)
+    return comps, t.item(0)
+
+
 def _slerp_one(q0, q1, t, shortest):
-    """`_slerp_floats` of one float64 pair of one shape at one float64 t (t's shape within
-    theirs) as an array of their shape, or None."""
-    if q0.shape != q1.shape or t.size != 1 or t.ndim >= q0.ndim or t.dtype != np.float64:
-        return None
-    a, b = _ops.floats64(q0), _ops.floats64(q1)
-    if a is None or b is None:
-        return None
-    one = _slerp_floats(a, b, t.item(0), shortest)
+    """`_slerp_floats` of one float64 pair at one float64 t (`_floats_of_one`) as an array of
+    their shape, or None."""
+    one = _floats_of_one((q0, q1), t)
+    one = None if one is None else _slerp_floats(*one[0], one[1], shortest)
     return None if one is None else _ops.to_array(one, q0.shape)
 
 
@@ -793,12 +804,10 @@ def _squad_block(Q0, A, B, Q1, h, O):
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
     quats = (q0, a, b, q1)
-    if t.size == 1 and t.dtype == np.float64 and t.ndim < q0.ndim and all(q.shape == q0.shape for q in quats):
-        one = [_ops.floats64(q) for q in quats]
-        if None not in one:   # one float64 quadruple: the same formulas on its floats
-            one = _squad_floats(*one, t.item(0))
-            if one is not None:
-                return _ops.to_array(one, q0.shape)
+    one = _floats_of_one(quats, t)   # one float64 quadruple: the same formulas on its floats
+    one = None if one is None else _squad_floats(*one[0], one[1])
+    if one is not None:
+        return _ops.to_array(one, q0.shape)
     return _pairwise(_squad_block, quats, t, result_dtype(*quats))
 
 
