@@ -681,7 +681,8 @@ def _half_turn(q, unit=False):
     """(t, exact) for the rotation angle θ of quaternions `q` (four component rows (4, *s):
     views of `Rotation` storage, only read, with `unit`; else a block's scratch copy, rescaled
     in place first where |q|² would over- or underflow): ``t[0] = tan(θ/2)² = |v|² / w²``
-    and ``t[1] = |v|²``, two contiguous rows.  `exact`: some row has w² or |v|² below
+    and ``t[1] = |v|²``, two contiguous rows of one array in a block, a list of two rows
+    for a few.  `exact`: some row has w² or |v|² below
     `_scale.LOW` (w = 0, or |v|² lost to underflow), which `_tangent_rows` and the kernels
     then handle; only then is w² floored at the dtype's smallest normal number (a unit q
     with w = 0 gives a huge finite ratio, no division by zero).  The common path pays one
@@ -696,11 +697,12 @@ def _half_turn(q, unit=False):
         sq = np.multiply(q, q, out=rows(q.shape[1], (4,), dtype).T if q.ndim == 2 and q.flags.f_contiguous
                          else rows(4, q.shape[1:], dtype))
         t = rows(2, q.shape[1:], dtype)
-    else:
+        t0, v2 = t[0], np.add(sq[1], sq[2], t[1])   # rows (indexing: a fifth of unpacking)
+    else:   # a few: rows the ufuncs allocate (a fifth cheaper than views of one buffer)
+        t = t0 = None
         sq = np.multiply(q, q)
-        t = np.empty((2,) + q.shape[1:], dtype)
-    w2, t0, v2 = sq[0], t[0], t[1]   # rows (indexing: a fifth of unpacking)
-    np.add(sq[1], sq[2], v2)
+        v2 = np.add(sq[1], sq[2])
+    w2 = sq[0]
     np.add(v2, sq[3], v2)                          # |v|² = (x² + y²) + z²
     if not unit:   # the range guard on |q|² = w² + |v|²: extreme magnitudes are rescaled
         n2 = np.add(w2, v2, out=sq[1])
@@ -716,8 +718,8 @@ def _half_turn(q, unit=False):
         exact = float(np.minimum.reduce(np.minimum(w2, v2, out=t0), axis=None)) < low
     if exact:
         w2 = np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-    np.divide(v2, w2, t0)
-    return t, exact
+    t0 = np.divide(v2, w2, t0)
+    return (t if t is not None else [t0, v2]), exact
 
 
 _LOW = _scale.LOW
@@ -727,18 +729,21 @@ _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.
 
 
 def _tangent_rows(q, t, exact):
-    """`_half_turn`'s t as ``[tan(θ/2), |v|]`` (both square roots in one call), where no row
-    is `exact`; else also correcting the rows whose |v|² underflowed: their |v| from the
-    vector scaled by a power of two (`_scale.small_norms`), tan(θ/2) = |v| / |w| (w ≠ 0
+    """`_half_turn`'s t as ``[tan(θ/2), |v|]`` (a block's both square roots in one call), where
+    no row is `exact`; else also correcting the rows whose |v|² underflowed: their |v| from
+    the vector scaled by a power of two (`_scale.small_norms`), tan(θ/2) = |v| / |w| (w ≠ 0
     there: |q|² is in range)."""
-    if not exact:
-        return np.sqrt(t, out=t)
-    small = t[1] < _scale.LOW[t.dtype]
-    np.sqrt(t, out=t)
-    if small.any():
+    small = t[1] < _scale.LOW[q.dtype] if exact else None   # |v|² underflowed
+    if type(t) is list:
+        np.sqrt(t[0], t[0])
+        np.sqrt(t[1], t[1])
+    else:
+        np.sqrt(t, out=t)
+    if exact and small.any():
+        tan_half, nv = t
         v = q[1:, small]
-        t[1, small] = _scale.small_norms(v, _scale.sum_squares(v, np.empty(v.shape[1:], v.dtype)))
-        t[0, small] = t[1, small] / np.abs(q[0, small])
+        nv[small] = _scale.small_norms(v, _scale.sum_squares(v, np.empty(v.shape[1:], v.dtype)))
+        tan_half[small] = nv[small] / np.abs(q[0, small])
     return t
 
 
@@ -776,11 +781,11 @@ def _k_as_rotvec(q, o, factor, unit=False):
     t, exact = _half_turn(q, unit)
     _tangent_rows(q, t, exact)
     if not exact:
-        _rotvec(q[0], q[1:4], t[0], t[1], _ops.const(factor, t.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
+        _rotvec(q[0], q[1:4], t[0], t[1], _ops.const(factor, q.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
         return
     # w = 0 (the canonical sign from x, y, z) or |v| = 0 (limit: the zero vector)
     np.arctan(t[0], out=t[0])
-    np.divide(t[0], np.maximum(t[1], _DENORM_MIN[t.dtype], out=t[1]), out=t[0])
+    np.divide(t[0], np.maximum(t[1], _DENORM_MIN[q.dtype], out=t[1]), out=t[0])
     np.copyto(t[0], np.where(_flip_mask(*q), -t[0], t[0]))
     t[0] *= factor
     for c, r in zip(q[1:], o):
@@ -884,7 +889,7 @@ def _k_power(q, o, n, unit=False):
     w, nv = q[0], t[1]
     if exact:   # w = 0: the canonical sign from x, y, z; |v| = 0: sin(0) / tiny, the identity
         w = np.where(_flip_mask(*q), q.dtype.type(-1), q.dtype.type(1))
-        np.maximum(nv, _DENORM_MIN[t.dtype], out=nv)
+        np.maximum(nv, _DENORM_MIN[q.dtype], out=nv)
     _powered(w, t[0], nv, q[1:4], n, _ops.ARRAYS, _ops.STACKS, o, t)
 
 
@@ -1135,7 +1140,7 @@ def magnitude(q, unit=False):
         q = quat_array(q, "quat")
     elif q.size > 4 and q.ndim == 2 and len(q) <= _blocks.VIEWS_MAX:   # a Rotation's few: the
         out = np.empty(len(q), q.dtype)                                 # kernel at once on views
-        _k_magnitude(q.T, out[None], unit=True)
+        _k_magnitude(q.T, (out,), unit=True)
         return out
     one = _half_turn_floats(q)
     if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
