@@ -27,6 +27,7 @@ from . import _convert
 from . import _dualquat
 from . import _kernels
 from . import _motion
+from . import _rotation_algorithms
 from . import _scale
 from ._rotation import Rotation
 from ._validate import batch_shape
@@ -116,19 +117,6 @@ def _last_row_check(m):
         idx = () if ok.shape == () else tuple(int(i[0]) for i in np.nonzero(~ok))
         raise ValueError(f"Expected last row of transformation matrix {idx} to be "
                          f"exactly [0, 0, 0, 1], got {m[idx + (3, Ellipsis)]}")
-
-
-def _axes(axis, batch):
-    nb = len(batch)
-    if axis is None:
-        return tuple(range(nb))
-    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
-        axis = (int(axis),)
-    if not isinstance(axis, tuple):
-        raise ValueError("`axis` must be None, int, or tuple of ints.")
-    if axis and (min(axis) < -nb or max(axis) > nb - 1):
-        raise ValueError(f"axis {axis} is out of bounds for transform with shape {batch}.")
-    return tuple(sorted({a % nb for a in axis}))
 
 
 class RigidTransform:
@@ -463,7 +451,7 @@ class RigidTransform:
             q, t = q[None], t[None]
         if q.shape[0] == 0:
             raise ValueError("Mean of an empty rotation set is undefined.")
-        axes = _axes(axis, q.shape[:-1])
+        axes = _rotation_algorithms.mean_axes(axis, q.shape[:-1], "transform")
         if weights is not None:
             w = _promote(weights)
             if np.any(w < 0):
@@ -475,24 +463,7 @@ class RigidTransform:
             return type(self)._from_parts(q.copy(), t.copy(), False, self._unit)
         rot = Rotation(q, normalize=False, copy=False, scalar_first=True)
         qm = np.asarray(rot.mean(weights=weights, axis=axes).as_quat(scalar_first=True), q.dtype)
-        # translations and weights scaled per mean by powers of two (exact: the same bits where
-        # nothing over- or underflows), so that their sums stay in range: translations near the
-        # float maximum, or weights whose sum or products overflow, gave an infinite or 0 mean
-        tmax = np.max(np.abs(t), axis=axes + (t.ndim - 1,), keepdims=True)
-        et = np.frexp(tmax)[1]
-        t = np.ldexp(t, -et).astype(t.dtype, copy=False)
-        if weights is None:
-            tm = np.mean(t, axis=axes)
-        else:
-            wmax = np.max(w, axis=axes, keepdims=True)
-            w = np.ldexp(w, -np.frexp(wmax)[1]).astype(w.dtype, copy=False)
-            total = np.sum(w, axis=axes)
-            if not np.all(total > 0):   # scipy: ZeroDivisionError; 0/0 would be a NaN translation
-                raise ValueError("expected weights with a positive sum over the averaged axes, "
-                                 "got weights that sum to zero")
-            w = w.astype(t.dtype, copy=False)[..., None]
-            tm = np.sum(t * w, axis=axes) / total[..., None].astype(t.dtype, copy=False)
-        tm = np.ldexp(tm, np.squeeze(et, axis=axes)).astype(t.dtype, copy=False)
+        tm = _rotation_algorithms.translation_mean(t, None if weights is None else w, axes)
         return type(self)._from_parts(qm.reshape(tm.shape[:-1] + (4,)), tm, tm.ndim == 1)
 
     # ------------------------------------------------------------------ container

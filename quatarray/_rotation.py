@@ -600,18 +600,7 @@ class Rotation:
         if q.ndim == 1:
             q = q[None]
         batch = q.shape[:-1]
-        nb = len(batch)
-        if axis is None:
-            axes = tuple(range(nb))
-        elif isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
-            axes = (int(axis),)
-        elif isinstance(axis, tuple) and all(isinstance(a, (int, np.integer)) for a in axis):
-            axes = tuple(int(a) for a in axis)
-        else:
-            raise ValueError(f"`axis` must be None, int, or tuple of ints, got {axis!r}")
-        if any(not -nb <= a < nb for a in axes):
-            raise ValueError(f"axis {axis} is out of bounds for rotation with shape {batch}.")
-        axes = tuple(sorted({a % nb for a in axes}))
+        axes = _rotation_algorithms.mean_axes(axis, batch, "rotation")
         if any(batch[a] == 0 for a in axes):
             raise ValueError(f"Mean of an empty rotation set is undefined: expected at least one "
                              f"rotation along axis {axes}, got shape {batch}")

@@ -14,7 +14,7 @@ import numpy as np
 from . import _blocks, _convert, _kernels
 from ._validate import all_finite, float_array
 
-__all__ = ["mean", "dominant", "weight_exponents", "chordal_sums", "reduce", "align"]
+__all__ = ["mean", "mean_axes", "translation_mean", "dominant", "weight_exponents", "chordal_sums", "reduce", "align"]
 
 
 def mean(q, weights, axes, unit=False):
@@ -25,6 +25,60 @@ def mean(q, weights, axes, unit=False):
     if weights is not None:
         weights = _weights_in_range(np.broadcast_to(weights, q.shape[:-1]), axes)
     return dominant(chordal_sums(q, weights, axes, unit=unit), q.dtype)
+
+
+def mean_axes(axis, batch, kind):
+    """The batch axes a mean averages over, sorted and non-negative, from scipy's `axis`
+    (None: all of `batch`; an int; a tuple of ints), with scipy's errors naming `kind`
+    ("rotation", "transform")."""
+    nb = len(batch)
+    if axis is None:
+        return tuple(range(nb))
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
+        axis = (int(axis),)
+    elif not (isinstance(axis, tuple) and all(isinstance(a, (int, np.integer)) and not isinstance(a, bool)
+                                               for a in axis)):
+        raise ValueError(f"`axis` must be None, int, or tuple of ints, got {axis!r}")
+    if any(not -nb <= a < nb for a in axis):
+        raise ValueError(f"axis {axis} is out of bounds for {kind} with shape {batch}.")
+    return tuple(sorted({int(a) % nb for a in axis}))
+
+
+def translation_mean(t, weights, axes):
+    """Mean (weighted by `weights` of the batch shape; None: equally) of the vectors `t`
+    (..., 3) over batch `axes` (sorted, non-negative), in t's dtype.
+
+    Vectors and weights are scaled per mean by powers of two (exact: the same bits where
+    nothing over- or underflows), so that their sums stay in range: translations near the
+    float maximum, or weights whose sum or products overflow, gave an infinite or 0 mean.
+    Each mean's sums run over its own rows, laid out last and contiguous (`_averaged_last`):
+    the same bits alone and among other means, whatever the layout of `t`."""
+    tmax = np.max(np.abs(t), axis=axes + (t.ndim - 1,), keepdims=True)
+    et = np.frexp(tmax)[1]
+    ts = _averaged_last(np.ldexp(t, -et).astype(t.dtype, copy=False), axes)   # (kept, 3, rows)
+    if weights is None:
+        tm = np.add.reduce(ts, axis=-1) / ts.shape[-1]   # np.mean's sum, then the division by the count
+    else:
+        wmax = np.max(weights, axis=axes, keepdims=True)
+        ws = _averaged_last(np.ldexp(weights, -np.frexp(wmax)[1]).astype(weights.dtype, copy=False)[..., None],
+                            axes)                                                      # (kept, 1, rows)
+        total = np.add.reduce(ws, axis=-1)
+        if not np.all(total > 0):   # scipy: ZeroDivisionError; 0/0 would be a NaN translation
+            raise ValueError("expected weights with a positive sum over the averaged axes, "
+                             "got weights that sum to zero")
+        ws = ws.astype(t.dtype, copy=False)
+        tm = np.add.reduce(ts * ws, axis=-1) / total.astype(t.dtype, copy=False)
+    return np.ldexp(tm, np.squeeze(et, axis=axes)).astype(t.dtype, copy=False)
+
+
+def _averaged_last(a, axes):
+    """`a` (batch + (k,)) as a C-contiguous ``kept batch + (k, rows)`` array, the averaged
+    batch `axes` flattened last: a sum along the last axis then runs over each mean's own
+    rows, in an order set by their number only (NumPy's pairwise sum on a contiguous row)."""
+    nb = a.ndim - 1
+    keep = tuple(i for i in range(nb) if i not in axes)
+    moved = np.ascontiguousarray(a.transpose(keep + (nb,) + tuple(axes)))
+    return moved.reshape(moved.shape[:len(keep) + 1] + (-1,))
 
 
 def dominant(k, dtype):
@@ -67,8 +121,10 @@ def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
     `name` and the index in the whole batch), unless `unit` says they are unit already
     (`Rotation`'s normalised storage: a pass saved).
 
-    The sum runs over slices of about one block along the first averaged axis, so the
-    extra memory is a few blocks whatever the batch (not a float64 copy of it).
+    Each mean's rows are summed in slices of `ROWS` rows (one BLAS product each, then added
+    in order), whatever the other means of the batch: a mean has the same bits alone and
+    among others.  A slab of at most about `ROWS` rows is in float64 at a time, so the extra
+    memory is a few blocks whatever the batch (not a float64 copy of it).
 
     >>> import numpy as np
     >>> from quatarray._rotation_algorithms import chordal_sums
@@ -80,36 +136,38 @@ def chordal_sums(q, weights, axes, name="rotations to average", unit=False):
     """
     batch = q.shape[:-1]
     nb = len(batch)
-    if unit and weights is None and len(axes) == nb and q.size <= 4 * _blocks.block_size(np.float64):
-        c = q.reshape(-1, 4).astype(np.float64, copy=False)   # all of a few unit rotations: one product
-        return np.matmul(c.T, c)
+    if unit and weights is None and len(axes) == nb and q.size <= 4 * ROWS:
+        c = q.reshape(-1, 4).astype(np.float64, copy=False)   # one mean of a few unit rotations:
+        return np.matmul(c.T, c)                              # the one product of the slab below
     keep = tuple(a for a in range(nb) if a not in axes)
-    order = keep + tuple(axes) + (nb,)
     kshape = tuple(batch[a] for a in keep)
-    qt = q.transpose(order)                                   # views: nothing is copied whole
-    wt = None if weights is None else np.broadcast_to(weights, batch).transpose(order[:-1])
-    lead = qt.shape[len(keep)]
-    per_slice = prod(qt.shape[:-1]) // lead
-    step = max(1, _blocks.block_size(np.float64) // max(per_slice, 1))
-    acc = None
-    head = (slice(None),) * len(keep)
-    for start in range(0, lead, step):   # a loop over blocks, as the block engine's
-        sl = head + (slice(start, start + step),)
-        try:
-            c = qt[sl].astype(np.float64, copy=False)
-            if not unit:
-                c = _convert.from_quat(c, scalar_first=True, name=name)
-        except ValueError:   # the message with the index in the whole batch
-            _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name=name)
-            raise
-        c = c.reshape(kshape + (prod(c.shape[len(kshape):-1]), 4))   # (no -1: kshape may hold a 0)
-        wc = c if wt is None else c * wt[sl].reshape(kshape + (-1, 1))
-        part = np.matmul(np.swapaxes(wc, -1, -2), c)
-        if acc is None:
-            acc = part
-        else:
-            acc += part
-    return acc
+    groups, rows = prod(kshape), prod(batch[a] for a in axes)
+    # (groups, rows, 4): a view where the layout allows (the averaged axes after the kept
+    # ones in memory), else one copy in q's dtype
+    qg = q.transpose(keep + tuple(axes) + (nb,)).reshape(groups, rows, 4)
+    wg = None if weights is None else np.broadcast_to(weights, batch).transpose(keep + tuple(axes)).reshape(groups, rows)
+    per = max(1, ROWS // max(min(rows, ROWS), 1))   # means per slab
+    acc = np.empty((groups, 4, 4))
+    for g in range(0, groups, per):   # a loop over slabs of about `ROWS` rows, as the block engine's
+        k = acc[g:g + per]
+        for start in range(0, rows, ROWS):
+            try:
+                c = qg[g:g + per, start:start + ROWS].astype(np.float64, copy=False)
+                if not unit:
+                    c = _convert.from_quat(c, scalar_first=True, name=name)
+            except ValueError:   # the message with the index in the whole batch
+                _convert.from_quat(q.astype(np.float64, copy=False), scalar_first=True, name=name)
+                raise
+            wc = c if wg is None else c * wg[g:g + per, start:start + ROWS, None]
+            if start:
+                k += np.matmul(np.swapaxes(wc, -1, -2), c)
+            else:
+                np.matmul(np.swapaxes(wc, -1, -2), c, out=k)
+    return acc.reshape(kshape + (4, 4))
+
+
+ROWS = _blocks.block_size(np.float64)
+"""Rows of one mean summed by one product (`chordal_sums`): a block of float64 rows."""
 
 
 def reduce(p, left, right):

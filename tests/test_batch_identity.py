@@ -595,3 +595,59 @@ def test_geodesic_mean_groups_iterate_as_alone(dtype, weighted, groups_first):
         _same(got[j], geodesic_mean(q[:, j], wj).as_quat(scalar_first=True), f"group {j} alone")
         _same(got[j], geodesic_mean(q[:, j:j + 1], None if w is None else w[:, j:j + 1], axis=0)
               .as_quat(scalar_first=True)[0], f"group {j} as a batch of one")
+
+
+@DTYPE
+@pytest.mark.parametrize("weighted", [False, True], ids=["unweighted", "weighted"])
+@pytest.mark.parametrize("rows", [5, 7, 20])
+def test_chordal_means_of_groups_are_each_alone(dtype, weighted, rows, monkeypatch):
+    """`Rotation.mean` and `RigidTransform.mean` over axes: each group's mean has the bits of
+    the group averaged alone, whatever the other groups, the layout (groups first or last,
+    two kept or two averaged axes) or the number of slabs its rows are summed in (`ROWS`
+    lowered to 7: groups of fewer, as many and more rows than one product takes)."""
+    from quatarray import _rotation_algorithms
+    monkeypatch.setattr(_rotation_algorithms, "ROWS", 7)
+    rng = np.random.default_rng(rows)
+    groups = 6
+    q = _rows(rows, KINDS * (groups * rows // len(KINDS) + 1), dtype, False)[:groups * rows].reshape(groups, rows, 4)
+    t = (rng.standard_normal((groups, rows, 3)) * 10.0 ** rng.uniform(-3, 3, (groups, 1, 1))).astype(dtype)
+    w = rng.uniform(0.0, 2.0, (groups, rows)) if weighted else None
+
+    def means(q, t, w, axis):
+        r = Rotation.from_quat(q, scalar_first=True)
+        return (r.mean(weights=w, axis=axis).as_quat(scalar_first=True),
+                RigidTransform.from_components(t, r).mean(weights=w, axis=axis).as_matrix())
+
+    alone = [means(q[g], t[g], None if w is None else w[g], None) for g in range(groups)]
+    last = means(q, t, w, 1)                                                     # groups first
+    first = means(*(np.ascontiguousarray(a.swapaxes(0, 1)) for a in (q, t)),
+                  None if w is None else np.ascontiguousarray(w.T), 0)           # groups last, C order
+    two_kept = means(q.reshape(2, 3, rows, 4), t.reshape(2, 3, rows, 3),
+                     None if w is None else w.reshape(2, 3, rows), 2)
+    split = rows // 5 * 5 == rows and rows > 5   # two averaged axes: the rows as (rows / 5, 5)
+    two_averaged = means(q.reshape(groups, rows // 5, 5, 4), t.reshape(groups, rows // 5, 5, 3),
+                         None if w is None else w.reshape(groups, rows // 5, 5), (1, 2)) if split else None
+    for g, (quat, matrix) in enumerate(alone):
+        for name, got in [("groups first", last), ("groups last", first), ("two kept axes", two_kept),
+                          ("two averaged axes", two_averaged)]:
+            if got is None:
+                continue
+            gq, gm = got[0].reshape(groups, 4), got[1].reshape(groups, 4, 4)
+            _same(gq[g], quat, f"Rotation.mean, group {g}, {name}")
+            _same(gm[g], matrix, f"RigidTransform.mean, group {g}, {name}")
+
+
+def test_chordal_means_of_long_groups_at_the_real_slab_size():
+    """Three groups of 40,000 rotations (more than one slab of `ROWS` rows each), averaged
+    along either axis of a C-ordered array: each mean has the bits of its group alone (the
+    slabs were cut by the number of groups, 10,922 rows here, against 32,768 alone)."""
+    from quatarray import _rotation_algorithms
+    rng = np.random.default_rng(7)
+    n = _rotation_algorithms.ROWS + 7232
+    q = rng.standard_normal((3, n, 4))
+    got = Rotation.from_quat(q).mean(axis=1).as_quat()
+    got_first = Rotation.from_quat(np.ascontiguousarray(q.swapaxes(0, 1))).mean(axis=0).as_quat()
+    for g in range(3):
+        alone = Rotation.from_quat(q[g]).mean().as_quat()
+        _same(got[g], alone, f"group {g}, groups first")
+        _same(got_first[g], alone, f"group {g}, groups last")

@@ -489,7 +489,7 @@ BAD = [
     (lambda: R3.mean(weights=[1, np.nan, 1]), ValueError, "expected finite weights"),
     (lambda: R3.mean(weights=[1, 1]), ValueError, "broadcastable to rotation shape"),
     (lambda: R3.mean(weights=np.ones((2, 3))), ValueError, "broadcastable to rotation shape"),
-    (lambda: R3.mean(axis=1), ValueError, r"axis 1 is out of bounds for rotation with shape \(3,\)"),
+    (lambda: R3.mean(axis=1), ValueError, r"axis \(1,\) is out of bounds for rotation with shape \(3,\)"),
     (lambda: R3.mean(axis=[0]), ValueError, "`axis` must be None, int, or tuple of ints"),
     (lambda: Rotation.from_quat(np.zeros((0, 4))).mean(), ValueError, "Mean of an empty rotation set"),
     (lambda: Rotation.random(3, shape=(3,)), ValueError, "Only one of `num` or `shape`"),
