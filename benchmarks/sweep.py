@@ -1,11 +1,12 @@
 """Every `Rotation` method, Slerp, RotationSpline and RigidTransform, quatarray against scipy,
 at every batch size: a single rotation (shape ()), a batch of one, 10, 100, 10³ ... 10⁶.
 
-`SizeSweep` is the asv class (asv times quatarray at `ASV_SIZES` only, to keep the
-whole quick suite under five minutes; ``benchmarks.compare`` also uses it for its
-single-rotation rows); ``python -m benchmarks.compare --sweep`` times
-every size in `SIZES` side by side in one process and prints the ratio table
-(scipy's time ÷ quatarray's: above 1, quatarray is faster).
+`SizeSweep` is the asv class. By default asv times quatarray at `QUICK_SIZES` only, to
+keep the whole quick suite under five minutes; with the environment variable
+``QUATARRAY_ASV_SWEEP=full`` it times every size in `SIZES`, for quatarray and scipy
+(``benchmarks.compare`` also uses the class for its single-rotation rows).
+``python -m benchmarks.compare --sweep`` times every size side by side in one process and
+prints the ratio table (scipy's time ÷ quatarray's: above 1, quatarray is faster).
 
 Each operation is a function ``make(R, mod, n) -> zero-argument call`` that builds its
 seeded data for batch size `n` (None: a single rotation) with the library's own classes
@@ -14,18 +15,23 @@ libraries run the same calls on the same numbers.
 """
 
 import importlib
+import os
 
 import numpy as np
 
 from ._common import SEED
 
-__all__ = ["SIZES", "ASV_SIZES", "OPS", "TRANSCENDENTAL", "COPIES", "make", "SizeSweep"]
+__all__ = ["SIZES", "QUICK_SIZES", "ASV_SIZES", "OPS", "TRANSCENDENTAL", "COPIES", "make", "SizeSweep"]
 
 #: Batch sizes of the sweep; None is a single rotation (shape ()).
 SIZES = [None, 1, 10, 100, 1_000, 10_000, 100_000, 1_000_000]
-#: The sizes asv times (its quick run times each once; the whole quick suite must stay
-#: under five minutes).
-ASV_SIZES = ["single", "100", "1000000"]
+#: The sizes asv times by default (its quick run times each once; the whole quick suite
+#: must stay under five minutes).
+QUICK_SIZES = ["single", "100", "1000000"]
+#: ``QUATARRAY_ASV_SWEEP=full``: asv times every size of the sweep, for both libraries.
+FULL = os.environ.get("QUATARRAY_ASV_SWEEP", "") == "full"
+#: The sizes asv times: `QUICK_SIZES`, or every size of `SIZES` with ``QUATARRAY_ASV_SWEEP=full``.
+ASV_SIZES = ["single", *map(str, SIZES[1:])] if FULL else QUICK_SIZES
 #: Left out of asv: building a spline through 10⁶ keys takes 30-40 s, an eighth of the whole
 #: quick suite's five minutes (``benchmarks.compare --sweep`` still times it).
 ASV_SKIP = {("RotationSpline build", "1000000")}
@@ -195,12 +201,13 @@ def make(lib, name, n):
 
 
 class SizeSweep:
-    """Each operation at a few sizes: a single rotation, 100 and 10⁶ (float64).
+    """Each operation at `ASV_SIZES` (float64): a single rotation, 100 and 10⁶, or every size
+    of the sweep with ``QUATARRAY_ASV_SWEEP=full``.
 
-    asv times quatarray only (its history is what asv tracks); ``benchmarks.compare``
-    runs this class for scipy too (``lib='scipy'``), side by side."""
+    By default asv times quatarray only (its history is what asv tracks), and scipy too with
+    the full sweep; ``benchmarks.compare`` runs this class for both, side by side."""
 
-    params = (list(OPS), ASV_SIZES, ["quatarray"])
+    params = (list(OPS), ASV_SIZES, list(_MODULES) if FULL else ["quatarray"])
     param_names = ["op", "size", "lib"]
     smoke_params = (list(OPS), ["single", "1"], list(_MODULES))   # tests/test_benchmarks.py, both libraries
     timeout = 120
