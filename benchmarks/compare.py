@@ -564,9 +564,23 @@ def sweep(repeat=5, min_time=0.02, sizes=None, ops=None, log=print):
                 ratios.append(best[1] / best[0])
             table[name][n] = float(np.median(ratios))
             del calls
-        log(f"| {name} | " + " | ".join("-" if table[name][n] is None else f"{table[name][n]:.2f}"
-                                         for n in sizes) + " |")
+        log(f"| {name} | " + " | ".join(_sweep_cell(table[name][n], sw.target(name, n)) for n in sizes) + " |")
     return table
+
+
+def _sweep_cell(ratio, target):
+    """A sweep table's cell: the ratio, in bold where it is below its target."""
+    if ratio is None:
+        return "-"
+    return f"**{ratio:.2f}**" if target is not None and ratio < target else f"{ratio:.2f}"
+
+
+def _sweep_misses(table):
+    """The cells of a sweep below their targets, as lines ``op at size: ratio < target``."""
+    from .sweep import target
+    return [f"{name} at {_sweep_label(n)}: {r:.2f} < {target(name, n):.2f}"
+            for name, row in table.items() for n, r in row.items()
+            if r is not None and target(name, n) is not None and r < target(name, n)]
 
 
 def main(argv=None):
@@ -585,6 +599,8 @@ def main(argv=None):
         print("| method | " + " | ".join(_sweep_label(n) for n in SIZES) + " |")
         print("|---|" + "--:|" * len(SIZES))
         table = sweep(args.repeat or 5)
+        misses = _sweep_misses(table)
+        print(f"\nBelow target (bold): {len(misses)}" + "".join(f"\n- {m}" for m in misses))
         if args.json:
             with open(args.json, "w") as f:
                 json.dump({"machine": mach, "sweep": {op: {_sweep_label(n): r for n, r in row.items()}

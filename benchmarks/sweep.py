@@ -21,7 +21,7 @@ import numpy as np
 
 from ._common import SEED
 
-__all__ = ["SIZES", "QUICK_SIZES", "ASV_SIZES", "OPS", "TRANSCENDENTAL", "COPIES", "make", "SizeSweep"]
+__all__ = ["SIZES", "QUICK_SIZES", "ASV_SIZES", "OPS", "TRANSCENDENTAL", "COPIES", "target", "make", "SizeSweep"]
 
 #: Batch sizes of the sweep; None is a single rotation (shape ()).
 SIZES = [None, 1, 10, 100, 1_000, 10_000, 100_000, 1_000_000]
@@ -190,6 +190,18 @@ TRANSCENDENTAL = ("as_euler", "from_euler", "as_rotvec", "from_rotvec", "as_mrp"
 #: Copies and products (target at N >= 10³: at least 0.5).
 COPIES = ("from_quat", "as_quat", "as_matrix", "from_matrix", "inv", "apply", "mul",
           "RigidTransform apply", "RigidTransform compose", "RigidTransform inv")
+
+
+def target(name, n):
+    """Issue 23's target for scipy's time ÷ quatarray's of operation `name` at size `n` (None:
+    a single rotation), or None where it sets none: 1 for one rotation and a batch of one,
+    1/3 at 10 and 100, and from 10³ on 1 for `TRANSCENDENTAL` and 1/2 for `COPIES` (10⁶ has
+    further targets of its own, in ``benchmarks.compare --targets``)."""
+    if n is None or n == 1:
+        return 1.0
+    if n < 1000:
+        return 1 / 3
+    return 1.0 if name in TRANSCENDENTAL else 0.5 if name in COPIES else None
 
 
 def make(lib, name, n):
