@@ -510,6 +510,7 @@ def machine():
     import os
 
     import quatarray
+    from quatarray import _ops
     model = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
@@ -517,18 +518,11 @@ def machine():
     except (OSError, StopIteration):
         pass
     try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-        found = [t for t in __cpu_dispatch__ if __cpu_features__.get(t)]
-    except ImportError:  # NumPy < 2
-        found = []
-    level = "X86_V4 (AVX-512)" if "X86_V4" in found else "X86_V3 (AVX2)" if "X86_V3" in found else \
-        (found[-1] if found else "baseline")
-    try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:
         cpus = os.cpu_count()
-    return {"cpu": model, "arch": platform.machine(), "simd": level, "simd_found": found,
-            "threads": quatarray.get_num_threads(), "cpus": cpus}
+    return {"cpu": model, "arch": platform.machine(), "simd": _ops.numpy_simd_level(),
+            "simd_found": _ops.numpy_simd_found(), "threads": quatarray.get_num_threads(), "cpus": cpus}
 
 
 def scratch_kept():

@@ -181,25 +181,13 @@ def measure(n=400, seed=0):
     return rows
 
 
-def simd_level():
-    """The highest x86-64 level NumPy found at run time (X86_V3 = AVX2, X86_V4 = AVX-512)."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_features__ as f
-    except ImportError:
-        return "unknown"
-    if all(f.get(k) for k in ("AVX512F", "AVX512CD", "AVX512BW", "AVX512DQ", "AVX512VL")):
-        return "X86_V4 (AVX-512)"
-    if all(f.get(k) for k in ("AVX2", "FMA3", "BMI2")):
-        return "X86_V3 (AVX2, no AVX-512)"
-    return "below X86_V3"
-
-
 def rst_table(rows, n):
     import platform
 
     import scipy
 
     import quatarray
+    from quatarray import _ops
     fmt = "{:.1f}".format
     out = [".. list-table::", "   :header-rows: 1", "",
            "   * - operation", "     - data", "     - quatarray median", "     - quatarray max",
@@ -215,7 +203,7 @@ def rst_table(rows, n):
         out += ["", f"Every row is within {max(r[2][1] for r in rows):.1f} ulp at its maximum."]
     out += ["", f"{n} samples per row; quatarray {quatarray.__version__}, NumPy {np.__version__}, "
             f"scipy {scipy.__version__}, Python {platform.python_version()}, {platform.machine()}, "
-            f"NumPy SIMD level {simd_level()}; references with mpmath at {DIGITS} digits.", ""]
+            f"NumPy SIMD level {_ops.numpy_simd_level()}; references with mpmath at {DIGITS} digits.", ""]
     return "\n".join(out)
 
 

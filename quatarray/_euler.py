@@ -21,7 +21,7 @@ from ._kernels import half_angle as _half_angle
 from ._kernels import arctan2, multiply
 from ._validate import finite, float_array, quat_array
 
-__all__ = ["check_seq", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport",
+__all__ = ["check_seq", "check_angles", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport",
            "from_davenport_batched", "as_davenport_batched"]
 
 _GIMBAL_EPS = 1e-7
@@ -45,6 +45,29 @@ def check_seq(seq, n=None):
         raise TypeError(f"expected seq to be a str such as 'xyz' or 'ZXZ', got {type(seq).__name__}")
     axes, intrinsic = _check_str_seq(seq, n)
     return list(axes), intrinsic
+
+
+def check_angles(seq, angles):
+    """Validate Euler angles (..., len(seq)) against their sequence; a scalar becomes shape (1,).
+
+    The message starts with scipy's (its tests match it).
+
+    >>> import numpy as np
+    >>> from quatarray._euler import check_angles
+    >>> check_angles("z", np.array(0.5)).shape
+    (1,)
+    >>> check_angles("xyz", np.zeros((4, 2)))
+    Traceback (most recent call last):
+    ...
+    ValueError: Expected last dimension of `angles` to match number of sequence axes specified, got 2: expected angles of shape (..., 3) for seq 'xyz', got (4, 2)
+    """
+    if angles.ndim == 0:
+        angles = angles.reshape(1)
+    if angles.shape[-1] != len(seq):
+        raise ValueError(f"Expected last dimension of `angles` to match number of sequence axes specified, "
+                         f"got {angles.shape[-1]}: expected angles of shape (..., {len(seq)}) for seq {seq!r}, "
+                         f"got {angles.shape}")
+    return angles
 
 
 @functools.lru_cache(maxsize=128)
@@ -159,11 +182,7 @@ def from_euler(seq, angles, degrees=False):
            [0.707107, 0.      , 0.707107, 0.      ]])
     """
     axes, intrinsic = check_seq(seq)
-    a = finite(float_array(angles, "angles"), "angles")
-    if a.ndim == 0:
-        a = a.reshape(1)
-    if a.shape[-1] != len(axes):
-        raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
+    a = check_angles(seq, finite(float_array(angles, "angles"), "angles"))
     scale = np.pi / 720.0 if degrees else 0.25
     one = _ops.floats64(a, len(axes))
     if one is not None:   # one float64 rotation: the same formula on its floats

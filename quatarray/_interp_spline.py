@@ -24,6 +24,7 @@ import numpy as np
 
 from . import _blocks
 from . import _convert
+from . import _jacobian
 from . import _kernels
 from . import _ops
 from . import _track
@@ -33,8 +34,6 @@ from ._trig import tan
 
 MAX_ITER = 10
 TOL = {np.dtype(np.float64): 1e-9, np.dtype(np.float32): 4 * float(np.finfo(np.float32).eps)}
-
-_SMALL = 1e-4  # below this angle the series expansions replace the closed forms (as scipy)
 
 
 def _skew(v):
@@ -67,59 +66,39 @@ def _cross(a, b, out=None):
     return out
 
 
-def _safe(n):
-    return np.where(n > _SMALL, n, 1.0)
-
-
 def rate_to_rotvec_dot(rotvecs):
     """Matrices ``A(r)`` with ``dr/dt = A(r) w``; shape (..., 3, 3)."""
-    n = np.linalg.norm(rotvecs, axis=-1)
-    s = _safe(n)
-    k = np.where(n > _SMALL, (1 - 0.5 * s / np.tan(0.5 * s)) / s ** 2, 1 / 12 + n ** 2 / 720)
+    k = _jacobian.one_minus_half_cot(np.linalg.norm(rotvecs, axis=-1), 2)
     sk = _skew(rotvecs)
-    return np.eye(3, dtype=rotvecs.dtype) + 0.5 * sk + k[..., None, None].astype(rotvecs.dtype) * (sk @ sk)
+    return np.eye(3, dtype=rotvecs.dtype) + 0.5 * sk + k[..., None, None] * (sk @ sk)
 
 
 def rotvec_dot_to_rate(rotvecs):
     """Matrices ``A(r)^-1`` with ``w = A(r)^-1 dr/dt``; shape (..., 3, 3)."""
     n = np.linalg.norm(rotvecs, axis=-1)
-    s = _safe(n)
-    big = n > _SMALL
-    k1 = np.where(big, (1 - np.cos(s)) / s ** 2, 0.5 - n ** 2 / 24)
-    k2 = np.where(big, (s - np.sin(s)) / s ** 3, 1 / 6 - n ** 2 / 120)
+    k1 = _jacobian.one_minus_cos(n, 2)[..., None, None]
+    k2 = _jacobian.one_minus_sinc(n, 2)[..., None, None]
     sk = _skew(rotvecs)
-    dt = rotvecs.dtype
-    return np.eye(3, dtype=dt) - k1[..., None, None].astype(dt) * sk + k2[..., None, None].astype(dt) * (sk @ sk)
+    return np.eye(3, dtype=rotvecs.dtype) - k1 * sk + k2 * (sk @ sk)
 
 
 def acceleration_term(rotvecs, rotvecs_dot):
     """The part of the angular acceleration quadratic in ``dr/dt``; shape (..., 3)."""
     n = np.linalg.norm(rotvecs, axis=-1)
-    s = _safe(n)
-    big = n > _SMALL
-    sn, cs = np.sin(s), np.cos(s)
-    k1 = np.where(big, (-s * sn - 2 * (cs - 1)) / s ** 4, 1 / 12 - n ** 2 / 180)
-    k2 = np.where(big, (-2 * s + 3 * sn - s * cs) / s ** 5, -1 / 60 + n ** 2 / 12604)
-    k3 = np.where(big, (s - sn) / s ** 3, 1 / 6 - n ** 2 / 120)
+    k1, k2 = _jacobian.derivative(n)
+    k3 = _jacobian.one_minus_sinc(n, 2)
     dp = np.sum(rotvecs * rotvecs_dot, axis=-1)
     cp = _cross(rotvecs, rotvecs_dot)
     ccp = _cross(rotvecs, cp)
     dccp = _cross(rotvecs_dot, cp)
-    dt = rotvecs.dtype
-    return ((dp * k1)[..., None].astype(dt) * cp + (dp * k2)[..., None].astype(dt) * ccp
-            + k3[..., None].astype(dt) * dccp)
+    return (dp * k1)[..., None] * cp + (dp * k2)[..., None] * ccp + k3[..., None] * dccp
 
 
 def acceleration_jacobian(rotvecs, rotvecs_dot):
     """The derivative of `acceleration_term` in ``dr/dt`` (a quadratic form): (..., 3, 3)."""
     n = np.linalg.norm(rotvecs, axis=-1)
-    s = _safe(n)
-    big = n > _SMALL
-    sn, cs = np.sin(s), np.cos(s)
-    dt = rotvecs.dtype
-    k1 = np.where(big, (-s * sn - 2 * (cs - 1)) / s ** 4, 1 / 12 - n ** 2 / 180).astype(dt)[..., None, None]
-    k2 = np.where(big, (-2 * s + 3 * sn - s * cs) / s ** 5, -1 / 60 + n ** 2 / 12604).astype(dt)[..., None, None]
-    k3 = np.where(big, (s - sn) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None, None]
+    k1, k2 = (k[..., None, None] for k in _jacobian.derivative(n))
+    k3 = _jacobian.one_minus_sinc(n, 2)[..., None, None]
     dp = np.sum(rotvecs * rotvecs_dot, axis=-1)[..., None, None]
     cp = _cross(rotvecs, rotvecs_dot)
     ccp = _cross(rotvecs, cp)
@@ -140,11 +119,8 @@ def angular_rate(rotvecs, rotvecs_dot):
     `rotvec_dot_to_rate`, so long query arrays carry no (..., 3, 3) temporaries.
     """
     n = np.linalg.norm(rotvecs, axis=-1)
-    s = _safe(n)
-    big = n > _SMALL
-    dt = rotvecs.dtype
-    k1 = np.where(big, (1 - np.cos(s)) / s ** 2, 0.5 - n ** 2 / 24).astype(dt)[..., None]
-    k2 = np.where(big, (s - np.sin(s)) / s ** 3, 1 / 6 - n ** 2 / 120).astype(dt)[..., None]
+    k1 = _jacobian.one_minus_cos(n, 2)[..., None]
+    k2 = _jacobian.one_minus_sinc(n, 2)[..., None]
     cp = _cross(rotvecs, rotvecs_dot)
     return rotvecs_dot - k1 * cp + k2 * _cross(rotvecs, cp)
 

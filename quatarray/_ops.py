@@ -20,16 +20,32 @@ from types import SimpleNamespace
 import numpy as np
 
 
+def numpy_simd_found():
+    """The SIMD extensions NumPy dispatches to on this CPU beyond its build's baseline (for
+    example ``['X86_V3', 'X86_V4', 'AVX512_ICL']``), from NumPy's public build and runtime
+    report, ``numpy.show_config(mode="dicts")`` (as ``numpy.show_runtime`` prints them);
+    ``[]`` where that report has no such entry (NumPy before 1.26)."""
+    try:
+        return list(np.show_config(mode="dicts")["SIMD Extensions"]["found"])
+    except (TypeError, KeyError, AttributeError):
+        return []
+
+
+def numpy_simd_level():
+    """NumPy's x86-64 SIMD level on this CPU, for reports: ``"X86_V4 (AVX-512)"``,
+    ``"X86_V3 (AVX2)"``, else the last extension found, else ``"baseline"``."""
+    found = numpy_simd_found()
+    if "X86_V4" in found:
+        return "X86_V4 (AVX-512)"
+    if "X86_V3" in found:
+        return "X86_V3 (AVX2)"
+    return found[-1] if found else "baseline"
+
+
 def _numpy_svml():
     """True when NumPy runs its float64 transcendental loops (tan, arctan, ...) as SVML's
-    SIMD loops (AVX-512 builds): read from NumPy's public build and runtime report,
-    ``numpy.show_config(mode="dicts")`` (the CPU features NumPy found, as
-    ``numpy.show_runtime`` prints them); False where that report has no such entry (NumPy
-    before 1.26)."""
-    try:
-        found = np.show_config(mode="dicts")["SIMD Extensions"]["found"]
-    except (TypeError, KeyError, AttributeError):
-        return False
+    SIMD loops (AVX-512 builds)."""
+    found = numpy_simd_found()
     return "AVX512_SKX" in found or "X86_V4" in found
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import _convert
 from . import _dualquat
+from . import _jacobian
 from . import _kernels
 from . import _motion
 from . import _rotation_algorithms
@@ -99,16 +100,10 @@ def _shrink(v):
 
 def _left_jacobian(theta, k, u):
     """V(φ) u = u + (1 - cos θ)/θ k×u + (1 - sin θ/θ) k×(k×u), φ = θ k: the coefficients of
-    the unit axis are bounded (no θ² or θ³ to overflow at large angles, no cancellation:
-    series below 1e-3, and where θ overflows their limits 0 and 1)."""
-    small, huge = theta < 1e-3, np.isinf(theta)
-    th = np.where(small | huge, 1.0, theta)
-    a = np.where(small, theta / 2 - theta**3 / 24 + theta**5 / 720,
-                 np.where(huge, 0.0, 2 * np.sin(th / 2) ** 2 / th))
-    b = np.where(small, theta**2 / 6 - theta**4 / 120 + theta**6 / 5040,
-                 np.where(huge, 1.0, 1 - np.sin(th) / th))
+    the unit axis are bounded (no θ² or θ³ to overflow at large angles; where θ overflows
+    they take their limits 0 and 1)."""
     ku = np.cross(k, u)
-    return u + a * ku + b * np.cross(k, ku)
+    return u + _jacobian.one_minus_cos(theta, 1) * ku + _jacobian.one_minus_sinc(theta, 0) * np.cross(k, ku)
 
 
 def _last_row_check(m):
@@ -336,11 +331,8 @@ class RigidTransform:
         q = self._quat
         phi = _convert.as_rotvec(q).astype(q.dtype, copy=False)
         theta, k = _axis_angle(phi)
-        small = theta < 1e-3
-        th = np.where(small, 1.0, theta)
         # inverse left Jacobian: u = t - θ/2 k×t + (1 - θ/2 cot(θ/2)) k×(k×t), θ in [0, π]
-        c = np.where(small, theta**2 / 12 + theta**4 / 720 + theta**6 / 30240,
-                     1 - 0.5 * th / np.tan(0.5 * th))
+        c = _jacobian.one_minus_half_cot(theta, 0)
         t, scale = _shrink(self._translation)
         kt = np.cross(k, t)
         u = t - (0.5 * theta) * kt + c * np.cross(k, kt)

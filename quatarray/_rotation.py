@@ -331,13 +331,7 @@ class Rotation:
                [ 0., 45.,  0.]])
         """
         _euler.check_seq(seq)
-        a = float_array(angles, "angles")
-        if a.ndim == 0:
-            a = a.reshape(1)
-        if a.shape[-1] != len(seq):
-            raise ValueError(f"Expected last dimension of `angles` to match number of sequence "
-                             f"axes specified, got {a.shape[-1]}: expected angles of shape "
-                             f"(..., {len(seq)}) for seq {seq!r}, got {a.shape}")
+        a = _euler.check_angles(seq, float_array(angles, "angles"))
         return cls._wrap(_euler.from_euler(seq, a, degrees=degrees), unit=True)
 
     def as_euler(self, seq, degrees=False, *, suppress_warnings=False):

@@ -331,13 +331,8 @@ def from_euler(seq, angles, degrees=False):
     >>> np.round(qd.from_euler("z", da.from_array(np.array([[90.]])), degrees=True).compute(), 6)
     array([[0.707107, 0.      , 0.      , 0.707107]])
     """
-    axes, _ = _euler.check_seq(seq)
-    a = _array(angles, "angles")
-    if a.ndim == 0:
-        a = a.reshape(1)
-    if a.shape[-1] != len(axes):
-        raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
-    a = _array(a, "angles", 1)
+    _euler.check_seq(seq)
+    a = _array(_euler.check_angles(seq, _array(angles, "angles")), "angles", 1)
     return _apply(_from_euler_block, ("angles",), [a], (1,), (4,), a.dtype, seq=seq, degrees=bool(degrees))
 
 

@@ -1,9 +1,10 @@
 """The same element gives the same bits whatever the batch around it.
 
 For every method of `QuatArray`, `Rotation`, `Slerp`, `RotationSpline`, `RigidTransform`,
-the interpolation functions, `Track` and `geodesic_mean`, in float32 and float64: element i
-of a batch equals, bit for bit, the same element computed alone (shape ()), as a batch of one, and
-inside the batch split into blocks of two elements run on two threads.  The batches mix
+the interpolation functions, `Track`, `normalize_dual_quaternion` and `geodesic_mean`, in
+float32 and float64: element i of a batch equals, bit for bit, the same element computed alone
+(shape ()), as a batch of one, and inside the batch split into blocks of two elements run on
+two threads; so does track j of a batch of tracks (control points, `unflip`, `Slerp`, `Track`).  The batches mix
 random rotations with near-identity, near-half-turn and gimbal-lock rotations, and (where
 the method accepts any magnitude) quaternions scaled by extreme powers of two.  A float64
 single rotation or batch of one may run its kernel's formula on Python floats (`quatarray._ops`):
@@ -14,12 +15,13 @@ import warnings
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import quatarray
 from quatarray import (QuatArray, RigidTransform, Rotation, RotationSpline, Slerp, Track, _blocks, _interp_spline,
-                       bezier, geodesic_mean, lerp, nlerp, slerp, squad)
+                       bezier, bezier_control_points, geodesic_mean, lerp, nlerp, normalize_dual_quaternion, slerp,
+                       squad, squad_control_points, unflip)
 
 KINDS = ("random", "identity", "half turn", "gimbal xyz", "gimbal zyz")
 
@@ -73,6 +75,11 @@ def _split(f):
         _blocks.BLOCK, _blocks.PARALLEL_MIN = saved
 
 
+#: Operations that give a single rotation scipy's shape (1,) result (approx_equal of two single
+#: rotations, reduce's indices), where the batch has one element per rotation.
+ONE_FOR_SINGLE = {"approx_equal", "reduce indices"}
+
+
 def check(ops, args, i):
     """For each (name, f): f(*args) at element i equals f on element i alone, as a batch
     of one, and in the split batch.  `args` are arrays whose first axis is the batch."""
@@ -82,8 +89,8 @@ def check(ops, args, i):
             whole = _raw(f(*args))
             _same(_raw(f(*(a[i:i + 1] for a in args)))[0], whole[i], f"{name}: batch of one")
             alone = _raw(f(*(a[i] for a in args)))
-            if name == "approx_equal":   # scipy's shape (1,) for two single rotations
-                alone = alone.reshape(())
+            if name in ONE_FOR_SINGLE:
+                alone = alone.reshape(whole[i].shape)
             _same(alone, whole[i], f"{name}: alone")
             _same(_raw(_split(lambda: f(*args))), whole, f"{name}: blocks of 2 on 2 threads")
 
@@ -117,8 +124,10 @@ def test_quatarray_methods(dtype, b):
            ("as_mrp", lambda q: Q(q).as_mrp()), ("as_euler xyz", lambda q: Q(q).as_euler("xyz")),
            ("as_euler ZYZ", lambda q: Q(q).as_euler("ZYZ", degrees=True)),
            ("as_davenport", lambda q: Q(q).as_davenport(axes, "e"))], (q,), i)
-    check([("power t", lambda q, t: Q(q).power(t))], (q, t), i)
-    check([("dot", lambda q, p: Q(q).dot(Q(p))), ("product", lambda q, p: Q(q) * Q(p))], (q, p), i)
+    check([("np.sqrt", lambda q: np.sqrt(Q(q))), ("np.exp", lambda q: np.exp(Q(q)))], (q,), i)
+    check([("power t", lambda q, t: Q(q).power(t)), ("divide by a real", lambda q, t: Q(q) / t)], (q, t), i)
+    check([("dot", lambda q, p: Q(q).dot(Q(p))), ("product", lambda q, p: Q(q) * Q(p)),
+           ("quotient", lambda q, p: Q(q) / Q(p))], (q, p), i)
     check([("rotate", lambda q, v: Q(q).rotate(v))], (q, v), i)
     m, rv, mrp = Q(q).as_matrix(), Q(q).as_rotvec(), Q(q).as_mrp()
     eu = Q(q).as_euler("xyz", suppress_warnings=True)
@@ -151,6 +160,11 @@ def test_rotation_methods(dtype, b):
     ops += [(f"as_euler {seq}", lambda q, seq=seq: R.from_quat(q).as_euler(seq)) for seq in ("xyz", "ZYZ", "zxy")]
     ops.append(("as_davenport", lambda q: R.from_quat(q).as_davenport(axes, "i")))
     check(ops, (q,), i)
+    octahedral, c3 = R.create_group("O"), R.create_group("C3", axis="X")
+    check([("reduce", lambda q: R.from_quat(q).reduce(left=octahedral, right=c3)),
+           ("reduce left", lambda q: R.from_quat(q).reduce(left=octahedral)),
+           ("reduce indices", lambda q: np.stack(R.from_quat(q).reduce(octahedral, c3, return_indices=True)[1:], -1))],
+          (q,), i)
     check([("mul", lambda q, p: R.from_quat(q) * R.from_quat(p)),
            ("approx_equal", lambda q, p: R.from_quat(q).approx_equal(R.from_quat(p), atol=1.0))], (q, p), i)
     check([("apply", lambda q, v: R.from_quat(q).apply(v)),
@@ -168,18 +182,18 @@ def test_rotation_methods(dtype, b):
 @DTYPE
 @given(b=batches())
 def test_interpolation(dtype, b):
-    (seed, kinds, _), i = b
-    q0 = _rows(seed, kinds, dtype, False)
-    q1 = _rows(seed + 1, kinds, dtype, False)
-    a = _rows(seed + 2, kinds, dtype, False)
-    c = _rows(seed + 3, kinds, dtype, False)
+    (seed, kinds, scale), i = b
+    q0 = _rows(seed, kinds, dtype, scale)
+    q1 = _rows(seed + 1, kinds, dtype, scale)
+    a = _rows(seed + 2, kinds, dtype, scale)
+    c = _rows(seed + 3, kinds, dtype, scale)
     rng = np.random.default_rng(seed)
     t = rng.uniform(-0.25, 1.25, len(q0)).astype(dtype)
     t[::3] = rng.choice([0.0, 0.5, 1.0])
     check([("lerp", lerp), ("nlerp", nlerp), ("slerp", slerp),
            ("slerp long way", lambda p, q, t: slerp(p, q, t, shortest=False))], (q0, q1, t), i)
     check([("squad", squad), ("bezier", bezier)], (q0, a, c, q1, t), i)
-    keys = _rows(seed + 4, ["random", "identity", "half turn", "random", "gimbal xyz"], dtype, False)
+    keys = _rows(seed + 4, ["random", "identity", "half turn", "random", "gimbal xyz"], dtype, scale)
     times = np.array([0.0, 0.5, 1.5, 2.0, 4.0], dtype)
     at = rng.uniform(0, 4, len(q0)).astype(dtype)
     at[::4] = times[rng.integers(0, 5)]
@@ -188,14 +202,55 @@ def test_interpolation(dtype, b):
            ("RotationSpline rate", lambda x: RotationSpline(times, Rotation.from_quat(keys, scalar_first=True))(x, 1))]
     ops += [(f"Track {m}", lambda x, m=m: Track(times, keys, method=m)(x))
             for m in ("linear", "slerp", "squad", "bezier", "spline")]
+    ops += [(f"Track {m} angular_velocity", lambda x, m=m: Track(times, keys, method=m).angular_velocity(x))
+            for m in ("linear", "slerp", "squad", "bezier")]
     check(ops, (at,), i)
+
+
+def _per_track(f):
+    """`f` of keys (K, *tracks, 4), giving results whose track axis is the second last, as a
+    function for `check` of keys with the tracks first: (n, K, 4) for a batch of tracks and
+    (K, 4) for one track alone; its result has the track axis first."""
+    def tracks_first(keys):
+        if keys.ndim == 2:
+            return _raw(f(keys))
+        return np.moveaxis(_raw(f(np.moveaxis(keys, 0, 1))), -2, 0)
+    return tracks_first
+
+
+def _stacked(arrays):
+    """Arrays stacked on a new first axis."""
+    return np.stack([_raw(a) for a in arrays])
+
+
+@DTYPE
+@settings(max_examples=min(settings().max_examples, 30))   # each example builds 9 interpolants 4 times
+@given(b=batches())
+def test_batches_of_tracks(dtype, b):
+    """Track j of a batch of tracks (keys (K, n, 4), one track per kind, at any magnitude):
+    its control points, unflipped keys, Slerp and Track values and angular velocities are
+    those of the track alone, as a batch of one and in blocks of two on two threads."""
+    (seed, kinds, scale), j = b
+    k = 5
+    keys = np.stack([_rows(seed + m, kinds, dtype, scale) for m in range(k)], axis=1)   # (n, K, 4)
+    keys[:, 2] = -keys[:, 2]   # a flipped key, for unflip and the control points
+    rng = np.random.default_rng(seed)
+    times = np.cumsum(rng.uniform(0.1, 2.0, k)).astype(dtype)
+    at = np.concatenate([times, rng.uniform(times[0], times[-1], 4).astype(dtype)])
+    ops = [("unflip", unflip), ("squad_control_points", lambda q: squad_control_points(q, times)),
+           ("bezier_control_points", lambda q: _stacked(bezier_control_points(q, times))),
+           ("Slerp batched", lambda q: Slerp(times, Rotation.from_quat(q, scalar_first=True), batched=True)(at))]
+    ops += [(f"Track {m}", lambda q, m=m: Track(times, q, method=m)(at)) for m in ("linear", "slerp", "squad", "bezier")]
+    ops += [(f"Track {m} angular_velocity", lambda q, m=m: Track(times, q, method=m).angular_velocity(at))
+            for m in ("linear", "slerp", "squad", "bezier")]
+    check([(name, _per_track(f)) for name, f in ops], (keys,), j)
 
 
 @DTYPE
 @given(b=batches())
 def test_rigid_transforms(dtype, b):
-    (seed, kinds, _), i = b
-    q = _rows(seed, kinds, dtype, False)
+    (seed, kinds, scale), i = b
+    q = _rows(seed, kinds, dtype, scale)
     p = _rows(seed + 1, kinds, dtype, False)
     rng = np.random.default_rng(seed)
     tr = (rng.standard_normal((len(q), 3)) * 10.0 ** rng.uniform(-3, 3)).astype(dtype)
@@ -204,9 +259,17 @@ def test_rigid_transforms(dtype, b):
     def tf(q, tr):
         return RigidTransform.from_components(tr, Rotation.from_quat(q, scalar_first=True))
 
-    check([("as_matrix", tf), ("inv", lambda q, tr: tf(q, tr).inv()),
+    check([("as_matrix", tf), ("inv", lambda q, tr: tf(q, tr).inv()), ("pow 0.3", lambda q, tr: tf(q, tr) ** 0.3),
            ("as_exp_coords", lambda q, tr: tf(q, tr).as_exp_coords()),
            ("as_dual_quat", lambda q, tr: tf(q, tr).as_dual_quat())], (q, tr), i)
+    exp_coords = tf(q, tr).as_exp_coords()
+    exp_coords[::2, :3] *= rng.uniform(-4, 4, (len(exp_coords[::2]), 1)).astype(dtype)   # angles past a half turn
+    check([("from_exp_coords", lambda e: RigidTransform.from_exp_coords(e))], (exp_coords,), i)
+    # dual quaternions of any magnitude, the dual part not orthogonal to the real one
+    dual = tf(q, tr).as_dual_quat() * np.ldexp(1.0, rng.integers(-40, 40, (len(q), 1))).astype(dtype)
+    dual[:, 4:] += rng.standard_normal((len(q), 4)).astype(dtype)
+    check([("from_dual_quat", lambda d: RigidTransform.from_dual_quat(d)),
+           ("normalize_dual_quaternion", normalize_dual_quaternion)], (dual,), i)
     check([("apply", lambda q, tr, v: tf(q, tr).apply(v)),
            ("apply inverse", lambda q, tr, v: tf(q, tr).apply(v, inverse=True))], (q, tr, v), i)
     check([("compose", lambda q, tr, p: tf(q, tr) * tf(p, 2 * tr))], (q, tr, p), i)

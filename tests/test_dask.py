@@ -606,6 +606,9 @@ def test_bad_shapes_and_types(rng):
         qd.mean(da.zeros((0, 4)))
     with pytest.raises(ValueError, match="weights"):
         qd.mean(da.ones((5, 4)), -np.ones(5)).compute()
+    with pytest.raises(ValueError, match=r"^Expected last dimension of `angles`.*expected angles of shape "
+                                         r"\(\.\.\., 3\) for seq 'xyz', got \(4, 2\)$"):
+        qd.from_euler("xyz", da.zeros((4, 2)))
 
 
 @pytest.mark.parametrize("name, call, chunkwise", [

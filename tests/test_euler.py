@@ -126,8 +126,14 @@ def test_as_euler_bad_sequences(seq, match):
 @pytest.mark.parametrize("seq, angles", [("xyz", [0.1, 0.2]), ("x", [0.1, 0.2, 0.3]), ("xy", 0.3),
                                          ("xyz", np.zeros((4, 2)))])
 def test_from_euler_angles_shape_mismatch(seq, angles):
-    with pytest.raises(ValueError, match=rf"expected angles of shape \(\.\.\., {len(seq)}\)"):
-        E.from_euler(seq, angles)
+    """The raw function and `Rotation.from_euler` give one message, which starts with scipy's."""
+    with pytest.raises(ValueError) as scipy_error:
+        R.from_euler(seq, angles)
+    scipy_message = str(scipy_error.value).rstrip(".")
+    for from_euler in (E.from_euler, Rotation.from_euler):
+        with pytest.raises(ValueError, match=rf"expected angles of shape \(\.\.\., {len(seq)}\)") as error:
+            from_euler(seq, angles)
+        assert str(error.value).startswith(scipy_message + ":"), str(error.value)
 
 
 # --- Davenport angles ------------------------------------------------------------------------------

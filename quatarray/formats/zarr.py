@@ -661,7 +661,7 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     _need()
     import dask.array as da
 
-    from .. import dask as qd
+    from .. import dask
     from ..interpolate import Track
     if (fps is None) == (times is None):
         raise ValueError("give exactly one of fps and times")
@@ -683,9 +683,9 @@ def resample_zarr(src, dst, *, fps=None, times=None, method="slerp", extrapolate
     if keys.nbytes <= MEMORY_KEYS:
         kmem = keys.compute()
         track = Track(key_times, kmem, method=method, extrapolate=extrapolate)
-        interpolate = partial(qd.evaluate, _CurveAndKeys(track, kmem))
+        interpolate = partial(dask.evaluate, _CurveAndKeys(track, kmem))
     else:
-        interpolate = qd.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)
+        interpolate = dask.Track(key_times, keys.rechunk({0: -1, -1: -1}), method=method, extrapolate=extrapolate)
     dtype = interpolate(queries.window(0, min(n, 1), 1)).dtype     # lazy: nothing computed
     _space_check(loc_out, _nbytes(n, batch, dtype))
     if extrapolate == "raise" and fps is None and n:   # one pass over the times before any writing
