@@ -93,11 +93,11 @@ def from_quat(quat, scalar_first=False, name="quat"):
     array([0.8, 0. , 0. , 0.6])
     """
     q = quat_array(quat, "quat")
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: `_kernels.normalize`'s formula on its floats
-        one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3])
+    one, kind = _ops.floats(q)
+    if one is not None:   # one float64 or float32 quaternion: `_kernels.normalize`'s formula on its floats
+        one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3], kind)
         if one is not None:
-            return _ops.to_array(one, q.shape)
+            return _ops.to_array(one, q.shape, kind.dtype)
     if scalar_first:
         src = q if q.flags.c_contiguous else np.ascontiguousarray(q)
     else:

@@ -84,6 +84,16 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
 """The same operations on Python floats; the row argument is ignored.  ``arctan`` is
 `arctan_float`, with the bits of NumPy's array loop."""
 
+FLOATS32 = SimpleNamespace(**{**vars(FLOATS), "sqrt": lambda a, out: np.sqrt(a),
+                              "copysign": lambda a, b, out: np.copysign(a, b), "rint": lambda a, out: np.rint(a),
+                              **{name: (lambda f: lambda *args: f(*args[:-1]))(getattr(np, name))
+                                 for name in ("arctan", "exp", "log", "cos", "sin", "power")}})
+"""`FLOATS` on NumPy float32 scalars (``np.float32``), the four components of one float32
+quaternion: their ``+ − × ÷`` round as float32 (a Python float operand is weak, NEP 50:
+taken as float32 too), and NumPy's ufuncs on them (sqrt, copysign, arctan, exp, log, cos,
+sin, power) return float32 scalars with the float32 array loops' bits (checked with and
+without AVX-512 on samples of every magnitude, tests/test_ops.py)."""
+
 STACKS = SimpleNamespace(
     sub=lambda a, b, out: np.subtract(a, b, out=out, order="C"),
     add=lambda a, b, out: np.add(a, b, out=out, order="C"),
@@ -173,7 +183,7 @@ class _Name(str):
 
 _TEMPLATES = {"add": "{0} + {1}", "sub": "{0} - {1}", "mul": "{0} * {1}", "div": "{0} / {1}",
               "sqrt": "_sqrt({0})", "abs": "abs({0})", "copysign": "_copysign({0}, {1})", "max": "max({0}, {1})",
-              "rint": "float(round({0}))", "arctan": "_arctan({0})",
+              "rint": "_rint({0})", "arctan": "_arctan({0})",
               **{name: f"_np_{name}({{0}})" for name in ("exp", "log", "cos", "sin")}, "power": "_np_power({0}, {1})"}
 """`FLOATS`' operations as Python expressions (the same calls and operators, in place)."""
 
@@ -237,12 +247,29 @@ def compiled(formula, nargs):
     else:
         body = term(result)
     source = f"def formula({', '.join(names)}):\n" + "\n".join(lines + [f"    return {body}"])
-    scope = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_float,
-             **{f"_np_{name}": f for name, f in _NUMPY_FLOATS.items()}, **consts}
-    exec(compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec"), scope)
-    function = scope["formula"]
-    function.source = source
+    code = compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec")
+    function, function.float32 = (_defined(code, scope, consts) for scope in (_SCOPE64, _SCOPE32))
+    function.float64 = function
+    function.source = function.float32.source = source
     return function
+
+
+def _defined(code, scope, consts):
+    """The function the compiled `code` defines, run with the names of `scope` and `consts`."""
+    scope = {**scope, **consts}
+    exec(code, scope)
+    return scope["formula"]
+
+
+_SCOPE64 = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_float,
+            "_rint": lambda a: float(round(a)),   # round: half to even, as np.rint
+            **{f"_np_{name}": f for name, f in _NUMPY_FLOATS.items()}}
+"""The calls of `compiled`'s source on Python floats (`FLOATS`')."""
+
+_SCOPE32 = {"_sqrt": np.sqrt, "_copysign": np.copysign, "_arctan": np.arctan, "_rint": np.rint,
+            **{f"_np_{name}": getattr(np, name) for name in _NUMPY_FLOATS}}
+"""The same calls on float32 scalars (`FLOATS32`'): NumPy's ufuncs, returning float32
+scalars.  The formula's constants stay Python floats, weak operands taken as float32."""
 
 
 NONE = (None,) * 16
@@ -335,10 +362,82 @@ def first64(q, k=4):
 
 
 _FLOAT64 = np.dtype(np.float64)   # NumPy's one native float64 dtype (another one: the block path)
+_FLOAT32 = np.dtype(np.float32)
 
 
-def to_array(values, shape):
-    """A float path's result, `values` (Python floats), as a float64 array of `shape`.
+class Kind:
+    """The arithmetic of one quaternion's components of a dtype, for the float paths.
+
+    Attributes
+    ----------
+    dtype : numpy.dtype
+        float64 (components as Python floats) or float32 (as ``np.float32`` scalars).
+    op : SimpleNamespace
+        `FLOATS` or `FLOATS32`.
+    sqrt : callable
+        ``math.sqrt`` or ``np.sqrt`` (a float32 scalar's, float32).
+    name : str
+        ``"float64"`` or ``"float32"``: `compiled`'s function for this kind is
+        ``getattr(f, name)`` (`formula`).
+    """
+    __slots__ = ("dtype", "op", "sqrt", "name")
+
+    def __init__(self, dtype, op, sqrt):
+        self.dtype, self.op, self.sqrt, self.name = np.dtype(dtype), op, sqrt, np.dtype(dtype).name
+
+    def formula(self, function):
+        """`compiled`'s `function` on this kind's components."""
+        return getattr(function, self.name)
+
+    def __repr__(self):
+        return f"Kind({self.name})"
+
+
+F64 = Kind(np.float64, FLOATS, math.sqrt)
+F32 = Kind(np.float32, FLOATS32, np.sqrt)
+KINDS = (F64, F32)
+
+
+def floats(q, k=4):
+    """``(components, kind)`` of one float64 or float32 quaternion (or vector), `q` of shape
+    (k,) or (1, k): `floats64`'s Python floats and `F64`, or NumPy float32 scalars and
+    `F32` (formulas then run on `FLOATS32`, compiled ones as ``F32.formula(f)``); ``(None,
+    None)`` for any other input, and for float32 components of magnitude `_BOUND32` or more.
+
+    >>> import numpy as np
+    >>> from quatarray._ops import floats
+    >>> floats(np.array([[1.0, 0, 0, 0]], np.float32))
+    ([np.float32(1.0), np.float32(0.0), np.float32(0.0), np.float32(0.0)], Kind(float32))
+    """
+    if q.size == k:
+        dtype = q.dtype
+        ndim = q.ndim
+        if dtype is _FLOAT64:
+            if ndim == 1:
+                return q.tolist(), F64
+            if ndim == 2:
+                return q.tolist()[0], F64
+        elif dtype is _FLOAT32 and 0 < ndim <= 2:
+            if ndim == 2:
+                q = q[0]
+            # indexing gives the float32 scalars, at half list(q)'s cost
+            c = [q[0], q[1], q[2], q[3]] if k == 4 else [q[i] for i in range(k)]
+            if -_BOUND32 < min(c) and max(c) < _BOUND32:
+                return c, F32
+    return None, None
+
+
+_BOUND32 = 2.0 ** 60
+"""`floats` gives float32 components below it in magnitude only: their squares and products
+of two stay far from overflow, which NumPy's float32 scalars would warn of (the block
+kernels compute them under ``np.errstate`` and rescale; the float paths' own range tests
+come after these products).  Infinities give None too; NaN, which min and max may not
+see, gives no warning and fails the float paths' range tests."""
+
+
+def to_array(values, shape, dtype=_FLOAT64):
+    """A float path's result, `values` (Python floats, or float32 scalars), as an array of
+    `shape` and `dtype` (a `Kind`'s).
 
     One row, (k,), is ``np.array``; a batch of one, (1, k), an empty array whose elements
     are assigned (half the cost of ``np.array([values])`` or of reshaping); anything else
@@ -350,9 +449,9 @@ def to_array(values, shape):
     """
     n = len(shape)
     if n == 1:
-        return np.array(values)
+        return np.array(values, dtype)
     if n == 2 and shape[0] == 1:
-        a = np.empty(shape)
+        a = np.empty(shape, dtype)
         k = len(values)
         if k == 3:
             a[0, 0], a[0, 1], a[0, 2] = values
@@ -361,4 +460,4 @@ def to_array(values, shape):
         else:
             a[0] = values
         return a
-    return np.array(values).reshape(shape)
+    return np.array(values, dtype).reshape(shape)
