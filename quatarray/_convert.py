@@ -743,21 +743,26 @@ def _tangent_rows(q, t, exact):
 
 
 def _half_turn_floats(q):
-    """`_half_turn` and `_tangent_rows` on the floats of one float64 quaternion:
-    (w, x, y, z, tan(θ/2), |v|), or None where the block kernel would rescale or find a row
-    `exact` (its own path)."""
-    c = _ops.floats64(q)
+    """`_half_turn` and `_tangent_rows` on the floats of one float64 or float32 quaternion:
+    (w, x, y, z, tan(θ/2), |v|, kind), kind its `_ops.Kind`, or None where the block kernel
+    would rescale or find a row `exact` (its own path), or, in float32, where |v|² / w²
+    overflows (float32 scalars would warn; the kernel's rows take inf there)."""
+    c, kind = _ops.floats(q)
     if c is None:
         return None
     w, x, y, z = c
     w2, v2 = w * w, (x * x + y * y) + z * z
-    if not (_LOW64 <= w2 and _LOW64 <= v2 and w2 + v2 <= _HIGH64):
+    low, high = _scale.BOUNDS[kind]
+    if not (low <= w2 and low <= v2 and w2 + v2 <= high):
         return None
-    return w, x, y, z, math.sqrt(v2 / w2), math.sqrt(v2)
+    if kind is not _ops.F64 and not float(v2) < float(w2) * _RATIO32:
+        return None
+    return w, x, y, z, kind.sqrt(v2 / w2), kind.sqrt(v2), kind
 
+
+_RATIO32 = 2.0 ** 127   # below the float32 maximum, with room for the quotient's rounding
 
 _F64 = np.dtype(np.float64)
-_LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
 
 
 def _rotvec(w, vec, tan_half, nv, factor, op, stack, o, rows):
@@ -833,12 +838,12 @@ def as_rotvec(q, degrees=False, unit=False):
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
-    if one is not None:   # one float64 rotation: the same formula on its floats
-        w, x, y, z, tan_half, nv = one   # (unpacked: a fifth of splatting with the factor)
-        v = _rotvec_floats(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
+    if one is not None:   # one float64 or float32 rotation: the same formula on its floats
+        w, x, y, z, tan_half, nv, kind = one   # (unpacked: a fifth of splatting with the factor)
+        v = kind.formula(_rotvec_floats)(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
         if q.ndim == 1:
             return np.array(v)
-        out = np.empty((1, 3))   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
+        out = np.empty((1, 3), kind.dtype)   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
         out[0, 0], out[0, 1], out[0, 2] = v
         return out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
@@ -870,10 +875,7 @@ def _powered(w, tan_half, nv, vec, n, op, stack, o, rows):
     half = op.arctan(tan_half, rows[0])
     half = op.copysign(half, w, half)
     a = op.mul(half, n, half)
-    if type(a) is float:
-        c, s = float(np.cos(a)), float(np.sin(a))
-    else:
-        c, s = np.cos(a, out=o[0]), np.sin(a, out=a)
+    c, s = op.cos(a, o[0]), op.sin(a, a)
     s = op.div(s, nv, s)   # sin(n θ/2) / |v|, with v itself the axis
     return [c, *stack.scale(vec, s, o[1:4])]
 
@@ -937,10 +939,10 @@ def rotation_power(q, n, unit=False):
         if abs(n) > top:
             raise ValueError(f"expected an exponent n of magnitude at most {top:.3g}, got {n}")
         one = _half_turn_floats(q)
-        if one is not None:   # one float64 rotation: the same formula on its floats
-            w, x, y, z, tan_half, nv = one
-            quat = _powered(w, tan_half, nv, [x, y, z], n, _ops.FLOATS, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
-            return _ops.to_array(quat, q.shape)
+        if one is not None:   # one float64 or float32 rotation: the same formula on its floats
+            w, x, y, z, tan_half, nv, kind = one
+            quat = _powered(w, tan_half, nv, [x, y, z], n, kind.op, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
+            return _ops.to_array(quat, q.shape, kind.dtype)
         out = np.empty(q.shape, q.dtype)
         _blockwise_unit(_k_power, _rows(q, 4), _rows(out, 4), unit, n=np.array(n, q.dtype))
         return out
@@ -1138,11 +1140,12 @@ def magnitude(q, unit=False):
         _k_magnitude(q.T, out[None], unit=True)
         return out
     one = _half_turn_floats(q)
-    if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
-        angle = _angle_floats(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
+    if one is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
+        kind = one[6]
+        angle = kind.formula(_angle_floats)(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
         if q.ndim == 1:
             return np.array(angle)
-        out = np.empty(1)   # q is (1, 4): an element assigned costs half of np.array([angle])
+        out = np.empty(1, kind.dtype)   # q is (1, 4): an element assigned costs half of np.array([angle])
         out[0] = angle
         return out
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)

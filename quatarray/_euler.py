@@ -218,19 +218,26 @@ def _operands(abcd, op, stack, first, third):
     return ys + xs + [op.add(u2, r2, None)]
 
 
-def _angles_floats(v, extrinsic, symmetric, sign, lamb):
-    """`_angles` on one rotation's floats, from `_operands`' seven: the three angles as a new
-    float64 array (3,), or None where the array kernel would rescale or find gimbal lock
-    (its own path, with the warning)."""
-    if not _LOW64 <= v[6] <= _HIGH64:
+def _angles_floats(v, extrinsic, symmetric, sign, lamb, kind):
+    """`_angles` on one rotation's floats (of `kind`, an `_ops.Kind`), from `_operands`'
+    seven: the three angles as a new array (3,) of its dtype, or None where the array kernel
+    would rescale or find gimbal lock (its own path, with the warning)."""
+    low, high = _scale.BOUNDS[kind]
+    if not low <= v[6] <= high:
         return None
     angles = arctan2(v[0:3], v[3:6])   # a new array (3,): the result, as the floats give it
-    mid = angles.item(1) * 2.0
-    if mid <= _GIMBAL_EPS or mid >= _PI_LOCK:
+    if kind is _ops.F64:
+        mid = m = angles.item(1) * 2.0
+        angle = angles.item
+    else:   # float32 scalars; the lock tested on the Python float, as the kernel's `_extremes`
+        mid = angles[1] * 2.0
+        m = float(mid)
+        angle = angles.__getitem__
+    if m <= _GIMBAL_EPS or m >= _PI_LOCK:
         return None
     if not symmetric:
         third = 2 if extrinsic else 0
-        mid, value = _ASYMMETRIC_FLOATS[sign](mid, angles.item(third), lamb)
+        mid, value = kind.formula(_ASYMMETRIC_FLOATS[sign])(mid, angle(third), lamb)
         if sign < 0:   # (else the third angle is arctan2's, as it stands)
             angles[third] = value
     angles[1] = mid
@@ -359,12 +366,12 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
 
 
 def _euler_floats(q, plan):
-    """`_k_as_euler` on the floats of one float64 quaternion, or None where the kernel would
-    rescale or find gimbal lock (its own path, with the warning)."""
-    comps = _ops.floats64(q)
+    """`_k_as_euler` on the floats of one float64 or float32 quaternion, or None where the
+    kernel would rescale or find gimbal lock (its own path, with the warning)."""
+    comps, kind = _ops.floats(q)
     if comps is None:
         return None
-    return _angles_floats(plan[6](*comps), plan[5], plan[3], plan[4], _HALF_PI)
+    return _angles_floats(kind.formula(plan[6])(*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
 
 
 _HALF_PI = np.pi / 2
@@ -382,8 +389,6 @@ def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     return _ops.compiled(operands, 4)
 
 
-_F64 = np.dtype(np.float64)
-_LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -446,7 +451,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
         q = quat_array(q, "quat")
     plan = _euler_plan(seq)   # which checks seq
     one = _euler_floats(q, plan)
-    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+    if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         i, j, k, symmetric, sign, extrinsic = plan[:6]
@@ -570,14 +575,14 @@ def from_davenport(axes, order, angles, degrees=False):
 
 
 def _davenport_floats(q, lmat, extrinsic, lamb, flip):
-    """`_k_davenport_angles` on the floats of one float64 quaternion, or None (as
+    """`_k_davenport_angles` on the floats of one float64 or float32 quaternion, or None (as
     `_angles_floats`)."""
-    comps = _ops.floats64(q)
+    comps, kind = _ops.floats(q)
     if comps is None:
         return None
     first, third = _FIRST_THIRD[extrinsic]
-    abcd = _davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None)
-    o = _angles_floats(_operands(abcd, _ops.FLOATS, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb)
+    abcd = _davenport_abcd(comps, lmat, kind.op, _ops.NONE, None)
+    o = _angles_floats(_operands(abcd, kind.op, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb, kind)
     if o is not None and flip:
         o[1] = -o[1]
     return o
@@ -642,7 +647,7 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     key = float_array(axes, "axes").astype(np.float64, copy=False)
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
     one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
-    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+    if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)

@@ -154,7 +154,9 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     """
     if type(y) is list:   # a few Python floats (one rotation's angles) in one call
         if _trig.SIMD_TAN:   # one binary ufunc call costs four unary ones on floats
-            return np.arctan2(y, x)   # (the lists as float64 arrays: the arrays' loop and bits)
+            return np.arctan2(y, x)   # (the lists as float64 arrays, or float32: the arrays' loop and bits)
+        if type(y[0]) is not float:   # float32 scalars: as arrays, in the array code below
+            return arctan2(np.array(y), np.array(x))
         angles = []
         for a, b in zip(y, x):   # the ratio route below, one float at a time (no call each)
             if b > 0:

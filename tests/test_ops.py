@@ -30,7 +30,7 @@ def test_compiled_formula_gives_the_floats_bits():
 def test_compiled_rotvec_is_the_formula_on_floats():
     rng = np.random.default_rng(6)
     for q in rng.standard_normal((500, 4)):
-        w, x, y, z, t, nv = _convert._half_turn_floats(q / np.linalg.norm(q))
+        w, x, y, z, t, nv, _ = _convert._half_turn_floats(q / np.linalg.norm(q))
         want = _convert._rotvec(w, [x, y, z], t, nv, 2.0, _ops.FLOATS, _ops.FLOAT_STACKS, None, _ops.NONE)
         assert _convert._rotvec_floats(w, x, y, z, t, nv, 2.0) == want
 
