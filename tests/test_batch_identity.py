@@ -426,10 +426,13 @@ def test_one_float32_quaternion_at_its_float_paths_edges():
 
 
 @pytest.mark.parametrize("shortest", [True, False])
-def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest):
-    """slerp of one float64 pair and squad of one quadruple run the formulas on floats only
-    where the block kernel takes its common path (no wide arc followed as given, t within
-    [-1, 2], |A|² + |B|² in range): the batch's bits either way."""
+@pytest.mark.parametrize("dtype, t_dtype", [(np.float64, np.float64), (np.float32, np.float64),
+                                            (np.float32, np.float32)], ids=["f64", "f32", "f32 t32"])
+def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest, dtype, t_dtype):
+    """slerp of one float64 or float32 pair and squad of one quadruple run the formulas on
+    floats only where the block kernel takes its common path (no wide arc followed as
+    given, t within [-1, 2], |A|² + |B|² in range, in float32 a sign of A·B not in doubt):
+    the batch's bits either way, for t of either float dtype."""
     rng = np.random.default_rng(12)
     n = 160
     q0 = rng.standard_normal((n, 4))
@@ -439,11 +442,16 @@ def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest):
     q1[::3] = q0[::3] + rng.standard_normal((len(q0[::3]), 4)) * 1e-9
     q1[::5] = -q0[::5]
     q1[::7] = q0[::7]
-    scale = rng.choice([1.0, 1e-200, 1e200, 3.0], (n, 1))
-    q0, q1 = q0 * scale, q1 * scale
+    r = rng.standard_normal((len(q0[1::9]), 4))   # A·B near 0 (in doubt in float32, `hemisphere`)
+    r -= np.sum(r * q0[1::9], axis=1, keepdims=True) * q0[1::9]
+    q1[1::9] = r / np.linalg.norm(r, axis=1, keepdims=True) + q0[1::9] * rng.uniform(-1e-5, 1e-5, (len(r), 1))
+    scale = rng.choice([1.0, 1e-200, 1e200, 3.0] if dtype == np.float64 else [1.0, 1e-20, 1e20, 3.0, 2.0 ** 61],
+                       (n, 1))
+    q0, q1 = (q0 * scale).astype(dtype), (q1 * scale).astype(dtype)
     a, b = np.roll(q1, 1, axis=0), np.roll(q0, 2, axis=0)
     t = rng.uniform(-1.5, 2.5, n)
     t[::4] = rng.choice([0.0, 0.5, 1.0, -1.0, 2.0], len(t[::4]))
+    t = t.astype(t_dtype)
     ops = [("slerp", lambda p, q, a, b, t: slerp(p, q, t, shortest=shortest)),
            ("squad", lambda p, q, a, b, t: squad(p, a, b, q, t))]
     with warnings.catch_warnings(), np.errstate(all="ignore"):
