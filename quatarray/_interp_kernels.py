@@ -641,8 +641,7 @@ def _slerp_floats(A, B, h, shortest, kind=_ops.F64):
         r2, rho, tau = _tangent_angle_floats(r2, b2, h)
         w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
     else:   # `slerp_weights`' float32 route, on float32 scalars
-        w0, w1 = _sine_formula(r2, b2, h, kind.op, _atan_unit32_float, _CAST_FLOATS32.mul, _FLOOR32, _TINY32,
-                               None, None, None, None)
+        w0, w1 = _sine_floats.float32(r2, b2, h)
     if shortest:
         w1 = w1 * sign
     return kind.formula(_blend_floats)(*A, *B, w0, w1)
@@ -657,7 +656,6 @@ def _atan_unit32_float(x, out=None):
 
 
 _FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
-_FLOOR32, _TINY32 = _floor(np.float32), _tiny(np.float32)                   # float32 scalars
 
 # The formulas on one pair's floats as plain Python statements (`_ops.compiled`: the same
 # operations in the same order, without a namespace call per operation)
@@ -665,6 +663,11 @@ _chords_floats = _ops.compiled(lambda op, stack, *c: _chords(list(c[:4]), list(c
 _tangent_angle_floats = _ops.compiled(
     lambda op, stack, r2, b2, h: _tangent_angle(r2, b2, h, op, op.arctan, lambda x, y: op.mul(x, y, None),
                                                 _FLOOR64, _TINY64, None, None), 3)
+_sine_floats = _ops.compiled(
+    lambda op, stack, r2, b2, h: list(_sine_formula(r2, b2, h, op, op.atan, op.times, _floor(np.float32),
+                                                    _tiny(np.float32), None, None, None, None)), 3,
+    calls={"atan": (1, None, _atan_unit32_float), "times": (2, None, lambda th, h: _CAST_FLOATS32.mul(th, h, None))})
+"""`_sine_formula` on one float32 pair's scalars ``(r², b², h)`` (its ``float32``; no float64 form)."""
 _tangent_blend_floats = _ops.compiled(
     lambda op, stack, tau, r2, rho: _tangent_blend(tau, r2, rho, op, 1.0, None, None, None), 3)
 _blend_floats = _ops.compiled(

@@ -84,15 +84,22 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
 """The same operations on Python floats; the row argument is ignored.  ``arctan`` is
 `arctan_float`, with the bits of NumPy's array loop."""
 
+def _copysign32(a, b):
+    """``np.copysign(a, b)`` of float32 scalars (|a| with b's sign bit, -0.0 included) at a
+    third of the cost of NumPy's call on scalars."""
+    return -abs(a) if math.copysign(1.0, b) < 0 else abs(a)
+
+
 FLOATS32 = SimpleNamespace(**{**vars(FLOATS), "sqrt": lambda a, out: np.sqrt(a),
-                              "copysign": lambda a, b, out: np.copysign(a, b), "rint": lambda a, out: np.rint(a),
+                              "copysign": lambda a, b, out: _copysign32(a, b), "rint": lambda a, out: np.rint(a),
                               **{name: (lambda f: lambda *args: f(*args[:-1]))(getattr(np, name))
                                  for name in ("arctan", "exp", "log", "cos", "sin", "power")}})
 """`FLOATS` on NumPy float32 scalars (``np.float32``), the four components of one float32
 quaternion: their ``+ − × ÷`` round as float32 (a Python float operand is weak, NEP 50:
-taken as float32 too), and NumPy's ufuncs on them (sqrt, copysign, arctan, exp, log, cos,
-sin, power) return float32 scalars with the float32 array loops' bits (checked with and
-without AVX-512 on samples of every magnitude, tests/test_ops.py)."""
+taken as float32 too), and NumPy's ufuncs on them (sqrt, arctan, exp, log, cos, sin,
+power) return float32 scalars with the float32 array loops' bits (checked with and
+without AVX-512 on samples of every magnitude, tests/test_ops.py); copysign is
+`_copysign32`, the same bits."""
 
 STACKS = SimpleNamespace(
     sub=lambda a, b, out: np.subtract(a, b, out=out, order="C"),
@@ -195,7 +202,7 @@ def _pairs(a, b):
     return ((a, y) for y in b)
 
 
-def compiled(formula, nargs):
+def compiled(formula, nargs, calls=None):
     """`formula` (a function ``formula(op, stack, *floats)`` written over `ARRAYS`' names,
     with no branch on values) as a plain Python function of `nargs` floats: the formula is
     run once on names, each operation recorded as the expression `FLOATS` evaluates, and
@@ -204,7 +211,12 @@ def compiled(formula, nargs):
     ``interleave``).
     The result has their and `FLOATS`' bits (the same operations on the same operands, in
     the same order) without a call per operation: a third of the cost of a single
-    rotation's formula on `FLOATS`.
+    rotation's formula on `FLOATS`.  The same source is also defined on float32 scalars
+    (`FLOATS32`' calls): the result's attribute ``float32`` (and ``float64``, itself;
+    `Kind.formula` picks one).
+
+    `calls`: further operations the formula calls as ``op.name(*args, out)``, as
+    ``{name: (number of args, function on Python floats, function on float32 scalars)}``.
 
     >>> from quatarray._ops import FLOATS, FLOAT_STACKS, compiled
     >>> def f(op, stack, a, b):
@@ -223,9 +235,7 @@ def compiled(formula, nargs):
         consts[key] = v
         return key
 
-    def emit(name):
-        template = _TEMPLATES[name]
-
+    def emit(template):
         def op(*args):
             v = _Name(f"v{len(lines)}")
             lines.append(f"    {v} = " + template.format(*map(term, args[:template.count("{")])))
@@ -235,7 +245,10 @@ def compiled(formula, nargs):
     def raise_(*args):
         raise TypeError("a compiled formula may not branch on values (where)")
 
-    trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
+    calls = calls or {}
+    templates = {**_TEMPLATES, **{name: f"_call_{name}(" + ", ".join(f"{{{i}}}" for i in range(n)) + ")"
+                                  for name, (n, *_) in calls.items()}}
+    trace = SimpleNamespace(**{name: emit(t) for name, t in templates.items()}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul", "div")}
     stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,
@@ -248,7 +261,8 @@ def compiled(formula, nargs):
         body = term(result)
     source = f"def formula({', '.join(names)}):\n" + "\n".join(lines + [f"    return {body}"])
     code = compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec")
-    function, function.float32 = (_defined(code, scope, consts) for scope in (_SCOPE64, _SCOPE32))
+    function, function.float32 = (_defined(code, {**scope, **{f"_call_{name}": fs[k] for name, (_, *fs) in calls.items()}},
+                                           consts) for k, scope in enumerate((_SCOPE64, _SCOPE32)))
     function.float64 = function
     function.source = function.float32.source = source
     return function
@@ -266,10 +280,11 @@ _SCOPE64 = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_fl
             **{f"_np_{name}": f for name, f in _NUMPY_FLOATS.items()}}
 """The calls of `compiled`'s source on Python floats (`FLOATS`')."""
 
-_SCOPE32 = {"_sqrt": np.sqrt, "_copysign": np.copysign, "_arctan": np.arctan, "_rint": np.rint,
+_SCOPE32 = {"_sqrt": np.sqrt, "_copysign": _copysign32, "_arctan": np.arctan, "_rint": np.rint,
             **{f"_np_{name}": getattr(np, name) for name in _NUMPY_FLOATS}}
-"""The same calls on float32 scalars (`FLOATS32`'): NumPy's ufuncs, returning float32
-scalars.  The formula's constants stay Python floats, weak operands taken as float32."""
+"""The same calls on float32 scalars (`FLOATS32`'): NumPy's ufuncs (copysign: its bits),
+returning float32 scalars.  The formula's constants stay Python floats, weak operands
+taken as float32."""
 
 
 NONE = (None,) * 16
@@ -420,10 +435,17 @@ def floats(q, k=4):
         elif dtype is _FLOAT32 and 0 < ndim <= 2:
             if ndim == 2:
                 q = q[0]
-            # indexing gives the float32 scalars, at half list(q)'s cost
-            c = [q[0], q[1], q[2], q[3]] if k == 4 else [q[i] for i in range(k)]
-            if -_BOUND32 < min(c) and max(c) < _BOUND32:
-                return c, F32
+            b = _BOUND32   # (tested on Python floats, NaN failing too: cheaper than on float32 scalars)
+            if k == 4:
+                w, x, y, z = q.tolist()
+                if -b < w < b and -b < x < b and -b < y < b and -b < z < b:
+                    return [q[0], q[1], q[2], q[3]], F32   # (indexing: half list(q)'s cost)
+            elif k == 3:
+                x, y, z = q.tolist()
+                if -b < x < b and -b < y < b and -b < z < b:
+                    return [q[0], q[1], q[2]], F32
+            elif all(-b < v < b for v in q.tolist()):
+                return [q[i] for i in range(k)], F32
     return None, None
 
 
@@ -431,8 +453,7 @@ _BOUND32 = 2.0 ** 60
 """`floats` gives float32 components below it in magnitude only: their squares and products
 of two stay far from overflow, which NumPy's float32 scalars would warn of (the block
 kernels compute them under ``np.errstate`` and rescale; the float paths' own range tests
-come after these products).  Infinities give None too; NaN, which min and max may not
-see, gives no warning and fails the float paths' range tests."""
+come after these products).  NaN and infinities give None too."""
 
 
 def to_array(values, shape, dtype=_FLOAT64):

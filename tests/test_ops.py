@@ -69,7 +69,8 @@ def _float32_checks():
             args = (np.abs(x),) if name in ("log", "sqrt") else (x,)
             if name in ("arctan2", "power", "copysign"):
                 args = (np.abs(x), y * np.float32(0.01)) if name == "power" else (x, y)
-            got = np.array([f(*a) for a in zip(*args)])
+            one = (lambda a, b: _ops.FLOATS32.copysign(a, b, None)) if name == "copysign" else f   # (`_copysign32`)
+            got = np.array([one(*a) for a in zip(*args)])
             if not (got.dtype == np.float32 and np.array_equal(got.view(np.int32), f(*args).view(np.int32))):
                 differ.append(name)
     f = _ops.compiled(_every_operation, 3)
