@@ -93,7 +93,9 @@ def from_quat(quat, scalar_first=False, name="quat"):
     array([0.8, 0. , 0. , 0.6])
     """
     q = quat_array(quat, "quat")
-    one, kind = _ops.floats(q)
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
     if one is not None:   # one float64 or float32 quaternion: `_kernels.normalize`'s formula on its floats
         one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3], kind)
         if one is not None:
@@ -747,20 +749,25 @@ def _half_turn_floats(q):
     (w, x, y, z, tan(θ/2), |v|, kind), kind its `_ops.Kind`, or None where the block kernel
     would rescale or find a row `exact` (its own path), or, in float32, where |v|² / w²
     overflows (float32 scalars would warn; the kernel's rows take inf there)."""
-    c, kind = _ops.floats(q)
+    c, kind = _ops.floats64(q), _ops.F64
+    if c is None:
+        c, kind = _ops.floats32(q)
     if c is None:
         return None
     w, x, y, z = c
     w2, v2 = w * w, (x * x + y * y) + z * z
-    low, high = _scale.BOUNDS[kind]
+    low, high, ratio, sqrt = _HALF_TURN[kind]
     if not (low <= w2 and low <= v2 and w2 + v2 <= high):
         return None
-    if kind is not _ops.F64 and not float(v2) < float(w2) * _RATIO32:
+    if ratio and not float(v2) < float(w2) * ratio:
         return None
-    return w, x, y, z, kind.sqrt(v2 / w2), kind.sqrt(v2), kind
+    return w, x, y, z, sqrt(v2 / w2), sqrt(v2), kind
 
 
-_RATIO32 = 2.0 ** 127   # below the float32 maximum, with room for the quotient's rounding
+_HALF_TURN = {_ops.F64: (*_scale.BOUNDS[_ops.F64], None, math.sqrt),
+              _ops.F32: (*_scale.BOUNDS[_ops.F32], 2.0 ** 127, np.sqrt)}
+"""`_half_turn_floats`' bounds of |q|², bound of |v|² / w² (float32: below its maximum, with
+room for the quotient's rounding) and square root, by `_ops.Kind`."""
 
 _F64 = np.dtype(np.float64)
 
@@ -840,7 +847,7 @@ def as_rotvec(q, degrees=False, unit=False):
     one = _half_turn_floats(q)
     if one is not None:   # one float64 or float32 rotation: the same formula on its floats
         w, x, y, z, tan_half, nv, kind = one   # (unpacked: a fifth of splatting with the factor)
-        v = kind.formula(_rotvec_floats)(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
+        v = _rotvec_floats.kinds[kind](w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
         if q.ndim == 1:
             return np.array(v)
         out = np.empty((1, 3), kind.dtype)   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
@@ -875,7 +882,10 @@ def _powered(w, tan_half, nv, vec, n, op, stack, o, rows):
     half = op.arctan(tan_half, rows[0])
     half = op.copysign(half, w, half)
     a = op.mul(half, n, half)
-    c, s = op.cos(a, o[0]), op.sin(a, a)
+    if type(a) is float:   # (a float64 rotation: NumPy's on the float, without op's calls)
+        c, s = float(np.cos(a)), float(np.sin(a))
+    else:
+        c, s = op.cos(a, o[0]), op.sin(a, a)
     s = op.div(s, nv, s)   # sin(n θ/2) / |v|, with v itself the axis
     return [c, *stack.scale(vec, s, o[1:4])]
 
@@ -1142,7 +1152,7 @@ def magnitude(q, unit=False):
     one = _half_turn_floats(q)
     if one is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
         kind = one[6]
-        angle = kind.formula(_angle_floats)(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
+        angle = _angle_floats.kinds[kind](one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
         if q.ndim == 1:
             return np.array(angle)
         out = np.empty(1, kind.dtype)   # q is (1, 4): an element assigned costs half of np.array([angle])

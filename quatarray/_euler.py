@@ -222,22 +222,21 @@ def _angles_floats(v, extrinsic, symmetric, sign, lamb, kind):
     """`_angles` on one rotation's floats (of `kind`, an `_ops.Kind`), from `_operands`'
     seven: the three angles as a new array (3,) of its dtype, or None where the array kernel
     would rescale or find gimbal lock (its own path, with the warning)."""
-    low, high = _scale.BOUNDS[kind]
+    low, high = _BOUNDS[kind]
     if not low <= v[6] <= high:
         return None
     angles = arctan2(v[0:3], v[3:6])   # a new array (3,): the result, as the floats give it
-    if kind is _ops.F64:
+    if kind is _F64:
         mid = m = angles.item(1) * 2.0
-        angle = angles.item
     else:   # float32 scalars; the lock tested on the Python float, as the kernel's `_extremes`
         mid = angles[1] * 2.0
         m = float(mid)
-        angle = angles.__getitem__
     if m <= _GIMBAL_EPS or m >= _PI_LOCK:
         return None
     if not symmetric:
         third = 2 if extrinsic else 0
-        mid, value = kind.formula(_ASYMMETRIC_FLOATS[sign])(mid, angle(third), lamb)
+        value = angles.item(third) if kind is _F64 else angles[third]
+        mid, value = _ASYMMETRIC_FLOATS[sign][kind](mid, value, lamb)
         if sign < 0:   # (else the third angle is arctan2's, as it stands)
             angles[third] = value
     angles[1] = mid
@@ -254,8 +253,9 @@ def _asymmetric(mid, third, sign, k, op, o_mid, o_third):
 
 
 _ASYMMETRIC_FLOATS = {sign: _ops.compiled(lambda op, stack, mid, third, lamb, sign=sign: list(
-    _asymmetric(mid, third, sign, (-1.0, lamb), op, None, None)), 3) for sign in (-1, 1)}
-"""`_asymmetric` on one rotation's floats ``(mid, third, λ)``, by sign (`_ops.compiled`)."""
+    _asymmetric(mid, third, sign, (-1.0, lamb), op, None, None)), 3).kinds for sign in (-1, 1)}
+"""`_asymmetric` on one rotation's floats ``(mid, third, λ)``, by sign and `_ops.Kind`
+(`_ops.compiled`)."""
 
 
 def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
@@ -345,6 +345,8 @@ def _extremes(a):
 
 _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
 _TINY64 = _TINY[np.dtype(np.float64)]
+_BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
+_F64 = _ops.F64
 
 
 def _abcd(w, qi, qj, qk, symmetric, op, rows):
@@ -368,10 +370,12 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
 def _euler_floats(q, plan):
     """`_k_as_euler` on the floats of one float64 or float32 quaternion, or None where the
     kernel would rescale or find gimbal lock (its own path, with the warning)."""
-    comps, kind = _ops.floats(q)
+    comps, kind = _ops.floats64(q), _ops.F64
+    if comps is None:
+        comps, kind = _ops.floats32(q)
     if comps is None:
         return None
-    return _angles_floats(kind.formula(plan[6])(*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
+    return _angles_floats(plan[6][kind](*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
 
 
 _HALF_PI = np.pi / 2
@@ -379,14 +383,15 @@ _HALF_PI = np.pi / 2
 
 def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
-    four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows."""
+    four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows: the
+    functions by `_ops.Kind`."""
     first, third = _FIRST_THIRD[extrinsic]
 
     def operands(op, stack, *q):
         qk = op.mul(q[k + 1], -1.0, None) if sign < 0 else q[k + 1]
         abcd = _abcd(q[0], q[i + 1], q[j + 1], qk, symmetric, op, _ops.NONE)
         return _operands(abcd, op, stack, first, third)
-    return _ops.compiled(operands, 4)
+    return _ops.compiled(operands, 4).kinds
 
 
 
@@ -577,7 +582,9 @@ def from_davenport(axes, order, angles, degrees=False):
 def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     """`_k_davenport_angles` on the floats of one float64 or float32 quaternion, or None (as
     `_angles_floats`)."""
-    comps, kind = _ops.floats(q)
+    comps, kind = _ops.floats64(q), _ops.F64
+    if comps is None:
+        comps, kind = _ops.floats32(q)
     if comps is None:
         return None
     first, third = _FIRST_THIRD[extrinsic]

@@ -621,8 +621,8 @@ def _slerp_floats(A, B, h, shortest, kind=_ops.F64):
     (|A|² + |B|² out of range, a wide arc followed as given, extrapolation beyond -1 and 2,
     non-finite input: `arcs` and the rescaled pass; in float32 also a sign of A·B in doubt,
     which `hemisphere` sums again in float64)."""
-    a2, b2 = kind.formula(_chords_floats)(*A, *B)
-    low, high = _scale.BOUNDS[kind]
+    a2, b2 = _chords_floats.kinds[kind](*A, *B)
+    low, high = _BOUNDS[kind]
     if not (low <= a2 + b2 <= high and -1.0 <= h <= 2.0):
         return None
     if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
@@ -644,7 +644,7 @@ def _slerp_floats(A, B, h, shortest, kind=_ops.F64):
         w0, w1 = _sine_floats.float32(r2, b2, h)
     if shortest:
         w1 = w1 * sign
-    return kind.formula(_blend_floats)(*A, *B, w0, w1)
+    return _blend_floats.kinds[kind](*A, *B, w0, w1)
 
 
 def _atan_unit32_float(x, out=None):
@@ -656,6 +656,7 @@ def _atan_unit32_float(x, out=None):
 
 
 _FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
+_BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
 
 # The formulas on one pair's floats as plain Python statements (`_ops.compiled`: the same
 # operations in the same order, without a namespace call per operation)
@@ -685,7 +686,11 @@ def _floats_of_one(quats, t):
     comps = []
     kind = None
     for q in quats:   # (a loop, not a generator and a comprehension: this is the cost of one call)
-        c, k = _ops.floats(q) if q.shape == shape else (None, None)
+        if q.shape != shape:
+            return None
+        c, k = _ops.floats64(q), _ops.F64
+        if c is None:
+            c, k = _ops.floats32(q)
         if c is None or (k is not kind and kind is not None):
             return None
         kind = k

@@ -11,6 +11,10 @@ not offered on floats as `math`'s; ``arctan`` has the bits of NumPy's loop (`arc
 ``exp``, ``log``, ``cos``, ``sin`` and ``power`` are NumPy's own ufuncs called on the floats.
 `compiled` turns such a formula into plain Python statements on floats, once: the same
 operations in the same order, without a call per operation.
+
+One float32 quaternion runs the same statements on NumPy float32 scalars (`floats32`,
+`FLOATS32`, a compiled formula's ``float32``): their ``+ − × ÷`` round as float32 rows
+do, and NumPy's ufuncs on a float32 scalar give the bits of its float32 array loop.
 """
 
 import functools
@@ -212,8 +216,8 @@ def compiled(formula, nargs, calls=None):
     The result has their and `FLOATS`' bits (the same operations on the same operands, in
     the same order) without a call per operation: a third of the cost of a single
     rotation's formula on `FLOATS`.  The same source is also defined on float32 scalars
-    (`FLOATS32`' calls): the result's attribute ``float32`` (and ``float64``, itself;
-    `Kind.formula` picks one).
+    (`FLOATS32`' calls): the result's attribute ``float32``; ``kinds`` maps each `Kind` to
+    its function (``f.kinds[F32] is f.float32``).
 
     `calls`: further operations the formula calls as ``op.name(*args, out)``, as
     ``{name: (number of args, function on Python floats, function on float32 scalars)}``.
@@ -261,9 +265,10 @@ def compiled(formula, nargs, calls=None):
         body = term(result)
     source = f"def formula({', '.join(names)}):\n" + "\n".join(lines + [f"    return {body}"])
     code = compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec")
-    function, function.float32 = (_defined(code, {**scope, **{f"_call_{name}": fs[k] for name, (_, *fs) in calls.items()}},
-                                           consts) for k, scope in enumerate((_SCOPE64, _SCOPE32)))
-    function.float64 = function
+    scopes = [{**scope, **{f"_call_{name}": fs[k] for name, (_, *fs) in calls.items()}}
+              for k, scope in enumerate((_SCOPE64, _SCOPE32))]
+    function, function.float32 = (_defined(code, scope, consts) for scope in scopes)
+    function.kinds = {F64: function, F32: function.float32}
     function.source = function.float32.source = source
     return function
 
@@ -392,17 +397,14 @@ class Kind:
     sqrt : callable
         ``math.sqrt`` or ``np.sqrt`` (a float32 scalar's, float32).
     name : str
-        ``"float64"`` or ``"float32"``: `compiled`'s function for this kind is
-        ``getattr(f, name)`` (`formula`).
+        ``"float64"`` or ``"float32"``.
+
+    A `compiled` formula's function for a kind is ``f.kinds[kind]``.
     """
     __slots__ = ("dtype", "op", "sqrt", "name")
 
     def __init__(self, dtype, op, sqrt):
         self.dtype, self.op, self.sqrt, self.name = np.dtype(dtype), op, sqrt, np.dtype(dtype).name
-
-    def formula(self, function):
-        """`compiled`'s `function` on this kind's components."""
-        return getattr(function, self.name)
 
     def __repr__(self):
         return f"Kind({self.name})"
@@ -413,44 +415,53 @@ F32 = Kind(np.float32, FLOATS32, np.sqrt)
 KINDS = (F64, F32)
 
 
-def floats(q, k=4):
-    """``(components, kind)`` of one float64 or float32 quaternion (or vector), `q` of shape
-    (k,) or (1, k): `floats64`'s Python floats and `F64`, or NumPy float32 scalars and
-    `F32` (formulas then run on `FLOATS32`, compiled ones as ``F32.formula(f)``); ``(None,
-    None)`` for any other input, and for float32 components of magnitude `_BOUND32` or more.
+def by_kind(make):
+    """``{kind: make(kind)}`` for both `KINDS`: a float path made once per kind, with its
+    kind's compiled formulas, ranges and calls bound (no lookups per call: a single
+    rotation's float path costs a few µs, where each lookup shows).
+
+    >>> from quatarray._ops import F32, by_kind
+    >>> by_kind(lambda kind: kind.name)[F32]
+    'float32'
+    """
+    return {kind: make(kind) for kind in KINDS}
+
+
+def floats32(q, k=4):
+    """``(components, F32)`` of one float32 quaternion (or vector), `q` of shape (k,) or
+    (1, k): `floats64` for float32, the components as NumPy float32 scalars (formulas then
+    run on `FLOATS32`, compiled ones as ``f.kinds[F32]``); ``(None, None)`` for any other
+    input, and for components of magnitude `_BOUND32` or more (or NaN).  Float paths call
+    it where `floats64` gave None, as ``one, kind = floats64(q), F64`` then ``if one is
+    None: one, kind = floats32(q)``: the float64 path pays no more than a name.
 
     >>> import numpy as np
-    >>> from quatarray._ops import floats
-    >>> floats(np.array([[1.0, 0, 0, 0]], np.float32))
+    >>> from quatarray._ops import floats32
+    >>> floats32(np.array([[1.0, 0, 0, 0]], np.float32))
     ([np.float32(1.0), np.float32(0.0), np.float32(0.0), np.float32(0.0)], Kind(float32))
     """
-    if q.size == k:
-        dtype = q.dtype
+    if q.size == k and q.dtype is _FLOAT32:
         ndim = q.ndim
-        if dtype is _FLOAT64:
-            if ndim == 1:
-                return q.tolist(), F64
-            if ndim == 2:
-                return q.tolist()[0], F64
-        elif dtype is _FLOAT32 and 0 < ndim <= 2:
-            if ndim == 2:
-                q = q[0]
-            b = _BOUND32   # (tested on Python floats, NaN failing too: cheaper than on float32 scalars)
-            if k == 4:
-                w, x, y, z = q.tolist()
-                if -b < w < b and -b < x < b and -b < y < b and -b < z < b:
-                    return [q[0], q[1], q[2], q[3]], F32   # (indexing: half list(q)'s cost)
-            elif k == 3:
-                x, y, z = q.tolist()
-                if -b < x < b and -b < y < b and -b < z < b:
-                    return [q[0], q[1], q[2]], F32
-            elif all(-b < v < b for v in q.tolist()):
-                return [q[i] for i in range(k)], F32
+        if ndim == 2:
+            q = q[0]
+        elif ndim != 1:
+            return None, None
+        b = _BOUND32   # (tested on Python floats, NaN failing too: cheaper than on float32 scalars)
+        if k == 4:
+            w, x, y, z = q.tolist()
+            if -b < w < b and -b < x < b and -b < y < b and -b < z < b:
+                return [q[0], q[1], q[2], q[3]], F32   # (indexing: half list(q)'s cost)
+        elif k == 3:
+            x, y, z = q.tolist()
+            if -b < x < b and -b < y < b and -b < z < b:
+                return [q[0], q[1], q[2]], F32
+        elif all(-b < v < b for v in q.tolist()):
+            return [q[i] for i in range(k)], F32
     return None, None
 
 
 _BOUND32 = 2.0 ** 60
-"""`floats` gives float32 components below it in magnitude only: their squares and products
+"""`floats32` gives float32 components below it in magnitude only: their squares and products
 of two stay far from overflow, which NumPy's float32 scalars would warn of (the block
 kernels compute them under ``np.errstate`` and rescale; the float paths' own range tests
 come after these products).  NaN and infinities give None too."""
@@ -470,7 +481,7 @@ def to_array(values, shape, dtype=_FLOAT64):
     """
     n = len(shape)
     if n == 1:
-        return np.array(values, dtype)
+        return np.array(values) if dtype is _FLOAT64 else np.array(values, dtype)
     if n == 2 and shape[0] == 1:
         a = np.empty(shape, dtype)
         k = len(values)
