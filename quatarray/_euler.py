@@ -165,10 +165,12 @@ def from_euler(seq, angles, degrees=False):
     if a.shape[-1] != len(axes):
         raise ValueError(f"expected angles of shape (..., {len(axes)}) for seq {seq!r}, got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
-    one = _ops.floats64(a, len(axes))
-    if one is not None:   # one float64 rotation: the same formula on its floats
-        p = _euler_quat(one, axes, intrinsic, scale, _ops.FLOATS, _ops.NONE)
-        return _ops.to_array([0.0 if v is None else v for v in p], a.shape[:-1] + (4,))
+    one, kind = _ops.floats64(a, len(axes)), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(a, len(axes))
+    if one is not None:   # one float64 or float32 rotation: the same formula on its floats
+        p = _euler_quat(one, axes, intrinsic, scale, kind.op, _ops.NONE)
+        return _ops.to_array([0.0 if v is None else v for v in p], a.shape[:-1] + (4,), kind.dtype)
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)

@@ -432,12 +432,16 @@ def frames(k0, k1, F=None, phi=None):
     n = prod(s)
     if n == 0:
         return F, phi
+    one = None
     if n == 1 and F.dtype == np.float64:   # one pair: the same formula on Python floats
         one = _frame_floats(k0.reshape(4).tolist(), k1.reshape(4).tolist())
-        if one is not None:
-            at = (slice(None),) + (0,) * len(s)
-            F[at], phi[at[1:]] = one
-            return F, phi
+    elif n == 1 and F.dtype == k0.dtype == k1.dtype == np.float32:   # or on float32 scalars
+        (c0, _), (c1, _) = _ops.floats32(k0.reshape(4)), _ops.floats32(k1.reshape(4))
+        one = None if c0 is None or c1 is None else _frame_floats(c0, c1, _ops.F32)
+    if one is not None:
+        at = (slice(None),) + (0,) * len(s)
+        F[at], phi[at[1:]] = one
+        return F, phi
     if n <= _blocks.BLOCK:   # one block: the same kernel call, without splitting
         with _blocks.scratch().frame():
             _frames_block(k0, k1, F, phi)
@@ -499,12 +503,12 @@ def _rare_rows(sc, a2, b2):
     return flags if flags.any() else None
 
 
-def _frame_floats(k0, k1):
-    """`_frame` of one float64 pair (lists of 4 floats) on floats: (F as 8 floats, phi),
-    or None where the pair is rare (the block kernel handles those)."""
-    def atan2(a, b):
-        return float(np.arctan2(a, b))   # NumPy's arctangent, as the block kernel's
-    p, phi, _, rare = _frame(k0, k1, _ops.FLOATS, _ops.FLOAT_STACKS, atan2, _rare_floats, _floor(np.float64),
+def _frame_floats(k0, k1, kind=_ops.F64):
+    """`_frame` of one pair (lists of 4 floats of `kind`, an `_ops.Kind`) on floats: (F as 8
+    floats, phi), or None where the pair is rare (the block kernel handles those)."""
+    def atan2(a, b):   # NumPy's arctangent, as the block kernel's
+        return float(np.arctan2(a, b)) if kind is _ops.F64 else np.arctan2(a, b)
+    p, phi, _, rare = _frame(k0, k1, kind.op, _ops.FLOAT_STACKS, atan2, _rare_floats, _floor(kind.dtype),
                              None, None, None, _ops.NONE)
     if rare:
         return None

@@ -69,6 +69,8 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     """
     if type(angle) is float:   # one rotation's float64 angle: the same formula
         return _cos_sin_of_tangent_floats(_trig.tan_float(angle * 0.5))
+    if type(angle) is np.float32:   # one rotation's float32 angle: NumPy's, as on rows below
+        return np.cos(angle), np.sin(angle)
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)

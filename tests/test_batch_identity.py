@@ -346,7 +346,9 @@ _FLOAT32_OPS = [
     ("magnitude", lambda x: Rotation.from_quat(x).magnitude()),
     ("Rotation as_rotvec", lambda x: Rotation.from_quat(x).as_rotvec()),
     ("Rotation pow", lambda x: Rotation.from_quat(x) ** 0.37),
-    ("Rotation as_euler", lambda x: Rotation.from_quat(x).as_euler("zyx"))]
+    ("Rotation as_euler", lambda x: Rotation.from_quat(x).as_euler("zyx")),
+    ("Rotation as_matrix", lambda x: Rotation.from_quat(x).as_matrix()),
+    ("Rotation as_mrp", lambda x: Rotation.from_quat(x).as_mrp())]
 """The methods whose one float32 quaternion runs its float path's formula on float32 scalars
 (`quatarray._ops.F32`)."""
 
@@ -366,6 +368,19 @@ def test_one_float32_element_gives_the_batchs_bits(b, span):
     check([("rotate", lambda q, v: QuatArray(q).rotate(v)),
            ("apply", lambda q, v: Rotation.from_quat(q).apply(v)),
            ("apply inverse", lambda q, v: Rotation.from_quat(q).apply(v, inverse=True))], (q, v), i)
+    r = Rotation.from_quat(q)
+    size = 10.0 ** rng.uniform(-20, 20, (len(q), 1))
+    check([("from_rotvec", lambda x: QuatArray.from_rotvec(x)),
+           ("from_rotvec degrees", lambda x: Rotation.from_rotvec(x, degrees=True))],
+          ((r.as_rotvec() * size).astype(np.float32),), i)
+    check([("from_euler", lambda x: QuatArray.from_euler("xyz", x)),
+           ("from_euler ZYZ degrees", lambda x: Rotation.from_euler("ZYZ", x, degrees=True))],
+          ((r.as_euler("xyz", suppress_warnings=True) * size ** 0.1).astype(np.float32),), i)
+    m = r.as_matrix()
+    m[::3] *= np.float32(1.00001)   # (within the orthogonality tolerance, or not: the block path's projection)
+    m[1::4] *= np.float32(1.01)
+    check([("from_matrix", lambda x: QuatArray.from_matrix(x)), ("Rotation from_matrix", lambda x: Rotation.from_matrix(x))],
+          (m,), i)
 
 
 def test_one_float32_quaternion_skips_the_block_engine(monkeypatch):
@@ -384,6 +399,23 @@ def test_one_float32_quaternion_skips_the_block_engine(monkeypatch):
             if not name.startswith(("Rotation", "magnitude", "from_quat", "power 1e16")):
                 f(x)
         QuatArray(x).rotate(v)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_track_of_one_pair_gives_the_bits_among_others(dtype):
+    """A track of one pair of keys builds its frame on the pair's floats (`frames`); the same
+    pair among other tracks, on rows: the same bits."""
+    rng = np.random.default_rng(15)
+    q = rng.standard_normal((40, 2, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q[::5, 1] = -q[::5, 0]   # (antipodal keys: no unique arc, the block kernel's rows)
+    q[1::5, 1] = q[1::5, 0]
+    q = q.astype(dtype)
+    t = np.linspace(0.0, 1.0, 7)
+    for keys in q:
+        one = Track([0.0, 1.0], keys)(t)
+        among = Track([0.0, 1.0], np.stack([keys, q[0], keys[::-1]], axis=1))(t)
+        _same(_raw(one), _raw(among)[:, 0], "track of one pair")
 
 
 def _edge_quaternions32():

@@ -97,14 +97,6 @@ def test_float32_scalars_without_avx512():
     where NumPy runs other float32 loops and `_kernels.arctan2` its ratio route: the scalar
     calls follow the loops, and one float32 rotation's Euler angles, log and power keep
     the batch's bits."""
-    import json
-    import os
-    import subprocess
-    import sys
-    env = dict(os.environ)
-    if _ops.SVML:
-        env["NPY_DISABLE_CPU_FEATURES"] = ("AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL "
-                                           "AVX512_SPR X86_V4")
     code = ("import json, numpy as np, tests.test_ops as t\n"
             "from quatarray import QuatArray, Rotation, slerp\n"
             "q = (Rotation.random(300, rng=4).as_quat(scalar_first=True)\n"
@@ -120,11 +112,26 @@ def test_float32_scalars_without_avx512():
             "    whole = np.asarray(f(Q, P))\n"
             "    report[name] = all(np.array_equal(np.asarray(f(Q[i], P[i])), whole[i]) for i in range(300))\n"
             "print(json.dumps(report))\n")
+    assert _without_avx512(code) == {"svml": False, "differ": [], "formula": True, "as_euler": True,
+                                     "as_davenport": True, "log": True, "power": True, "exp": True,
+                                     "as_rotvec": True, "slerp": True}
+
+
+def _without_avx512(code):
+    """The JSON report that Python `code` prints last, run from the repository in a new
+    process with NumPy's AVX-512 loops switched off (``NPY_DISABLE_CPU_FEATURES``, where
+    this CPU has them)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ)
+    if _ops.SVML:
+        env["NPY_DISABLE_CPU_FEATURES"] = ("AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL "
+                                           "AVX512_SPR X86_V4")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True,
                          cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    report = json.loads(out.stdout.strip().splitlines()[-1])
-    assert report == {"svml": False, "differ": [], "formula": True, "as_euler": True, "as_davenport": True,
-                      "log": True, "power": True, "exp": True, "as_rotvec": True, "slerp": True}
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def test_a_branch_on_values_cannot_be_compiled():
@@ -156,14 +163,6 @@ def test_arctan_of_a_float_without_svml(tmp_path):
     """With NumPy's AVX-512 loops switched off (``NPY_DISABLE_CPU_FEATURES``, where this CPU
     has them), NumPy's float64 arctan is the C library's atan, and `arctan_float` is
     ``math.atan`` with the same bits; as_euler of one rotation then keeps the batch's bits."""
-    import json
-    import os
-    import subprocess
-    import sys
-    env = dict(os.environ)
-    if _ops.SVML:
-        env["NPY_DISABLE_CPU_FEATURES"] = ("AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL "
-                                           "AVX512_SPR X86_V4")
     code = ("import json, numpy as np, tests.test_ops as t\n"
             "from quatarray import Rotation\n"
             "r = Rotation.random(200, rng=3)\n"
@@ -172,7 +171,4 @@ def test_arctan_of_a_float_without_svml(tmp_path):
             "report = t._arctan_checks()\n"
             "report['euler'] = bool(np.array_equal(whole, alone))\n"
             "print(json.dumps(report))\n")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True,
-                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    report = json.loads(out.stdout.strip().splitlines()[-1])
-    assert report == {"svml": False, "math": True, "same": True, "euler": True}
+    assert _without_avx512(code) == {"svml": False, "math": True, "same": True, "euler": True}
