@@ -382,13 +382,14 @@ _CAST_ROWS = SimpleNamespace(sub=lambda a, b, out: np.subtract(a, b, out=out, ca
 
 def _squad_floats(Q0, A, B, Q1, h, kind=_ops.F64):
     """`_squad_block` of one quadruple (lists of four floats of `kind`) at a float `h`, by
-    `_slerp_floats` (the block kernels' formulas on floats), or None where one of its three
+    `_SLERP_FLOATS` (the block kernels' formulas on floats), or None where one of its three
     SLERPs needs the block kernel."""
-    P = _slerp_floats(Q0, Q1, h, False, kind)
-    S = None if P is None else _slerp_floats(A, B, h, False, kind)
+    slerp = _SLERP_FLOATS[kind]
+    P = slerp(Q0, Q1, h, False)
+    S = None if P is None else slerp(A, B, h, False)
     # (2 h (1 - h) into float32 rows: each step rounded to float32, `_CAST_FLOATS32`)
     hh = squad_param(h, None, _ops.FLOATS if kind is _ops.F64 else _CAST_FLOATS32)
-    return None if S is None else _slerp_floats(P, S, hh, False, kind)
+    return None if S is None else slerp(P, S, hh, False)
 
 
 def squad_blend(P, S, h, O):
@@ -619,36 +620,37 @@ def slerp(q0, q1, t, shortest=True, check=False):
     return out, not bad
 
 
-def _slerp_floats(A, B, h, shortest, kind=_ops.F64):
-    """`slerp_core` of one pair (lists of four floats of `kind`, an `_ops.Kind`) at a float
-    `h`, on floats: the four floats, or None where the block kernel has more to do
-    (|A|² + |B|² out of range, a wide arc followed as given, extrapolation beyond -1 and 2,
-    non-finite input: `arcs` and the rescaled pass; in float32 also a sign of A·B in doubt,
-    which `hemisphere` sums again in float64)."""
-    a2, b2 = _chords_floats.kinds[kind](*A, *B)
-    low, high = _BOUNDS[kind]
-    if not (low <= a2 + b2 <= high and -1.0 <= h <= 2.0):
-        return None
-    if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
-        d = b2 - a2
-        if kind is not _ops.F64:
-            size, bound = _doubt32(a2, b2, d, kind.op, None, None)
-            if size <= bound:
-                return None
-        sign = math.copysign(1.0, d)
-        r2, b2 = min(a2, b2), max(a2, b2)
-    elif b2 < a2:
-        return None
-    else:
-        sign, r2 = 1.0, a2
-    if kind is _ops.F64:
-        r2, rho, tau = _tangent_angle_floats(r2, b2, h)
-        w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
-    else:   # `slerp_weights`' float32 route, on float32 scalars
-        w0, w1 = _sine_floats.float32(r2, b2, h)
-    if shortest:
-        w1 = w1 * sign
-    return _blend_floats.kinds[kind](*A, *B, w0, w1)
+def _slerp_floats_of(kind):
+    """`_SLERP_FLOATS`' function for `kind`."""
+    chords, blend, op = _chords_floats.kinds[kind], _blend_floats.kinds[kind], kind.op
+    low, high = _scale.BOUNDS[kind]
+    python = kind is _ops.F64
+
+    def slerp_floats(A, B, h, shortest):
+        a2, b2 = chords(*A, *B)
+        if not (low <= a2 + b2 <= high and -1.0 <= h <= 2.0):
+            return None
+        if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
+            d = b2 - a2
+            if not python:
+                size, bound = _doubt32(a2, b2, d, op, None, None)
+                if size <= bound:
+                    return None
+            sign = math.copysign(1.0, d)
+            r2, b2 = min(a2, b2), max(a2, b2)
+        elif b2 < a2:
+            return None
+        else:
+            sign, r2 = 1.0, a2
+        if python:
+            r2, rho, tau = _tangent_angle_floats(r2, b2, h)
+            w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
+        else:   # `slerp_weights`' float32 route, on float32 scalars
+            w0, w1 = _sine_floats.float32(r2, b2, h)
+        if shortest:
+            w1 = w1 * sign
+        return blend(*A, *B, w0, w1)
+    return slerp_floats
 
 
 def _atan_unit32_float(x, out=None):
@@ -660,7 +662,6 @@ def _atan_unit32_float(x, out=None):
 
 
 _FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
-_BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
 
 # The formulas on one pair's floats as plain Python statements (`_ops.compiled`: the same
 # operations in the same order, without a namespace call per operation)
@@ -677,6 +678,12 @@ _tangent_blend_floats = _ops.compiled(
     lambda op, stack, tau, r2, rho: _tangent_blend(tau, r2, rho, op, 1.0, None, None, None), 3)
 _blend_floats = _ops.compiled(
     lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], c[9], stack, _ops.NONE, None), 10)
+_SLERP_FLOATS = _ops.by_kind(_slerp_floats_of)
+"""`slerp_core` of one pair (lists of four floats) at a float h, by `_ops.Kind`: ``f(A, B, h,
+shortest)``, the four floats, or None where the block kernel has more to do (|A|² + |B|²
+out of range, a wide arc followed as given, extrapolation beyond -1 and 2, non-finite
+input: `arcs` and the rescaled pass; in float32 also a sign of A·B in doubt, which
+`hemisphere` sums again in float64)."""
 
 
 def _floats_of_one(quats, t):
@@ -684,27 +691,29 @@ def _floats_of_one(quats, t):
     quaternion each of one shape and kind, one float64 (float32 too for float32
     quaternions) `t` (its shape within theirs) as a Python float, and their `_ops.Kind`;
     or None."""
-    shape = quats[0].shape
+    first = quats[0]
+    shape = first.shape
     if t.size != 1 or t.ndim >= len(shape):
         return None
-    comps = []
-    kind = None
-    for q in quats:   # (a loop, not a generator and a comprehension: this is the cost of one call)
-        if q.shape != shape:
+    c, kind = _ops.floats64(first), _ops.F64
+    if c is None:
+        c, kind = _ops.floats32(first)
+        if c is None or t.dtype is not _F32 and t.dtype is not _F64:
             return None
-        c, k = _ops.floats64(q), _ops.F64
-        if c is None:
-            c, k = _ops.floats32(q)
-        if c is None or (k is not kind and kind is not None):
-            return None
-        kind = k
-        comps.append(c)
-    if not (t.dtype is _F64 or (t.dtype is _F32 and kind is _ops.F32)):
+    elif t.dtype is not _F64:
         return None
+    comps = [c]
+    floats = _FLOATS_OF[kind]   # (the others of the first one's kind)
+    for q in quats[1:]:   # (a loop, not a generator and a comprehension: this is the cost of one call)
+        c = floats(q) if q.shape == shape else None
+        if c is None:
+            return None
+        comps.append(c)
     return comps, t.item(0), kind
 
 
 _F64, _F32 = np.dtype(np.float64), np.dtype(np.float32)
+_FLOATS_OF = {_ops.F64: _ops.floats64, _ops.F32: lambda q: _ops.floats32(q)[0]}
 
 _CAST_FLOATS32 = SimpleNamespace(sub=lambda a, b, out: _F32.type(float(a) - float(b)),
                                  mul=lambda a, b, out: _F32.type(float(a) * float(b)))
@@ -716,13 +725,13 @@ one)."""
 
 
 def _slerp_one(q0, q1, t, shortest):
-    """`_slerp_floats` of one float64 or float32 pair at one t (`_floats_of_one`) as an
+    """`_SLERP_FLOATS` of one float64 or float32 pair at one t (`_floats_of_one`) as an
     array of their shape, or None."""
     one = _floats_of_one((q0, q1), t)
     if one is None:
         return None
     kind = one[2]
-    one = _slerp_floats(*one[0], one[1], shortest, kind)
+    one = _SLERP_FLOATS[kind](*one[0], one[1], shortest)
     return None if one is None else _ops.to_array(one, q0.shape, kind.dtype)
 
 
