@@ -93,11 +93,13 @@ def from_quat(quat, scalar_first=False, name="quat"):
     array([0.8, 0. , 0. , 0.6])
     """
     q = quat_array(quat, "quat")
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: `_kernels.normalize`'s formula on its floats
-        one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3])
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+    if one is not None:   # one float64 or float32 quaternion: `_kernels.normalize`'s formula on its floats
+        one = _kernels.normalize_floats(one if scalar_first else one[3:] + one[:3], kind)
         if one is not None:
-            return _ops.to_array(one, q.shape)
+            return _ops.to_array(one, q.shape, kind.dtype)
     if scalar_first:
         src = q if q.flags.c_contiguous else np.ascontiguousarray(q)
     else:
@@ -400,6 +402,10 @@ def as_matrix(q, unit=False):
         ndim = q.ndim
         w, x, y, z = q.tolist() if ndim == 1 else q.tolist()[0]
         return np.fromiter(_unit_matrix(w, x, y, z), _F64, 9).reshape(_MATRIX_SHAPE[ndim])
+    if unit and q.size == 4 and q.dtype is _F32 and q.ndim <= 2:   # one float32 rotation: on float32 scalars
+        c = _ops.floats32(q)[0]
+        if c is not None:
+            return np.fromiter(_unit_matrix(*c), _F32, 9).reshape(_MATRIX_SHAPE[q.ndim])
     if unit and q.ndim == 2 and 0 < len(q) <= _blocks.VIEWS_MAX:
         # a Rotation's few (up to where the block engine's copies start to pay, at about the
         # same size as for its other kernels): the plan's calls on the storage, read in place
@@ -497,20 +503,20 @@ def _k_from_matrix(mat, q, status, tol_diag, tol_off):
     np.copyto(status[0], 2, where=~((det > 0) & (det < np.inf)))
 
 
-def _from_matrix_floats(m, tol_diag, tol_off):
-    """`_k_from_matrix` on the nine floats of one float64 rotation matrix, where it finds it
-    orthogonal within the tolerances with det > 0 (status 0); else None (the block path:
-    projection, rescaling, errors)."""
-    det, worst_diag, worst_off = _orthogonality(m, _ops.FLOATS)
+def _from_matrix_floats(m, tol_diag, tol_off, kind):
+    """`_k_from_matrix` on the nine floats of one rotation matrix (of `kind`, an `_ops.Kind`),
+    where it finds it orthogonal within the tolerances with det > 0 (status 0); else None
+    (the block path: projection, rescaling, errors)."""
+    det, worst_diag, worst_off = _orthogonality(m, kind.op)
     if not (worst_diag <= tol_diag and worst_off <= tol_off and 0 < det < math.inf):
         return None
-    tr, e = _shepperd_k(m, _ops.FLOATS, _ops.NONE)
+    tr, e = _shepperd_k(m, kind.op, _ops.NONE)
     best, choice = m[0], 1
     for col, value in ((2, m[4]), (3, m[8]), (0, tr)):   # the kernel's choice, ties included
         if value > best:
             best, choice = value, col
     q = [e[i] for i in _K_INDEX[choice]]
-    n = math.sqrt(_scale.squares(q, _ops.FLOATS, None, None))
+    n = kind.sqrt(_scale.squares(q, kind.op, None, None))
     return [c / n for c in q]
 
 
@@ -623,11 +629,15 @@ def from_matrix(matrix, assume_valid=False):
     batch = m.shape[:-2]
     flat = m.reshape(-1, 9)
     n = flat.shape[0]
-    one = None if assume_valid else _ops.floats64(flat, 9)
-    if one is not None and all(map(math.isfinite, one)):   # one float64 matrix: the same formulas on its floats
-        q = _from_matrix_floats(one, 1e-5 + tol_off, tol_off)
+    one, kind = (None, None) if assume_valid else (_ops.floats64(flat, 9), _ops.F64)
+    if one is None and not assume_valid and flat.size == 9 and flat.dtype is _F32:
+        # (a float32 entry of magnitude 2 or more fails the orthogonality test anyway: then the
+        # block path, without products of three entries that might overflow and warn)
+        one, kind = _ops.floats32(flat, 9) if all(-2.0 < v < 2.0 for v in flat.ravel().tolist()) else (None, None)
+    if one is not None and all(map(math.isfinite, one)):   # one matrix: the same formulas on its floats
+        q = _from_matrix_floats(one, 1e-5 + tol_off, tol_off, kind)
         if q is not None:
-            return _ops.to_array(q, batch + (4,))
+            return _ops.to_array(q, batch + (4,), kind.dtype)
     out = np.empty(batch + (4,), m.dtype)
     qflat = out.reshape(-1, 4)
     if assume_valid:
@@ -748,21 +758,31 @@ def _tangent_rows(q, t, exact):
 
 
 def _half_turn_floats(q):
-    """`_half_turn` and `_tangent_rows` on the floats of one float64 quaternion:
-    (w, x, y, z, tan(θ/2), |v|), or None where the block kernel would rescale or find a row
-    `exact` (its own path)."""
-    c = _ops.floats64(q)
+    """`_half_turn` and `_tangent_rows` on the floats of one float64 or float32 quaternion:
+    (w, x, y, z, tan(θ/2), |v|, kind), kind its `_ops.Kind`, or None where the block kernel
+    would rescale or find a row `exact` (its own path), or, in float32, where |v|² / w²
+    overflows (float32 scalars would warn; the kernel's rows take inf there)."""
+    c, kind = _ops.floats64(q), _ops.F64
+    if c is None:
+        c, kind = _ops.floats32(q)
     if c is None:
         return None
     w, x, y, z = c
     w2, v2 = w * w, (x * x + y * y) + z * z
-    if not (_LOW64 <= w2 and _LOW64 <= v2 and w2 + v2 <= _HIGH64):
+    low, high, ratio, sqrt = _HALF_TURN[kind]
+    if not (low <= w2 and low <= v2 and w2 + v2 <= high):
         return None
-    return w, x, y, z, math.sqrt(v2 / w2), math.sqrt(v2)
+    if ratio and not float(v2) < float(w2) * ratio:
+        return None
+    return w, x, y, z, sqrt(v2 / w2), sqrt(v2), kind
 
 
-_F64 = np.dtype(np.float64)
-_LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
+_HALF_TURN = {_ops.F64: (*_scale.BOUNDS[_ops.F64], None, math.sqrt),
+              _ops.F32: (*_scale.BOUNDS[_ops.F32], 2.0 ** 127, np.sqrt)}
+"""`_half_turn_floats`' bounds of |q|², bound of |v|² / w² (float32: below its maximum, with
+room for the quotient's rounding) and square root, by `_ops.Kind`."""
+
+_F64, _F32 = np.dtype(np.float64), np.dtype(np.float32)
 
 
 def _rotvec(w, vec, tan_half, nv, factor, op, stack, o, rows):
@@ -838,12 +858,12 @@ def as_rotvec(q, degrees=False, unit=False):
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
-    if one is not None:   # one float64 rotation: the same formula on its floats
-        w, x, y, z, tan_half, nv = one   # (unpacked: a fifth of splatting with the factor)
-        v = _rotvec_floats(w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
+    if one is not None:   # one float64 or float32 rotation: the same formula on its floats
+        w, x, y, z, tan_half, nv, kind = one   # (unpacked: a fifth of splatting with the factor)
+        v = _rotvec_floats.kinds[kind](w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
         if q.ndim == 1:
             return np.array(v)
-        out = np.empty((1, 3))   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
+        out = np.empty((1, 3), kind.dtype)   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
         out[0, 0], out[0, 1], out[0, 2] = v
         return out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
@@ -875,10 +895,10 @@ def _powered(w, tan_half, nv, vec, n, op, stack, o, rows):
     half = op.arctan(tan_half, rows[0])
     half = op.copysign(half, w, half)
     a = op.mul(half, n, half)
-    if type(a) is float:
+    if type(a) is float:   # (a float64 rotation: NumPy's on the float, without op's calls)
         c, s = float(np.cos(a)), float(np.sin(a))
     else:
-        c, s = np.cos(a, out=o[0]), np.sin(a, out=a)
+        c, s = op.cos(a, o[0]), op.sin(a, a)
     s = op.div(s, nv, s)   # sin(n θ/2) / |v|, with v itself the axis
     return [c, *stack.scale(vec, s, o[1:4])]
 
@@ -942,10 +962,10 @@ def rotation_power(q, n, unit=False):
         if abs(n) > top:
             raise ValueError(f"expected an exponent n of magnitude at most {top:.3g}, got {n}")
         one = _half_turn_floats(q)
-        if one is not None:   # one float64 rotation: the same formula on its floats
-            w, x, y, z, tan_half, nv = one
-            quat = _powered(w, tan_half, nv, [x, y, z], n, _ops.FLOATS, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
-            return _ops.to_array(quat, q.shape)
+        if one is not None:   # one float64 or float32 rotation: the same formula on its floats
+            w, x, y, z, tan_half, nv, kind = one
+            quat = _powered(w, tan_half, nv, [x, y, z], n, kind.op, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
+            return _ops.to_array(quat, q.shape, kind.dtype)
         out = np.empty(q.shape, q.dtype)
         _blockwise_unit(_k_power, _rows(q, 4), _rows(out, 4), unit, n=np.array(n, q.dtype))
         return out
@@ -1027,11 +1047,13 @@ def _rotvec_quat(r, theta, factor, e, op, stack, q, rows, most=None):
     _, t, u, v, c, d = rows[:6]
     if factor != 1.0:
         theta = op.mul(theta, factor, theta)
-    floor = ANGLE_FLOOR[np.dtype(np.float64)]
-    theta = op.max(theta, floor if type(theta) is float else _ops.row(ANGLE_FLOOR[theta.dtype], theta.dtype,
-                                                                          theta.shape), theta)
+    if type(theta) is np.ndarray:
+        floor = _ops.row(ANGLE_FLOOR[theta.dtype], theta.dtype, theta.shape)
+    else:   # one rotation's Python float or float32 scalar
+        floor = ANGLE_FLOOR[_F64 if type(theta) is float else _F32]
+    theta = op.max(theta, floor, theta)
     t = op.mul(theta, 0.5, t)
-    bounds = None if most is None else (0.0, math.nextafter(max(most * factor, floor) * 0.5, math.inf))
+    bounds = None if most is None else (0.0, math.nextafter(max(most * factor, ANGLE_FLOOR[_F64]) * 0.5, math.inf))
     c, d = _cos_sin(t, c, d, (u, v), bounds)     # cos(θ/2), sin(θ/2)
     q0 = op.copy(c, q0)
     # sin(θ/2) / θ, times the degree factor that converts v itself
@@ -1084,11 +1106,13 @@ def from_rotvec(rotvec, degrees=False):
     """
     v = _vec3(rotvec, "rotvec")   # finiteness: found by the norms' range check (the kernel's, or n2 here)
     factor = np.pi / 180.0 if degrees else 1.0
-    one = _ops.floats64(v, 3)
-    n2 = None if one is None else _scale.squares(one, _ops.FLOATS, None, None)
-    if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one float64 vector that `true_norm` keeps
-        q = _rotvec_quat(one, math.sqrt(n2), factor, None, _ops.FLOATS, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
-        return _ops.to_array(q, v.shape[:-1] + (4,))
+    one, kind = _ops.floats64(v, 3), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(v, 3)
+    n2 = None if one is None else _scale.squares(one, kind.op, None, None)
+    if n2 is not None and n2 <= _scale.HIGH[v.dtype]:   # one vector that `true_norm` keeps
+        q = _rotvec_quat(one, kind.sqrt(n2), factor, None, kind.op, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
+        return _ops.to_array(q, v.shape[:-1] + (4,), kind.dtype)
     out = np.empty(v.shape[:-1] + (4,), v.dtype)
     try:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # huge vectors: handled
@@ -1143,11 +1167,12 @@ def magnitude(q, unit=False):
         _k_magnitude(q.T, (out,), unit=True)
         return out
     one = _half_turn_floats(q)
-    if one is not None:   # one float64 rotation: `_k_magnitude` on its floats
-        angle = _angle_floats(one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
+    if one is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
+        kind = one[6]
+        angle = _angle_floats.kinds[kind](one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
         if q.ndim == 1:
             return np.array(angle)
-        out = np.empty(1)   # q is (1, 4): an element assigned costs half of np.array([angle])
+        out = np.empty(1, kind.dtype)   # q is (1, 4): an element assigned costs half of np.array([angle])
         out[0] = angle
         return out
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)
@@ -1192,6 +1217,10 @@ def _unit_mrp(q):
     w = _ops.first64(q)
     if w is not None:   # one float64 rotation: the denominator on its float, v over it in one call
         return np.divide(q[..., 1:], _mrp_denominator_floats(w))
+    if q.size == 4 and q.dtype is _F32:   # one float32 rotation: the same on its float32 scalar w
+        c = _ops.floats32(q)[0]
+        if c is not None:
+            return np.divide(q[..., 1:], _mrp_denominator_floats.float32(c[0]))
     if q.ndim == 2:
         n = len(q)
         if n <= _MRP_NEW_ROWS:   # a few rows as stored: into a new array
@@ -1321,7 +1350,7 @@ def from_mrp(mrp):
     array([0., 0., 0., 1.])
     """
     p = _vec3(mrp, "mrp")   # finiteness: found by the kernel's range check of |p|² (or n here)
-    one = _ops.floats64(p, 3)
+    one = _ops.floats64(p, 3)   # (float32: the rows' kernel on one MRP is as fast, 3 µs)
     if one is not None:
         x, y, z = one
         n = x * x + y * y + z * z   # the kernel's |p|², in its order

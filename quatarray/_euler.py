@@ -184,10 +184,12 @@ def from_euler(seq, angles, degrees=False):
     axes, intrinsic = check_seq(seq)
     a = check_angles(seq, finite(float_array(angles, "angles"), "angles"))
     scale = np.pi / 720.0 if degrees else 0.25
-    one = _ops.floats64(a, len(axes))
-    if one is not None:   # one float64 rotation: the same formula on its floats
-        p = _euler_quat(one, axes, intrinsic, scale, _ops.FLOATS, _ops.NONE)
-        return _ops.to_array([0.0 if v is None else v for v in p], a.shape[:-1] + (4,))
+    one, kind = _ops.floats64(a, len(axes)), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(a, len(axes))
+    if one is not None:   # one float64 or float32 rotation: the same formula on its floats
+        p = _euler_quat(one, axes, intrinsic, scale, kind.op, _ops.NONE)
+        return _ops.to_array([0.0 if v is None else v for v in p], a.shape[:-1] + (4,), kind.dtype)
     out = np.empty(a.shape[:-1] + (4,), a.dtype)
     _blockwise(_k_from_euler, [a.reshape(-1, len(axes))], [out.reshape(-1, 4)],
                axes=axes, intrinsic=intrinsic, scale=scale)
@@ -237,19 +239,25 @@ def _operands(abcd, op, stack, first, third):
     return ys + xs + [op.add(u2, r2, None)]
 
 
-def _angles_floats(v, extrinsic, symmetric, sign, lamb):
-    """`_angles` on one rotation's floats, from `_operands`' seven: the three angles as a new
-    float64 array (3,), or None where the array kernel would rescale or find gimbal lock
-    (its own path, with the warning)."""
-    if not _LOW64 <= v[6] <= _HIGH64:
+def _angles_floats(v, extrinsic, symmetric, sign, lamb, kind):
+    """`_angles` on one rotation's floats (of `kind`, an `_ops.Kind`), from `_operands`'
+    seven: the three angles as a new array (3,) of its dtype, or None where the array kernel
+    would rescale or find gimbal lock (its own path, with the warning)."""
+    low, high = _BOUNDS[kind]
+    if not low <= v[6] <= high:
         return None
     angles = arctan2(v[0:3], v[3:6])   # a new array (3,): the result, as the floats give it
-    mid = angles.item(1) * 2.0
-    if mid <= _GIMBAL_EPS or mid >= _PI_LOCK:
+    if kind is _F64:
+        mid = m = angles.item(1) * 2.0
+    else:   # float32 scalars; the lock tested on the Python float, as the kernel's `_extremes`
+        mid = angles[1] * 2.0
+        m = float(mid)
+    if m <= _GIMBAL_EPS or m >= _PI_LOCK:
         return None
     if not symmetric:
         third = 2 if extrinsic else 0
-        mid, value = _ASYMMETRIC_FLOATS[sign](mid, angles.item(third), lamb)
+        value = angles.item(third) if kind is _F64 else angles[third]
+        mid, value = _ASYMMETRIC_FLOATS[sign][kind](mid, value, lamb)
         if sign < 0:   # (else the third angle is arctan2's, as it stands)
             angles[third] = value
     angles[1] = mid
@@ -266,8 +274,9 @@ def _asymmetric(mid, third, sign, k, op, o_mid, o_third):
 
 
 _ASYMMETRIC_FLOATS = {sign: _ops.compiled(lambda op, stack, mid, third, lamb, sign=sign: list(
-    _asymmetric(mid, third, sign, (-1.0, lamb), op, None, None)), 3) for sign in (-1, 1)}
-"""`_asymmetric` on one rotation's floats ``(mid, third, λ)``, by sign (`_ops.compiled`)."""
+    _asymmetric(mid, third, sign, (-1.0, lamb), op, None, None)), 3).kinds for sign in (-1, 1)}
+"""`_asymmetric` on one rotation's floats ``(mid, third, λ)``, by sign and `_ops.Kind`
+(`_ops.compiled`)."""
 
 
 def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
@@ -357,6 +366,8 @@ def _extremes(a):
 
 _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
 _TINY64 = _TINY[np.dtype(np.float64)]
+_BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
+_F64 = _ops.F64
 
 
 def _abcd(w, qi, qj, qk, symmetric, op, rows):
@@ -378,12 +389,14 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
 
 
 def _euler_floats(q, plan):
-    """`_k_as_euler` on the floats of one float64 quaternion, or None where the kernel would
-    rescale or find gimbal lock (its own path, with the warning)."""
-    comps = _ops.floats64(q)
+    """`_k_as_euler` on the floats of one float64 or float32 quaternion, or None where the
+    kernel would rescale or find gimbal lock (its own path, with the warning)."""
+    comps, kind = _ops.floats64(q), _ops.F64
+    if comps is None:
+        comps, kind = _ops.floats32(q)
     if comps is None:
         return None
-    return _angles_floats(plan[6](*comps), plan[5], plan[3], plan[4], _HALF_PI)
+    return _angles_floats(plan[6][kind](*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
 
 
 _HALF_PI = np.pi / 2
@@ -391,18 +404,17 @@ _HALF_PI = np.pi / 2
 
 def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
-    four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows."""
+    four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows: the
+    functions by `_ops.Kind`."""
     first, third = _FIRST_THIRD[extrinsic]
 
     def operands(op, stack, *q):
         qk = op.mul(q[k + 1], -1.0, None) if sign < 0 else q[k + 1]
         abcd = _abcd(q[0], q[i + 1], q[j + 1], qk, symmetric, op, _ops.NONE)
         return _operands(abcd, op, stack, first, third)
-    return _ops.compiled(operands, 4)
+    return _ops.compiled(operands, 4).kinds
 
 
-_F64 = np.dtype(np.float64)
-_LOW64, _HIGH64 = _scale.LOW[_F64], _scale.HIGH[_F64]
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -465,7 +477,7 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
         q = quat_array(q, "quat")
     plan = _euler_plan(seq)   # which checks seq
     one = _euler_floats(q, plan)
-    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+    if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         i, j, k, symmetric, sign, extrinsic = plan[:6]
@@ -589,14 +601,16 @@ def from_davenport(axes, order, angles, degrees=False):
 
 
 def _davenport_floats(q, lmat, extrinsic, lamb, flip):
-    """`_k_davenport_angles` on the floats of one float64 quaternion, or None (as
+    """`_k_davenport_angles` on the floats of one float64 or float32 quaternion, or None (as
     `_angles_floats`)."""
-    comps = _ops.floats64(q)
+    comps, kind = _ops.floats64(q), _ops.F64
+    if comps is None:
+        comps, kind = _ops.floats32(q)
     if comps is None:
         return None
     first, third = _FIRST_THIRD[extrinsic]
-    abcd = _davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None)
-    o = _angles_floats(_operands(abcd, _ops.FLOATS, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb)
+    abcd = _davenport_abcd(comps, lmat, kind.op, _ops.NONE, None)
+    o = _angles_floats(_operands(abcd, kind.op, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb, kind)
     if o is not None and flip:
         o[1] = -o[1]
     return o
@@ -661,7 +675,7 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     key = float_array(axes, "axes").astype(np.float64, copy=False)
     lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
     one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
-    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+    if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         out = np.empty(q.shape[:-1] + (3,), q.dtype)

@@ -141,21 +141,29 @@ def _sine_weights(r2, b2, h, w0, th, s2, w1):
     `_trig.atan_unit32` (NumPy's float32 arcsin and arctan are scalar loops on
     AVX2; benchmarks/README.md)."""
     dtype = r2.dtype
-    np.maximum(b2, _ops.row(_floor(dtype), dtype, b2.shape), out=b2)
-    np.divide(r2, b2, out=s2)
-    np.sqrt(s2, out=s2)
-    atan_unit32(s2, th, r2, b2, w0)           # r2, b2 and w0 are not needed again
-    np.maximum(th, _ops.row(_tiny(dtype), dtype, th.shape), out=th)   # sin(2hθ) / sin(2θ) -> h at θ = 0
-    th *= 2                                   # Ω
-    np.sin(th, out=s2)
-    np.divide(1, s2, out=s2)                  # 1 / sin Ω
-    np.multiply(th, h, out=w1, casting="unsafe")
-    np.subtract(th, w1, out=w0)               # (1 - h) Ω
-    np.sin(w1, out=w1)
-    np.sin(w0, out=w0)
-    w1 *= s2
-    w0 *= s2
-    return w0, w1
+    return _sine_formula(r2, b2, h, _ops.ARRAYS, lambda x, out: atan_unit32(x, out, r2, b2, w0), _CAST_ROWS.mul,
+                         _ops.row(_floor(dtype), dtype, b2.shape), _ops.row(_tiny(dtype), dtype, th.shape),
+                         w0, th, s2, w1)
+
+
+def _sine_formula(r2, b2, h, op, atan, times, floor, tiny, w0, th, s2, w1):
+    """`_sine_weights`' formula, written once, in `op`'s arithmetic with the arctangent
+    ``atan(x, out)`` of x in [0, 1] (`atan_unit32`'s), ``times(th, h, out)``: th·h rounded
+    to th's dtype (h of any float dtype), and the floors `floor`, `tiny` of b² and θ; into
+    the rows `w0`, `th`, `s2`, `w1` (r2 and b2 are overwritten).  Returns (w0, w1)."""
+    b2 = op.max(b2, floor, b2)
+    s2 = op.div(r2, b2, s2)
+    s2 = op.sqrt(s2, s2)
+    th = atan(s2, th)                         # (rows: r2, b2 and w0 are not needed again)
+    th = op.max(th, tiny, th)                 # sin(2hθ) / sin(2θ) -> h at θ = 0
+    th = op.mul(th, 2.0, th)                  # Ω
+    s2 = op.sin(th, s2)
+    s2 = op.div(1.0, s2, s2)                  # 1 / sin Ω
+    w1 = times(th, h, w1)
+    w0 = op.sub(th, w1, w0)                   # (1 - h) Ω
+    w1 = op.sin(w1, w1)
+    w0 = op.sin(w0, w0)
+    return op.mul(w0, s2, w0), op.mul(w1, s2, w1)
 
 
 def _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2):
@@ -222,9 +230,7 @@ def hemisphere(A, B, a2, b2, out):
     np.subtract(b2, a2, out=out)
     if out.dtype == np.float32:   # (in scratch rows: four fresh block-sized temporaries cost page faults)
         bound, size = _rows(2, out.shape, out.dtype)
-        np.add(a2, b2, out=bound)
-        bound *= _UNSURE32
-        unsure = np.less_equal(np.absolute(out, out=size), bound)
+        unsure = np.less_equal(*_doubt32(a2, b2, out, _ops.ARRAYS, size, bound))
         if unsure.any():
             s = out.shape
             at = _where(unsure)
@@ -236,6 +242,14 @@ def hemisphere(A, B, a2, b2, out):
 
 #: |b² - a²| below this times a² + b² leaves the float32 sign of A·B in doubt.
 _UNSURE32 = np.float32(64 * np.finfo(np.float32).eps)
+
+
+def _doubt32(a2, b2, d, op, size, bound):
+    """(|d|, (a² + b²) `_UNSURE32`) for d = b² - a² in float32, in `op`'s arithmetic (into
+    the rows `size`, `bound`): the sign of A·B is in doubt where the first is at most the
+    second (`hemisphere`)."""
+    bound = op.add(a2, b2, bound)
+    return op.abs(d, size), op.mul(bound, _UNSURE32, bound)
 
 
 def _where(mask):
@@ -366,13 +380,16 @@ _CAST_ROWS = SimpleNamespace(sub=lambda a, b, out: np.subtract(a, b, out=out, ca
 """`_ops.ARRAYS`' operations into rows of another float dtype than an operand's."""
 
 
-def _squad_floats(Q0, A, B, Q1, h):
-    """`_squad_block` of one float64 quadruple (lists of four floats) at a float `h`, by
-    `_slerp_floats` (the block kernels' formulas on floats), or None where one of its three
+def _squad_floats(Q0, A, B, Q1, h, kind=_ops.F64):
+    """`_squad_block` of one quadruple (lists of four floats of `kind`) at a float `h`, by
+    `_SLERP_FLOATS` (the block kernels' formulas on floats), or None where one of its three
     SLERPs needs the block kernel."""
-    P = _slerp_floats(Q0, Q1, h, False)
-    S = None if P is None else _slerp_floats(A, B, h, False)
-    return None if S is None else _slerp_floats(P, S, squad_param(h, None, _ops.FLOATS), False)
+    slerp = _SLERP_FLOATS[kind]
+    P = slerp(Q0, Q1, h, False)
+    S = None if P is None else slerp(A, B, h, False)
+    # (2 h (1 - h) into float32 rows: each step rounded to float32, `_CAST_FLOATS32`)
+    hh = squad_param(h, None, _ops.FLOATS if kind is _ops.F64 else _CAST_FLOATS32)
+    return None if S is None else slerp(P, S, hh, False)
 
 
 def squad_blend(P, S, h, O):
@@ -416,12 +433,16 @@ def frames(k0, k1, F=None, phi=None):
     n = prod(s)
     if n == 0:
         return F, phi
+    one = None
     if n == 1 and F.dtype == np.float64:   # one pair: the same formula on Python floats
         one = _frame_floats(k0.reshape(4).tolist(), k1.reshape(4).tolist())
-        if one is not None:
-            at = (slice(None),) + (0,) * len(s)
-            F[at], phi[at[1:]] = one
-            return F, phi
+    elif n == 1 and F.dtype == k0.dtype == k1.dtype == np.float32:   # or on float32 scalars
+        (c0, _), (c1, _) = _ops.floats32(k0.reshape(4)), _ops.floats32(k1.reshape(4))
+        one = None if c0 is None or c1 is None else _frame_floats(c0, c1, _ops.F32)
+    if one is not None:
+        at = (slice(None),) + (0,) * len(s)
+        F[at], phi[at[1:]] = one
+        return F, phi
     if n <= _blocks.BLOCK:   # one block: the same kernel call, without splitting
         with _blocks.scratch().frame():
             _frames_block(k0, k1, F, phi)
@@ -483,12 +504,12 @@ def _rare_rows(sc, a2, b2):
     return flags if flags.any() else None
 
 
-def _frame_floats(k0, k1):
-    """`_frame` of one float64 pair (lists of 4 floats) on floats: (F as 8 floats, phi),
-    or None where the pair is rare (the block kernel handles those)."""
-    def atan2(a, b):
-        return float(np.arctan2(a, b))   # NumPy's arctangent, as the block kernel's
-    p, phi, _, rare = _frame(k0, k1, _ops.FLOATS, _ops.FLOAT_STACKS, atan2, _rare_floats, _floor(np.float64),
+def _frame_floats(k0, k1, kind=_ops.F64):
+    """`_frame` of one pair (lists of 4 floats of `kind`, an `_ops.Kind`) on floats: (F as 8
+    floats, phi), or None where the pair is rare (the block kernel handles those)."""
+    def atan2(a, b):   # NumPy's arctangent, as the block kernel's
+        return float(np.arctan2(a, b)) if kind is _ops.F64 else np.arctan2(a, b)
+    p, phi, _, rare = _frame(k0, k1, kind.op, _ops.FLOAT_STACKS, atan2, _rare_floats, _floor(kind.dtype),
                              None, None, None, _ops.NONE)
     if rare:
         return None
@@ -599,29 +620,47 @@ def slerp(q0, q1, t, shortest=True, check=False):
     return out, not bad
 
 
-def _slerp_floats(A, B, h, shortest):
-    """`slerp_core` of one float64 pair (lists of four floats) at a float `h`, on floats: the
-    four floats, or None where the block kernel has more to do (|A|² + |B|² out of range,
-    a wide arc followed as given, extrapolation beyond -1 and 2, non-finite input: `arcs`
-    and the rescaled pass)."""
-    a2, b2 = _chords_floats(*A, *B)
-    if not (_LOW64 <= a2 + b2 <= _HIGH64 and -1.0 <= h <= 2.0):
-        return None
-    if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
-        sign = math.copysign(1.0, b2 - a2)
-        r2, b2 = min(a2, b2), max(a2, b2)
-    elif b2 < a2:
-        return None
-    else:
-        sign, r2 = 1.0, a2
-    r2, rho, tau = _tangent_angle_floats(r2, b2, h)
-    w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
-    if shortest:
-        w1 = w1 * sign
-    return _blend_floats(*A, *B, w0, w1)
+def _slerp_floats_of(kind):
+    """`_SLERP_FLOATS`' function for `kind`."""
+    chords, blend, op = _chords_floats.kinds[kind], _blend_floats.kinds[kind], kind.op
+    low, high = _scale.BOUNDS[kind]
+    python = kind is _ops.F64
+
+    def slerp_floats(A, B, h, shortest):
+        a2, b2 = chords(*A, *B)
+        if not (low <= a2 + b2 <= high and -1.0 <= h <= 2.0):
+            return None
+        if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
+            d = b2 - a2
+            if not python:
+                size, bound = _doubt32(a2, b2, d, op, None, None)
+                if size <= bound:
+                    return None
+            sign = math.copysign(1.0, d)
+            r2, b2 = min(a2, b2), max(a2, b2)
+        elif b2 < a2:
+            return None
+        else:
+            sign, r2 = 1.0, a2
+        if python:
+            r2, rho, tau = _tangent_angle_floats(r2, b2, h)
+            w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
+        else:   # `slerp_weights`' float32 route, on float32 scalars
+            w0, w1 = _sine_floats.float32(r2, b2, h)
+        if shortest:
+            w1 = w1 * sign
+        return blend(*A, *B, w0, w1)
+    return slerp_floats
 
 
-_LOW64, _HIGH64 = (_scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)])
+def _atan_unit32_float(x, out=None):
+    """`atan_unit32` of one float32 scalar: NumPy's arctan where that is the rows' (AVX-512),
+    else the rows' code on an array of one."""
+    if SIMD_TAN:
+        return np.arctan(x)
+    return atan_unit32(np.array([x]), *np.empty((4, 1), np.float32))[0]
+
+
 _FLOOR64, _TINY64 = float(_floor(np.float64)), float(_tiny(np.float64))   # Python floats: float arithmetic
 
 # The formulas on one pair's floats as plain Python statements (`_ops.compiled`: the same
@@ -630,33 +669,70 @@ _chords_floats = _ops.compiled(lambda op, stack, *c: _chords(list(c[:4]), list(c
 _tangent_angle_floats = _ops.compiled(
     lambda op, stack, r2, b2, h: _tangent_angle(r2, b2, h, op, op.arctan, lambda x, y: op.mul(x, y, None),
                                                 _FLOOR64, _TINY64, None, None), 3)
+_sine_floats = _ops.compiled(
+    lambda op, stack, r2, b2, h: list(_sine_formula(r2, b2, h, op, op.atan, op.times, _floor(np.float32),
+                                                    _tiny(np.float32), None, None, None, None)), 3,
+    calls={"atan": (1, None, _atan_unit32_float), "times": (2, None, lambda th, h: _CAST_FLOATS32.mul(th, h, None))})
+"""`_sine_formula` on one float32 pair's scalars ``(r², b², h)`` (its ``float32``; no float64 form)."""
 _tangent_blend_floats = _ops.compiled(
     lambda op, stack, tau, r2, rho: _tangent_blend(tau, r2, rho, op, 1.0, None, None, None), 3)
 _blend_floats = _ops.compiled(
     lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], c[9], stack, _ops.NONE, None), 10)
+_SLERP_FLOATS = _ops.by_kind(_slerp_floats_of)
+"""`slerp_core` of one pair (lists of four floats) at a float h, by `_ops.Kind`: ``f(A, B, h,
+shortest)``, the four floats, or None where the block kernel has more to do (|A|² + |B|²
+out of range, a wide arc followed as given, extrapolation beyond -1 and 2, non-finite
+input: `arcs` and the rescaled pass; in float32 also a sign of A·B in doubt, which
+`hemisphere` sums again in float64)."""
 
 
 def _floats_of_one(quats, t):
-    """The float paths' operands: the four floats of each of `quats`, one float64 quaternion
-    each of one shape, and one float64 `t` (its shape within theirs) as a float; or None."""
-    shape = quats[0].shape
-    if t.size != 1 or t.ndim >= len(shape) or t.dtype != np.float64:
+    """The float paths' operands: the four floats of each of `quats`, one float64 or float32
+    quaternion each of one shape and kind, one float64 (float32 too for float32
+    quaternions) `t` (its shape within theirs) as a Python float, and their `_ops.Kind`;
+    or None."""
+    first = quats[0]
+    shape = first.shape
+    if t.size != 1 or t.ndim >= len(shape):
         return None
-    comps = []
-    for q in quats:   # (a loop, not a generator and a comprehension: this is the cost of one call)
-        c = _ops.floats64(q) if q.shape == shape else None
+    c, kind = _ops.floats64(first), _ops.F64
+    if c is None:
+        c, kind = _ops.floats32(first)
+        if c is None or t.dtype is not _F32 and t.dtype is not _F64:
+            return None
+    elif t.dtype is not _F64:
+        return None
+    comps = [c]
+    floats = _FLOATS_OF[kind]   # (the others of the first one's kind)
+    for q in quats[1:]:   # (a loop, not a generator and a comprehension: this is the cost of one call)
+        c = floats(q) if q.shape == shape else None
         if c is None:
             return None
         comps.append(c)
-    return comps, t.item(0)
+    return comps, t.item(0), kind
+
+
+_F64, _F32 = np.dtype(np.float64), np.dtype(np.float32)
+_FLOATS_OF = {_ops.F64: _ops.floats64, _ops.F32: lambda q: _ops.floats32(q)[0]}
+
+_CAST_FLOATS32 = SimpleNamespace(sub=lambda a, b, out: _F32.type(float(a) - float(b)),
+                                 mul=lambda a, b, out: _F32.type(float(a) * float(b)))
+"""`_CAST_ROWS` on one float32 quaternion's floats: ``a - b`` and ``a * b`` (Python floats,
+or float32 or float64 values) rounded to a float32 scalar, as the rows' float64 or float32
+operation cast into a float32 row (float64 holds a float32 product exactly, and the
+rounding of a difference twice, to float64 and then float32, is the correctly rounded
+one)."""
 
 
 def _slerp_one(q0, q1, t, shortest):
-    """`_slerp_floats` of one float64 pair at one float64 t (`_floats_of_one`) as an array of
-    their shape, or None."""
+    """`_SLERP_FLOATS` of one float64 or float32 pair at one t (`_floats_of_one`) as an
+    array of their shape, or None."""
     one = _floats_of_one((q0, q1), t)
-    one = None if one is None else _slerp_floats(*one[0], one[1], shortest)
-    return None if one is None else _ops.to_array(one, q0.shape)
+    if one is None:
+        return None
+    kind = one[2]
+    one = _SLERP_FLOATS[kind](*one[0], one[1], shortest)
+    return None if one is None else _ops.to_array(one, q0.shape, kind.dtype)
 
 
 def _slerp_checked(A, B, h, O, shortest):
@@ -804,10 +880,11 @@ def _squad_block(Q0, A, B, Q1, h, O):
 def squad(q0, a, b, q1, t):
     """Pairwise squad (raw arrays): slerp(slerp(q0, q1, t), slerp(a, b, t), 2t(1-t))."""
     quats = (q0, a, b, q1)
-    one = _floats_of_one(quats, t)   # one float64 quadruple: the same formulas on its floats
-    one = None if one is None else _squad_floats(*one[0], one[1])
+    one = _floats_of_one(quats, t)   # one float64 or float32 quadruple: the same formulas on its floats
+    kind = None if one is None else one[2]
+    one = None if one is None else _squad_floats(*one[0], one[1], kind)
     if one is not None:
-        return _ops.to_array(one, q0.shape)
+        return _ops.to_array(one, q0.shape, kind.dtype)
     return _pairwise(_squad_block, quats, t, result_dtype(*quats))
 
 

@@ -526,6 +526,12 @@ _UNIT_TOL = {np.dtype(d): 16 * float(np.finfo(d).eps) for d in (np.float32, np.f
 
 ROWS = 25   # key q (4), q (0, c_k) for k = 0, 1, 2 (12), c_0, c_1, c_2 (9)
 _TINY = {np.dtype(np.float64): 1e-300, np.dtype(np.float32): 1e-30}
+_TINY32 = np.float32(_TINY[np.dtype(np.float32)])
+
+
+def _tan_float32(x, out=None, rows=None):
+    """`_trig.tan` of one float32 scalar (NumPy's, as on float32 rows)."""
+    return np.tan(x)
 
 
 def table(keys, coeff):
@@ -672,15 +678,23 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
     found = index.find_sorted(t) if M > _blocks.BLOCK else None
     if order == 0 and cmax is None:
         cmax = coefficient_size(tab)
-    if order == 0 and M * B == 1 and dtype == np.float64:
-        # one query of one track: the same formula on Python floats
+    if order == 0 and M * B == 1 and (dtype == np.float64 or dtype == np.float32):
+        # one query of one track: the same formula on Python floats, or on float32 scalars
         i = min(max(int(index.find(t)[0]), 0), K1 - 1)
         t0 = float(times[i])
-        s = (float(t[0]) - t0) / (float(times[i + 1]) - t0)
-        check = _needs_check(cmax, abs(s))
-        out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _trig.tan_float,
-                              _TINY[dtype], check, _renorm_floats, _ops.NONE)
-        return out.reshape(t.shape + tuple(batch) + (width,))
+        s = (float(t[0]) - t0) / (float(times[i + 1]) - t0)   # (in float64, then the table's dtype)
+        if dtype == np.float64:
+            check = _needs_check(cmax, abs(s))
+            out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _trig.tan_float,
+                                  _TINY[dtype], check, _renorm_floats, _ops.NONE)
+            return out.reshape(t.shape + tuple(batch) + (width,))
+        s = dtype.type(s)
+        if not _needs_check(cmax, abs(float(s))):   # (cubics large enough to need the norm check may
+            # overflow, which float32 scalars would warn of: the rows' then.)  NumPy's tangent, as on
+            # float32 rows, and the floor a float32 scalar (Python's max keeps whichever is larger)
+            out[0, 0] = _rotation(tab[:, i, 0], s, _ops.FLOATS32, _ops.FLOAT_STACKS, _tan_float32, _TINY32, False,
+                                  None, _ops.NONE)
+            return out.reshape(t.shape + tuple(batch) + (width,))
 
     def block(qt):
         sm, sb = qt

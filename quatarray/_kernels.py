@@ -69,6 +69,8 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     """
     if type(angle) is float:   # one rotation's float64 angle: the same formula
         return _cos_sin_of_tangent_floats(_trig.tan_float(angle * 0.5))
+    if type(angle) is np.float32:   # one rotation's float32 angle: NumPy's, as on rows below
+        return np.cos(angle), np.sin(angle)
     angle = np.asarray(angle)
     if angle.dtype == np.float32:
         return np.cos(angle, out=c), np.sin(angle, out=s)
@@ -154,7 +156,9 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     """
     if type(y) is list:   # a few Python floats (one rotation's angles) in one call
         if _trig.SIMD_TAN:   # one binary ufunc call costs four unary ones on floats
-            return np.arctan2(y, x)   # (the lists as float64 arrays: the arrays' loop and bits)
+            return np.arctan2(y, x)   # (the lists as float64 arrays, or float32: the arrays' loop and bits)
+        if type(y[0]) is not float:   # float32 scalars: as arrays, in the array code below
+            return arctan2(np.array(y), np.array(x))
         angles = []
         for a, b in zip(y, x):   # the ratio route below, one float at a time (no call each)
             if b > 0:
@@ -434,11 +438,14 @@ def norm(q):
     array([5.e+000, 0.e+000, 1.e+300])
     """
     q = np.asarray(q)
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: `_k_norm` on its floats, where it would not rescale
-        n2 = _sqnorm_floats(one)
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+    if one is not None:   # one float64 or float32 quaternion: `_k_norm` on its floats, where it would not rescale
+        n2 = _SQNORM_FLOATS[kind](one)
         if n2 is not None:
-            return np.array(math.sqrt(n2) if q.ndim == 1 else [math.sqrt(n2)])
+            n = kind.sqrt(n2)
+            return np.array(n if q.ndim == 1 else [n])
     dtype = result_dtype(q)
     out = np.empty(q.shape[:-1] + (1,), dtype)
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
@@ -479,13 +486,15 @@ def normalize(q, out=None):
     >>> normalize(np.array([0., 3, 0, 4]))
     array([0. , 0.6, 0. , 0.8])
     """
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: the same formula on its floats
-        one = normalize_floats(one)
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+    if one is not None:   # one float64 or float32 quaternion: the same formula on its floats
+        one = _NORMALIZE_FLOATS[kind](one)
         if one is not None:
             if out is None:
                 return np.array(one).reshape(q.shape)
-            res = _out(out, q.shape, np.dtype(np.float64))
+            res = _out(out, q.shape, kind.dtype)
             res[...] = one
             return res
     res = _out(out, q.shape, result_dtype(q))
@@ -506,21 +515,40 @@ def _divided(comps, n, op, outs):
     return [op.div(c, n, o) for c, o in zip(comps, outs)]
 
 
-_LOW64, _HIGH64 = _scale.LOW[np.dtype(np.float64)], _scale.HIGH[np.dtype(np.float64)]
+def normalize_floats(comps, kind=_ops.F64):
+    """`_normalize_flat`'s q / |q| on the four floats of one quaternion (of `kind`, an
+    `_ops.Kind`), or None where its squared norm does not `_scale.fits` (the block kernel's
+    case)."""
+    return _NORMALIZE_FLOATS[kind](comps)
 
 
-def normalize_floats(comps):
-    """`_normalize_flat`'s q / |q| on the four floats of one float64 quaternion, or None
-    where its squared norm does not `_scale.fits` (the block kernel's case)."""
-    n2 = _sqnorm_floats(comps)
-    return None if n2 is None else _divided(comps, math.sqrt(n2), _ops.FLOATS, _ops.NONE)
+def _sqnorm_floats_of(kind):
+    """`_SQNORM_FLOATS`' function for `kind`."""
+    op, squares = kind.op, _scale.squares
+    low, high = _scale.BOUNDS[kind]
+
+    def sqnorm_floats(comps):
+        n2 = squares(comps, op, None, None)
+        return n2 if low <= n2 <= high else None
+    return sqnorm_floats
 
 
-def _sqnorm_floats(comps):
-    """|q|² of one float64 quaternion's four floats, in `_scale.sum_squares`' order, or None
-    where it does not `_scale.fits` (the block kernels rescale there, or find nan or inf)."""
-    n2 = _scale.squares(comps, _ops.FLOATS, None, None)
-    return n2 if _LOW64 <= n2 <= _HIGH64 else None
+_SQNORM_FLOATS = _ops.by_kind(_sqnorm_floats_of)
+"""|q|² of one quaternion's four floats, by `_ops.Kind`, in `_scale.sum_squares`' order, or
+None where it does not `_scale.fits` (the block kernels rescale there, or find nan or inf)."""
+
+
+def _normalize_floats_of(kind):
+    """`normalize_floats` for `kind`."""
+    sqnorm, sqrt, op = _SQNORM_FLOATS[kind], kind.sqrt, kind.op
+
+    def normalize_floats(comps):
+        n2 = sqnorm(comps)
+        return None if n2 is None else _divided(comps, sqrt(n2), op, _ops.NONE)
+    return normalize_floats
+
+
+_NORMALIZE_FLOATS = _ops.by_kind(_normalize_floats_of)
 
 
 def _normalize_flat(q, out):
@@ -591,11 +619,13 @@ def inverse(q):
     >>> inverse(np.array([0., 2, 0, 0]))
     array([ 0. , -0.5, -0. , -0. ])
     """
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: `_k_inverse` on its floats, where it would not rescale
-        n2 = _sqnorm_floats(one)
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+    if one is not None:   # one float64 or float32 quaternion: `_k_inverse` on its floats, where it would not rescale
+        n2 = _SQNORM_FLOATS[kind](one)
         if n2 is not None:
-            return _ops.to_array(_inverse_floats(*one, n2), q.shape)
+            return _ops.to_array(_inverse_floats.kinds[kind](*one, n2), q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
         _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
@@ -650,26 +680,39 @@ def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, c, s, rows, o):
     return [op.mul(c, ew, o[0]), *[op.mul(v[k], s, o[k + 1]) for k in range(3)]]
 
 
-def _exp_floats(comps):
-    """`_k_exp` on the four floats of one float64 quaternion, or None where the block kernel
-    has more to do (|v|² beyond `_scale.HIGH`, e^w near overflow, non-finite input)."""
-    w, x, y, z = comps
-    vv = _scale.squares([x, y, z], _ops.FLOATS, None, None)   # `sum_squares`' order
-    if not vv <= _HIGH64:
-        return None
-    if not w < 709.0:   # e**w near or past the float maximum (its warning: the block kernel's)
-        return None
-    ew = float(np.exp(w))   # NumPy's exp: the array loop's bits
-    return _exp_formula([x, y, z], math.sqrt(vv), ANGLE_FLOOR[_FLOAT64], ew, _cos_sin_floats,
-                        lambda s: s * ew, _ops.FLOATS, None, None, None, _ops.NONE)
+def _exp_floats_of(kind):
+    """`_EXP_FLOATS`' function for `kind`."""
+    op, sqrt, squares = kind.op, kind.sqrt, _scale.squares
+    high, top, floor = _scale.BOUNDS[kind][1], _EXP_MAX[kind], ANGLE_FLOOR[kind.dtype]
+    python = kind is _ops.F64
+
+    def exp_floats(comps):
+        w, x, y, z = comps
+        vv = squares([x, y, z], op, None, None)   # `sum_squares`' order
+        if not vv <= high:
+            return None
+        if not w < top:   # e**w near or past the float maximum (its warning: the block kernel's)
+            return None
+        ew = np.exp(w)   # NumPy's exp: the array loop's bits
+        if python:
+            ew = float(ew)
+        return _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op, None, None, None,
+                            _ops.NONE)
+    return exp_floats
+
+
+_EXP_MAX = {_ops.F64: 709.0, _ops.F32: 88.0}
+"""Arguments below which e**x and the products with it stay finite, by `_ops.Kind`."""
+
+_EXP_FLOATS = _ops.by_kind(_exp_floats_of)
+"""`_k_exp` on the four floats of one quaternion, by `_ops.Kind`, or None where the block
+kernel has more to do (|v|² beyond `_scale.HIGH`, e^w near overflow, non-finite input)."""
 
 
 def _cos_sin_floats(angle, c, s, rows):
-    """`cos_sin` of one float64 angle (a Python float), in the signature of the kernels'."""
+    """`cos_sin` of one angle (a Python float, or a float32 scalar), in the signature of the
+    kernels'."""
     return cos_sin(angle)
-
-
-_FLOAT64 = np.dtype(np.float64)
 
 
 def exp(q):
@@ -681,11 +724,13 @@ def exp(q):
     True
     """
     q = np.asarray(q)
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: the same formula on its floats
-        one = _exp_floats(one)
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+    if one is not None:   # one float64 or float32 quaternion: the same formula on its floats
+        one = _EXP_FLOATS[kind](one)
         if one is not None:
-            return _ops.to_array(one, q.shape)
+            return _ops.to_array(one, q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
     _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)   # (the kernel sets its own errstate)
     return res
@@ -778,23 +823,38 @@ def _angle_formula(vn, w, op, atan2, theta, scale):
     return theta, op.div(theta, vn, scale)
 
 
-def _log_floats(comps):
-    """`_log_parts` on the four floats of one float64 quaternion: (ln|q|, θ, |v|, θ/|v|, |q|²),
-    or None where the block kernel has more to do (|q|² to rescale, |v|² below the range,
-    zero vector, non-finite input)."""
-    w = comps[0]
-    vv, n2 = _sqnorms_floats(*comps)
-    if not (_LOW64 <= n2 <= _HIGH64 and vv >= _LOW64):
-        return None
-    ln = (_ln_unit_floats if n2 == 1.0 else _ln_floats)(w, vv, n2)[0]
-    vn = math.sqrt(vv)
-    theta, scale = _angle_formula(vn, w, _ops.FLOATS, _arctan2_float, None, None)
-    return ln, theta, vn, scale, n2
+def _log_floats_of(kind):
+    """`_LOG_FLOATS`' function for `kind`."""
+    sqnorms, ln_ratio, ln_unit = (f.kinds[kind] for f in (_sqnorms_floats, _ln_floats, _ln_unit_floats))
+    low, high = _scale.BOUNDS[kind]
+    sqrt, op = kind.sqrt, kind.op
+
+    def log_floats(comps):
+        w = comps[0]
+        vv, n2 = sqnorms(*comps)
+        if not (low <= n2 <= high and vv >= low):
+            return None
+        ln = (ln_unit if n2 == 1.0 else ln_ratio)(w, vv, n2)[0]
+        vn = sqrt(vv)
+        theta, scale = _angle_formula(vn, w, op, _arctan2_float, None, None)
+        return ln, theta, vn, scale, n2
+    return log_floats
+
+
+_LOG_FLOATS = _ops.by_kind(_log_floats_of)
+"""`_log_parts` on the four floats of one quaternion, by `_ops.Kind`: (ln|q|, θ, |v|, θ/|v|,
+|q|²), or None where the block kernel has more to do (|q|² to rescale, |v|² below the
+range, zero vector, non-finite input)."""
 
 
 def _arctan2_float(y, x, out=None):
-    """`arctan2` of one pair of floats (`out` ignored), NumPy's loop at once where it is SIMD."""
-    return float(np.arctan2(y, x)) if _trig.SIMD_TAN else arctan2(y, x)
+    """`arctan2` of one pair of floats (`out` ignored), NumPy's loop at once where it is SIMD;
+    elsewhere the ratio route, on float32 scalars as 0-d arrays (`arctan2`'s array code)."""
+    if _trig.SIMD_TAN:
+        return float(np.arctan2(y, x)) if type(y) is float else np.arctan2(y, x)
+    if type(y) is float:
+        return arctan2(y, x)
+    return arctan2(np.array(y), np.array(x), out=np.empty((), y.dtype))[()]
 
 
 def _small_vectors(q, vn, theta, scale, v0):
@@ -849,11 +909,14 @@ def log(q):
     True
     """
     q = np.asarray(q)
-    one = _ops.floats64(q)
-    if one is not None:   # one float64 quaternion: the same formula on its floats
-        parts = _log_floats(one)
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+    if one is not None:   # one float64 or float32 quaternion: the same formula on its floats
+        parts = _LOG_FLOATS[kind](one)
         if parts is not None:
-            return _ops.to_array([parts[0], *_log_vector(one[1:], parts[3], _ops.FLOAT_STACKS, None)], q.shape)
+            return _ops.to_array([parts[0], *_log_vector(one[1:], parts[3], _ops.FLOAT_STACKS, None)], q.shape,
+                                 kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
@@ -935,24 +998,40 @@ def _power_floats_formula(far):
 _POWER_FLOATS = {False: _power_floats_formula(False), True: _power_floats_formula(True)}
 
 
-def _power_floats(comps, t):
-    """`_k_power` on the four floats of one float64 quaternion and a float exponent, or None
-    where the block kernel has more to do (as `_log_floats`; |t ln|q|| or tθ too large for
-    exp, cos and sin to stay quiet and finite; sin(tθ)/|v| · |q|^t overflowing)."""
-    parts = _log_floats(comps)
-    if parts is None:
-        return None
-    ln, theta, vn, _, n2 = parts
-    if not (abs(t * ln) < 700.0 and abs(t * theta) < _POWER_ANGLE):
-        return None
-    # (abs(ln) > 0.5: `_k_power`'s choice of the modulus' formula, for this quaternion)
-    w, _, g = _POWER_FLOATS[abs(ln) > 0.5](t, ln, theta, vn, n2)
-    if not abs(g) < math.inf:   # sin(tθ)/|v| · |q|^t overflowed: the block kernel's fix
-        return None
-    return [w, *_ops.FLOAT_STACKS.scale(comps[1:], g, None)]
+def _power_floats_of(kind):
+    """`_POWER_FLOATS_OF_KIND`'s function for `kind`."""
+    log_floats, top = _LOG_FLOATS[kind], _POWER_EXP[kind]
+    near, far = (_POWER_FLOATS[f].kinds[kind] for f in (False, True))
+    scale = _ops.FLOAT_STACKS.scale
+    cast = None if kind is _ops.F64 else kind.dtype.type   # (t: a float of the quaternion's dtype)
+
+    def power_floats(comps, t):
+        parts = log_floats(comps)
+        if parts is None:
+            return None
+        ln, theta, vn, _, n2 = parts
+        # (tested in Python floats: float32 scalars would warn where the products overflow)
+        if not (abs(t * float(ln)) < top and abs(t * float(theta)) < _POWER_ANGLE):
+            return None
+        # (abs(ln) > 0.5: `_k_power`'s choice of the modulus' formula, for this quaternion)
+        w, _, g = (far if abs(ln) > 0.5 else near)(t if cast is None else cast(t), ln, theta, vn, n2)
+        if not abs(g) < math.inf:   # sin(tθ)/|v| · |q|^t overflowed: the block kernel's fix
+            return None
+        return [w, *scale(comps[1:], g, None)]
+    return power_floats
 
 
 _POWER_ANGLE = 2.0 ** 50   # tθ beyond it: the block kernel (sin and cos keep few digits there anyway)
+_POWER_EXP = {_ops.F64: 700.0, _ops.F32: 40.0}
+"""Bounds of |t ln|q|| for the float paths, by `_ops.Kind`: exp(t ln|q|) stays finite, and in
+float32 so does sin(tθ)/|v| · |q|^t (|v| >= 2**-40 there), whose overflow float32 scalars
+would warn of (Python floats do not: the float64 path tests the product afterwards)."""
+
+_POWER_FLOATS_OF_KIND = _ops.by_kind(_power_floats_of)
+"""`_k_power` on the four floats of one quaternion and an exponent t (a Python float, of the
+quaternion's dtype), by `_ops.Kind`, or None where the block kernel has more to do (as
+`_LOG_FLOATS`; |t ln|q|| or tθ too large for exp, cos and sin to stay quiet and finite;
+sin(tθ)/|v| · |q|^t overflowing)."""
 
 
 def power(q, t):
@@ -968,16 +1047,24 @@ def power(q, t):
     """
     q = np.asarray(q)
     if type(t) is float:   # (the common `q ** 0.5`: no 0-d array to make and ask)
-        one = _ops.floats64(q)
+        one, kind = _ops.floats64(q), _ops.F64
+        if one is None:
+            one, kind = _ops.floats32(q)
         tf = t
     else:
         t = np.asarray(t)
-        one = _ops.floats64(q) if t.size == 1 and t.ndim <= q.ndim - 1 else None
+        one, kind = None, None
+        if t.size == 1 and t.ndim <= q.ndim - 1:
+            one, kind = _ops.floats64(q), _ops.F64
+            if one is None:
+                one, kind = _ops.floats32(q)
         tf = float(t.item(0)) if one is not None else None
-    if one is not None:   # one float64 quaternion, one exponent: the same formula on floats
-        one = _power_floats(one, tf)
+    if one is not None:   # one float64 or float32 quaternion, one exponent: the same formula on floats
+        if kind is not _ops.F64:   # the block kernel takes t in the quaternion's dtype
+            tf = float(kind.dtype.type(tf))
+        one = _POWER_FLOATS_OF_KIND[kind](one, tf)
         if one is not None:
-            return _ops.to_array(one, q.shape)
+            return _ops.to_array(one, q.shape, kind.dtype)
     t = np.asarray(t)
     dtype = result_dtype(q)
     batch = np.broadcast_shapes(q.shape[:-1], t.shape)
@@ -1039,23 +1126,36 @@ def rotate(q, v, inverse=False, unit=False, add=None):
 
 
 def _rotate_floats(q, v, inverse):
-    """`rotate_block`'s formula on the floats of one float64 pair, or None where the block
-    kernel would rescale (|q|² outside [1/4, 4], a huge vector, non-finite input)."""
-    c = _ops.floats64(q)
-    if c is None or v.dtype != np.float64:
+    """`rotate_block`'s formula on the floats of one float64 or float32 pair (both of one
+    dtype), or None where the block kernel would rescale (|q|² outside [1/4, 4], a huge
+    vector, non-finite input)."""
+    c, kind = _ops.floats64(q), _ops.F64
+    if c is None:
+        c, kind = _ops.floats32(q)
+    if c is None or v.dtype is not kind.dtype:
         return None
-    u = v.reshape(3).tolist()
-    ux, uy, uz = u
-    n2 = _scale.squares(c, _ops.FLOATS, None, None)
-    big = _HALF_BIG64
-    if not (0.25 <= n2 <= 4.0 and -big <= ux <= big and -big <= uy <= big and -big <= uz <= big):
-        return None
-    w, x, y, z = c
-    return _rotated_floats(w * -1.0 if inverse else w, x, y, z, ux, uy, uz, 2.0 / n2)
+    return _ROTATE_FLOATS[kind](c, v, inverse)
+
+
+def _rotate_floats_of(kind):
+    """`_ROTATE_FLOATS`' function for `kind`."""
+    op, squares, rotated, big = kind.op, _scale.squares, _rotated_floats.kinds[kind], _HALF_BIG[kind.dtype]
+    python = kind is _ops.F64
+
+    def rotate_floats(c, v, inverse):
+        u = v.reshape(3).tolist() if python else _ops.floats32(v, 3)[0]
+        if u is None:   # (a float32 vector of huge components)
+            return None
+        ux, uy, uz = u
+        n2 = squares(c, op, None, None)
+        if not (0.25 <= n2 <= 4.0 and -big <= ux <= big and -big <= uy <= big and -big <= uz <= big):
+            return None
+        w, x, y, z = c
+        return rotated(w * -1.0 if inverse else w, x, y, z, ux, uy, uz, 2.0 / n2)
+    return rotate_floats
 
 
 _HALF_BIG = {d: 0.5 * big for d, big in _scale.BIG_VECTOR.items()}
-_HALF_BIG64 = _HALF_BIG[np.dtype(np.float64)]
 
 
 def _rotated(w, v1, v2, u, u1, u2, s, op, o, t, m, m2):
@@ -1076,6 +1176,10 @@ _rotated_floats = _ops.compiled(
     lambda op, rows, w, x, y, z, ux, uy, uz, s: _rotated(w, [y, z, x], [z, x, y], [ux, uy, uz], [uy, uz, ux],
                                                          [uz, ux, uy], s, rows, None, _ops.NONE, None, None), 8)
 """`_rotated` on one pair's floats ``(w, x, y, z, ux, uy, uz, s)`` (`_ops.compiled`)."""
+
+_ROTATE_FLOATS = _ops.by_kind(_rotate_floats_of)
+"""`_rotate_floats` once the quaternion's floats ``c`` are read, by `_ops.Kind`: ``f(c, v,
+inverse)``."""
 
 
 def rotate_nonzero(q, v, inverse=False):

@@ -11,6 +11,10 @@ not offered on floats as `math`'s; ``arctan`` has the bits of NumPy's loop (`arc
 ``exp``, ``log``, ``cos``, ``sin`` and ``power`` are NumPy's own ufuncs called on the floats.
 `compiled` turns such a formula into plain Python statements on floats, once: the same
 operations in the same order, without a call per operation.
+
+One float32 quaternion runs the same statements on NumPy float32 scalars (`floats32`,
+`FLOATS32`, a compiled formula's ``float32``): their ``+ − × ÷`` round as float32 rows
+do, and NumPy's ufuncs on a float32 scalar give the bits of its float32 array loop.
 """
 
 import functools
@@ -99,6 +103,23 @@ FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - 
                          power=lambda a, b, out: _NUMPY_FLOATS["power"](a, b))
 """The same operations on Python floats; the row argument is ignored.  ``arctan`` is
 `arctan_float`, with the bits of NumPy's array loop."""
+
+def _copysign32(a, b):
+    """``np.copysign(a, b)`` of float32 scalars (|a| with b's sign bit, -0.0 included) at a
+    third of the cost of NumPy's call on scalars."""
+    return -abs(a) if math.copysign(1.0, b) < 0 else abs(a)
+
+
+FLOATS32 = SimpleNamespace(**{**vars(FLOATS), "sqrt": lambda a, out: np.sqrt(a),
+                              "copysign": lambda a, b, out: _copysign32(a, b), "rint": lambda a, out: np.rint(a),
+                              **{name: (lambda f: lambda *args: f(*args[:-1]))(getattr(np, name))
+                                 for name in ("arctan", "exp", "log", "cos", "sin", "power")}})
+"""`FLOATS` on NumPy float32 scalars (``np.float32``), the four components of one float32
+quaternion: their ``+ − × ÷`` round as float32 (a Python float operand is weak, NEP 50:
+taken as float32 too), and NumPy's ufuncs on them (sqrt, arctan, exp, log, cos, sin,
+power) return float32 scalars with the float32 array loops' bits (checked with and
+without AVX-512 on samples of every magnitude, tests/test_ops.py); copysign is
+`_copysign32`, the same bits."""
 
 STACKS = SimpleNamespace(
     sub=lambda a, b, out: np.subtract(a, b, out=out, order="C"),
@@ -189,7 +210,7 @@ class _Name(str):
 
 _TEMPLATES = {"add": "{0} + {1}", "sub": "{0} - {1}", "mul": "{0} * {1}", "div": "{0} / {1}",
               "sqrt": "_sqrt({0})", "abs": "abs({0})", "copysign": "_copysign({0}, {1})", "max": "max({0}, {1})",
-              "rint": "float(round({0}))", "arctan": "_arctan({0})",
+              "rint": "_rint({0})", "arctan": "_arctan({0})",
               **{name: f"_np_{name}({{0}})" for name in ("exp", "log", "cos", "sin")}, "power": "_np_power({0}, {1})"}
 """`FLOATS`' operations as Python expressions (the same calls and operators, in place)."""
 
@@ -201,7 +222,7 @@ def _pairs(a, b):
     return ((a, y) for y in b)
 
 
-def compiled(formula, nargs):
+def compiled(formula, nargs, calls=None):
     """`formula` (a function ``formula(op, stack, *floats)`` written over `ARRAYS`' names,
     with no branch on values) as a plain Python function of `nargs` floats: the formula is
     run once on names, each operation recorded as the expression `FLOATS` evaluates, and
@@ -210,7 +231,12 @@ def compiled(formula, nargs):
     ``interleave``).
     The result has their and `FLOATS`' bits (the same operations on the same operands, in
     the same order) without a call per operation: a third of the cost of a single
-    rotation's formula on `FLOATS`.
+    rotation's formula on `FLOATS`.  The same source is also defined on float32 scalars
+    (`FLOATS32`' calls): the result's attribute ``float32``; ``kinds`` maps each `Kind` to
+    its function (``f.kinds[F32] is f.float32``).
+
+    `calls`: further operations the formula calls as ``op.name(*args, out)``, as
+    ``{name: (number of args, function on Python floats, function on float32 scalars)}``.
 
     >>> from quatarray._ops import FLOATS, FLOAT_STACKS, compiled
     >>> def f(op, stack, a, b):
@@ -229,9 +255,7 @@ def compiled(formula, nargs):
         consts[key] = v
         return key
 
-    def emit(name):
-        template = _TEMPLATES[name]
-
+    def emit(template):
         def op(*args):
             v = _Name(f"v{len(lines)}")
             lines.append(f"    {v} = " + template.format(*map(term, args[:template.count("{")])))
@@ -241,7 +265,10 @@ def compiled(formula, nargs):
     def raise_(*args):
         raise TypeError("a compiled formula may not branch on values (where)")
 
-    trace = SimpleNamespace(**{name: emit(name) for name in _TEMPLATES}, copy=lambda a, out: a, where=raise_)
+    calls = calls or {}
+    templates = {**_TEMPLATES, **{name: f"_call_{name}(" + ", ".join(f"{{{i}}}" for i in range(n)) + ")"
+                                  for name, (n, *_) in calls.items()}}
+    trace = SimpleNamespace(**{name: emit(t) for name, t in templates.items()}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul", "div")}
     stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,
@@ -253,12 +280,32 @@ def compiled(formula, nargs):
     else:
         body = term(result)
     source = f"def formula({', '.join(names)}):\n" + "\n".join(lines + [f"    return {body}"])
-    scope = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_float,
-             **{f"_np_{name}": f for name, f in _NUMPY_FLOATS.items()}, **consts}
-    exec(compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec"), scope)
-    function = scope["formula"]
-    function.source = source
+    code = compile(source, f"<compiled {formula.__module__}.{formula.__qualname__}>", "exec")
+    scopes = [{**scope, **{f"_call_{name}": fs[k] for name, (_, *fs) in calls.items()}}
+              for k, scope in enumerate((_SCOPE64, _SCOPE32))]
+    function, function.float32 = (_defined(code, scope, consts) for scope in scopes)
+    function.kinds = {F64: function, F32: function.float32}
+    function.source = function.float32.source = source
     return function
+
+
+def _defined(code, scope, consts):
+    """The function the compiled `code` defines, run with the names of `scope` and `consts`."""
+    scope = {**scope, **consts}
+    exec(code, scope)
+    return scope["formula"]
+
+
+_SCOPE64 = {"_sqrt": math.sqrt, "_copysign": math.copysign, "_arctan": arctan_float,
+            "_rint": lambda a: float(round(a)),   # round: half to even, as np.rint
+            **{f"_np_{name}": f for name, f in _NUMPY_FLOATS.items()}}
+"""The calls of `compiled`'s source on Python floats (`FLOATS`')."""
+
+_SCOPE32 = {"_sqrt": np.sqrt, "_copysign": _copysign32, "_arctan": np.arctan, "_rint": np.rint,
+            **{f"_np_{name}": getattr(np, name) for name in _NUMPY_FLOATS}}
+"""The same calls on float32 scalars (`FLOATS32`'): NumPy's ufuncs (copysign: its bits),
+returning float32 scalars.  The formula's constants stay Python floats, weak operands
+taken as float32."""
 
 
 NONE = (None,) * 16
@@ -351,10 +398,94 @@ def first64(q, k=4):
 
 
 _FLOAT64 = np.dtype(np.float64)   # NumPy's one native float64 dtype (another one: the block path)
+_FLOAT32 = np.dtype(np.float32)
 
 
-def to_array(values, shape):
-    """A float path's result, `values` (Python floats), as a float64 array of `shape`.
+class Kind:
+    """The arithmetic of one quaternion's components of a dtype, for the float paths.
+
+    Attributes
+    ----------
+    dtype : numpy.dtype
+        float64 (components as Python floats) or float32 (as ``np.float32`` scalars).
+    op : SimpleNamespace
+        `FLOATS` or `FLOATS32`.
+    sqrt : callable
+        ``math.sqrt`` or ``np.sqrt`` (a float32 scalar's, float32).
+    name : str
+        ``"float64"`` or ``"float32"``.
+
+    A `compiled` formula's function for a kind is ``f.kinds[kind]``.
+    """
+    __slots__ = ("dtype", "op", "sqrt", "name")
+
+    def __init__(self, dtype, op, sqrt):
+        self.dtype, self.op, self.sqrt, self.name = np.dtype(dtype), op, sqrt, np.dtype(dtype).name
+
+    def __repr__(self):
+        return f"Kind({self.name})"
+
+
+F64 = Kind(np.float64, FLOATS, math.sqrt)
+F32 = Kind(np.float32, FLOATS32, np.sqrt)
+KINDS = (F64, F32)
+
+
+def by_kind(make):
+    """``{kind: make(kind)}`` for both `KINDS`: a float path made once per kind, with its
+    kind's compiled formulas, ranges and calls bound (no lookups per call: a single
+    rotation's float path costs a few µs, where each lookup shows).
+
+    >>> from quatarray._ops import F32, by_kind
+    >>> by_kind(lambda kind: kind.name)[F32]
+    'float32'
+    """
+    return {kind: make(kind) for kind in KINDS}
+
+
+def floats32(q, k=4):
+    """``(components, F32)`` of one float32 quaternion (or vector), `q` of shape (k,) or
+    (1, k): `floats64` for float32, the components as NumPy float32 scalars (formulas then
+    run on `FLOATS32`, compiled ones as ``f.kinds[F32]``); ``(None, None)`` for any other
+    input, and for components of magnitude `_BOUND32` or more (or NaN).  Float paths call
+    it where `floats64` gave None, as ``one, kind = floats64(q), F64`` then ``if one is
+    None: one, kind = floats32(q)``: the float64 path pays no more than a name.
+
+    >>> import numpy as np
+    >>> from quatarray._ops import floats32
+    >>> floats32(np.array([[1.0, 0, 0, 0]], np.float32))
+    ([np.float32(1.0), np.float32(0.0), np.float32(0.0), np.float32(0.0)], Kind(float32))
+    """
+    if q.size == k and q.dtype is _FLOAT32:
+        ndim = q.ndim
+        if ndim == 2:
+            q = q[0]
+        elif ndim != 1:
+            return None, None
+        b = _BOUND32   # (tested on Python floats, NaN failing too: cheaper than on float32 scalars)
+        if k == 4:
+            w, x, y, z = q.tolist()
+            if -b < w < b and -b < x < b and -b < y < b and -b < z < b:
+                return [q[0], q[1], q[2], q[3]], F32   # (indexing: half list(q)'s cost)
+        elif k == 3:
+            x, y, z = q.tolist()
+            if -b < x < b and -b < y < b and -b < z < b:
+                return [q[0], q[1], q[2]], F32
+        elif all(-b < v < b for v in q.tolist()):
+            return [q[i] for i in range(k)], F32
+    return None, None
+
+
+_BOUND32 = 2.0 ** 60
+"""`floats32` gives float32 components below it in magnitude only: their squares and products
+of two stay far from overflow, which NumPy's float32 scalars would warn of (the block
+kernels compute them under ``np.errstate`` and rescale; the float paths' own range tests
+come after these products).  NaN and infinities give None too."""
+
+
+def to_array(values, shape, dtype=_FLOAT64):
+    """A float path's result, `values` (Python floats, or float32 scalars), as an array of
+    `shape` and `dtype` (a `Kind`'s).
 
     One row, (k,), is ``np.array``; a batch of one, (1, k), an empty array whose elements
     are assigned (half the cost of ``np.array([values])`` or of reshaping); anything else
@@ -366,9 +497,9 @@ def to_array(values, shape):
     """
     n = len(shape)
     if n == 1:
-        return np.array(values)
+        return np.array(values) if dtype is _FLOAT64 else np.array(values, dtype)
     if n == 2 and shape[0] == 1:
-        a = np.empty(shape)
+        a = np.empty(shape, dtype)
         k = len(values)
         if k == 3:
             a[0, 0], a[0, 1], a[0, 2] = values
@@ -377,4 +508,4 @@ def to_array(values, shape):
         else:
             a[0] = values
         return a
-    return np.array(values).reshape(shape)
+    return np.array(values, dtype).reshape(shape)

@@ -46,6 +46,9 @@ LOW = {d: r[0] for d, r in _RANGE.items()}
 HIGH = {d: r[1] for d, r in _RANGE.items()}
 """Largest squared norm used as it is, per dtype (2**918 in float64, 2**80 in float32)."""
 
+BOUNDS = {kind: _RANGE[kind.dtype] for kind in _ops.KINDS}
+"""(`LOW`, `HIGH`) of a float path's `_ops.Kind` (one quaternion's float64 or float32 components)."""
+
 BIG_VECTOR = {d: float(np.ldexp(np.finfo(d).max, -4)) for d in _RANGE}
 """Largest |component| of a vector rotated as it is, per dtype: the rotation formulas form
 sums of up to five terms of the vector's size (`shrink_vectors`)."""

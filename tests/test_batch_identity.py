@@ -20,15 +20,15 @@ from hypothesis import strategies as st
 
 import quatarray
 from quatarray import (QuatArray, RigidTransform, Rotation, RotationSpline, Slerp, Track, _blocks, _interp_spline,
-                       bezier, bezier_control_points, geodesic_mean, lerp, nlerp, normalize_dual_quaternion, slerp,
-                       squad, squad_control_points, unflip)
+                       _kernels, bezier, bezier_control_points, geodesic_mean, lerp, nlerp,
+                       normalize_dual_quaternion, slerp, squad, squad_control_points, unflip)
 
 KINDS = ("random", "identity", "half turn", "gimbal xyz", "gimbal zyz")
 
 
-def _rows(seed, kinds, dtype, scale):
+def _rows(seed, kinds, dtype, scale, span=None):
     """Quaternions (n, 4), one per kind; with `scale`, each multiplied by a random power of two
-    (up to 2**±900 in float64, 2**±50 in float32)."""
+    (up to 2**±900 in float64, 2**±50 in float32, or 2**±`span`)."""
     rng = np.random.default_rng(seed)
     out = []
     for kind in kinds:
@@ -43,7 +43,8 @@ def _rows(seed, kinds, dtype, scale):
             q = Rotation.from_euler(seq, [rng.uniform(-3, 3), mid, rng.uniform(-3, 3)]).as_quat(scalar_first=True)
         q = q / np.linalg.norm(q)
         if scale:
-            q = np.ldexp(q, int(rng.integers(-900, 900) if dtype == np.float64 else rng.integers(-50, 50)))
+            span = span or (900 if dtype == np.float64 else 50)
+            q = np.ldexp(q, int(rng.integers(-span, span)))
         out.append(q)
     return np.array(out).astype(dtype)
 
@@ -393,11 +394,140 @@ def test_one_quaternion_algebra_at_its_float_paths_edges(t):
                 _same(_raw(f(q[i:i + 1]))[0], whole[i], f"{name}, row {i} as a batch of one")
 
 
+_FLOAT32_OPS = [
+    ("norm", lambda x: QuatArray(x).norm()), ("normalized", lambda x: QuatArray(x).normalized()),
+    ("inverse", lambda x: QuatArray(x).inverse()), ("exp", lambda x: QuatArray(x).exp()),
+    ("log", lambda x: QuatArray(x).log()), ("power 0.3", lambda x: QuatArray(x) ** 0.3),
+    ("power -2.5", lambda x: QuatArray(x) ** -2.5), ("power 7", lambda x: QuatArray(x).power(np.float32(7))),
+    ("power 1e16", lambda x: QuatArray(x) ** 1e16),
+    ("as_rotvec", lambda x: QuatArray(x).as_rotvec()), ("as_rotvec degrees", lambda x: QuatArray(x).as_rotvec(True)),
+    ("as_euler xyz", lambda x: QuatArray(x).as_euler("xyz")),
+    ("as_euler ZYZ", lambda x: QuatArray(x).as_euler("ZYZ", degrees=True)),
+    ("as_euler zxy", lambda x: QuatArray(x).as_euler("zxy")),
+    ("as_davenport", lambda x: QuatArray(x).as_davenport([[0, 0, 1], [1, 0, 0], [0, 1, 0]], "e")),
+    ("from_quat", lambda x: Rotation.from_quat(x, scalar_first=True)),
+    ("magnitude", lambda x: Rotation.from_quat(x).magnitude()),
+    ("Rotation as_rotvec", lambda x: Rotation.from_quat(x).as_rotvec()),
+    ("Rotation pow", lambda x: Rotation.from_quat(x) ** 0.37),
+    ("Rotation as_euler", lambda x: Rotation.from_quat(x).as_euler("zyx")),
+    ("Rotation as_matrix", lambda x: Rotation.from_quat(x).as_matrix()),
+    ("Rotation as_mrp", lambda x: Rotation.from_quat(x).as_mrp())]
+"""The methods whose one float32 quaternion runs its float path's formula on float32 scalars
+(`quatarray._ops.F32`)."""
+
+
+@given(b=batches(), span=st.sampled_from([20, 40, 59, 62, 75]))
+def test_one_float32_element_gives_the_batchs_bits(b, span):
+    """One float32 quaternion (shape (4,) or (1, 4)) runs its method's formula on float32
+    scalars where the block kernel takes its common path, and the block kernel elsewhere:
+    random, near-identity, near-half-turn and gimbal-lock rows scaled by powers of two up to
+    2**±span (across float32's ranges: |q|² within 2**±80, components below 2**60) give
+    the bits of the same row in the batch."""
+    (seed, kinds, _), i = b
+    q = _rows(seed, kinds, np.float32, True, span)
+    rng = np.random.default_rng(seed)
+    v = (rng.standard_normal((len(q), 3)) * 10.0 ** rng.uniform(-30, 30, (len(q), 1))).astype(np.float32)
+    check(_FLOAT32_OPS, (q,), i)
+    check([("rotate", lambda q, v: QuatArray(q).rotate(v)),
+           ("apply", lambda q, v: Rotation.from_quat(q).apply(v)),
+           ("apply inverse", lambda q, v: Rotation.from_quat(q).apply(v, inverse=True))], (q, v), i)
+    r = Rotation.from_quat(q)
+    size = 10.0 ** rng.uniform(-20, 20, (len(q), 1))
+    check([("from_rotvec", lambda x: QuatArray.from_rotvec(x)),
+           ("from_rotvec degrees", lambda x: Rotation.from_rotvec(x, degrees=True))],
+          ((r.as_rotvec() * size).astype(np.float32),), i)
+    check([("from_euler", lambda x: QuatArray.from_euler("xyz", x)),
+           ("from_euler ZYZ degrees", lambda x: Rotation.from_euler("ZYZ", x, degrees=True))],
+          ((r.as_euler("xyz", suppress_warnings=True) * size ** 0.1).astype(np.float32),), i)
+    m = r.as_matrix()
+    m[::3] *= np.float32(1.00001)   # (within the orthogonality tolerance, or not: the block path's projection)
+    m[1::4] *= np.float32(1.01)
+    check([("from_matrix", lambda x: QuatArray.from_matrix(x)), ("Rotation from_matrix", lambda x: Rotation.from_matrix(x))],
+          (m,), i)
+
+
+def test_one_float32_quaternion_skips_the_block_engine(monkeypatch):
+    """A typical float32 quaternion (and vector) takes the float paths: no block kernel runs."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("the block engine ran")
+
+    q = np.array([0.7, -0.3, 0.5, 0.4], np.float32)
+    v = np.array([1.0, -2.0, 0.5], np.float32)
+    for module, name in ((_blocks, "blockwise"), (_blocks, "on_views"), (_kernels, "_normalize_flat"),
+                         (_kernels, "_rotate_few")):
+        monkeypatch.setattr(module, name, refuse)
+    for x in (q, q[None]):
+        for name, f in _FLOAT32_OPS:
+            # (Rotation's own rows take no engine; tθ = 1e16 θ: the block kernel's)
+            if not name.startswith(("Rotation", "magnitude", "from_quat", "power 1e16")):
+                f(x)
+        QuatArray(x).rotate(v)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_track_of_one_pair_gives_the_bits_among_others(dtype):
+    """A track of one pair of keys builds its frame on the pair's floats (`frames`); the same
+    pair among other tracks, on rows: the same bits."""
+    rng = np.random.default_rng(15)
+    q = rng.standard_normal((40, 2, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    q[::5, 1] = -q[::5, 0]   # (antipodal keys: no unique arc, the block kernel's rows)
+    q[1::5, 1] = q[1::5, 0]
+    q = q.astype(dtype)
+    t = np.linspace(0.0, 1.0, 7)
+    for keys in q:
+        one = Track([0.0, 1.0], keys)(t)
+        among = Track([0.0, 1.0], np.stack([keys, q[0], keys[::-1]], axis=1))(t)
+        _same(_raw(one), _raw(among)[:, 0], "track of one pair")
+
+
+def _edge_quaternions32():
+    """float32 quaternions at the edges of the float paths: e**w near float32's overflow,
+    |q|² and |v|² at and beyond 2**±80, components at 2**60, zero and underflowing
+    vectors, negative reals, w = 0 and tiny, near-identity and unit rows."""
+    rng = np.random.default_rng(13)
+    q = rng.standard_normal((180, 4)) * rng.choice(
+        [1e-3, 1.0, 30.0, 1e10, 1e-10, 1e12, 1e-12, 2.0 ** 59, 2.0 ** 61, 1e-19, 1e-21], (180, 1))
+    q[::7, 1:] = 0
+    q[1::11, 0] = rng.choice([40.0, 87.9, 88.0, 88.5, -100.0], len(q[1::11]))
+    q[2::13, 2:] = rng.choice([1e-20, 1e-30, 2.0 ** -40], (len(q[2::13]), 1))
+    q[3::17] /= np.linalg.norm(q[3::17], axis=1, keepdims=True)
+    q[4::19, 0] = -np.abs(q[4::19, 0])
+    q[5::23, 1:] *= 1e-4
+    q[6::29] = [1, 0, 0, 0]
+    q[7::31] = [-2, 0, 0, 0]
+    q[9::41, 0] = 0
+    q[10::43, 0] *= 1e-25
+    return q.astype(np.float32)
+
+
+def test_one_float32_quaternion_at_its_float_paths_edges():
+    """The float32 float paths at their edges (`_edge_quaternions32`, zero rows left out:
+    the conversions refuse them): alone and as a batch of one, the bits of the same row in
+    the batch."""
+    q = _edge_quaternions32()
+    q = q[np.any(q != 0, axis=1)]
+    rng = np.random.default_rng(14)
+    v = (rng.standard_normal((len(q), 3)) * rng.choice([1.0, 1e20, 2.0 ** 61, 1e-30], (len(q), 1))).astype(np.float32)
+    ops = [(name, lambda x, v, f=f: f(x)) for name, f in _FLOAT32_OPS]
+    ops.append(("rotate", lambda x, v: QuatArray(x).rotate(v)))
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        for name, f in ops:
+            whole = _raw(f(q, v))
+            for i in range(len(q)):
+                _same(_raw(f(q[i], v[i])), whole[i], f"{name}, row {i}")
+                _same(_raw(f(q[i:i + 1], v[i:i + 1]))[0], whole[i], f"{name}, row {i} as a batch of one")
+
+
 @pytest.mark.parametrize("shortest", [True, False])
-def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest):
-    """slerp of one float64 pair and squad of one quadruple run the formulas on floats only
-    where the block kernel takes its common path (no wide arc followed as given, t within
-    [-1, 2], |A|² + |B|² in range): the batch's bits either way."""
+@pytest.mark.parametrize("dtype, t_dtype", [(np.float64, np.float64), (np.float32, np.float64),
+                                            (np.float32, np.float32)], ids=["f64", "f32", "f32 t32"])
+def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest, dtype, t_dtype):
+    """slerp of one float64 or float32 pair and squad of one quadruple run the formulas on
+    floats only where the block kernel takes its common path (no wide arc followed as
+    given, t within [-1, 2], |A|² + |B|² in range, in float32 a sign of A·B not in doubt):
+    the batch's bits either way, for t of either float dtype."""
     rng = np.random.default_rng(12)
     n = 160
     q0 = rng.standard_normal((n, 4))
@@ -407,11 +537,16 @@ def test_one_pair_slerp_and_squad_at_their_float_paths_edges(shortest):
     q1[::3] = q0[::3] + rng.standard_normal((len(q0[::3]), 4)) * 1e-9
     q1[::5] = -q0[::5]
     q1[::7] = q0[::7]
-    scale = rng.choice([1.0, 1e-200, 1e200, 3.0], (n, 1))
-    q0, q1 = q0 * scale, q1 * scale
+    r = rng.standard_normal((len(q0[1::9]), 4))   # A·B near 0 (in doubt in float32, `hemisphere`)
+    r -= np.sum(r * q0[1::9], axis=1, keepdims=True) * q0[1::9]
+    q1[1::9] = r / np.linalg.norm(r, axis=1, keepdims=True) + q0[1::9] * rng.uniform(-1e-5, 1e-5, (len(r), 1))
+    scale = rng.choice([1.0, 1e-200, 1e200, 3.0] if dtype == np.float64 else [1.0, 1e-20, 1e20, 3.0, 2.0 ** 61],
+                       (n, 1))
+    q0, q1 = (q0 * scale).astype(dtype), (q1 * scale).astype(dtype)
     a, b = np.roll(q1, 1, axis=0), np.roll(q0, 2, axis=0)
     t = rng.uniform(-1.5, 2.5, n)
     t[::4] = rng.choice([0.0, 0.5, 1.0, -1.0, 2.0], len(t[::4]))
+    t = t.astype(t_dtype)
     ops = [("slerp", lambda p, q, a, b, t: slerp(p, q, t, shortest=shortest)),
            ("squad", lambda p, q, a, b, t: squad(p, a, b, q, t))]
     with warnings.catch_warnings(), np.errstate(all="ignore"):

@@ -2,6 +2,7 @@
 floats gives the bits of the same formula run operation by operation on `FLOATS`."""
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -30,7 +31,7 @@ def test_compiled_formula_gives_the_floats_bits():
 def test_compiled_rotvec_is_the_formula_on_floats():
     rng = np.random.default_rng(6)
     for q in rng.standard_normal((500, 4)):
-        w, x, y, z, t, nv = _convert._half_turn_floats(q / np.linalg.norm(q))
+        w, x, y, z, t, nv, _ = _convert._half_turn_floats(q / np.linalg.norm(q))
         want = _convert._rotvec(w, [x, y, z], t, nv, 2.0, _ops.FLOATS, _ops.FLOAT_STACKS, None, _ops.NONE)
         assert _convert._rotvec_floats(w, x, y, z, t, nv, 2.0) == want
 
@@ -48,6 +49,89 @@ def test_compiled_rows_of_three_are_float_rows():
         got = _kernels._rotated_floats(w, x, y, z, ux, uy, uz, s)
         assert [math.copysign(1, v) for v in got] == [math.copysign(1, v) for v in want]
         assert got == want
+
+
+def _float32_checks():
+    """NumPy's ufuncs on float32 scalars (``FLOATS32``' and the compiled float32 scope's
+    calls) against the float32 array loops, on a sample of every magnitude (signed zeros,
+    subnormals, huge arguments too); and `_every_operation` compiled for float32 scalars
+    against the same formula on `FLOATS32` and on float32 rows (`ARRAYS`).  Returns a report
+    (the functions whose scalar and array bits differ, and whether the formulas agree)."""
+    rng = np.random.default_rng(12)
+    x = np.concatenate([rng.uniform(-3, 3, 3000), rng.standard_normal(3000) * 100,
+                        2.0 ** rng.uniform(-149, 127, 3000) * rng.choice([-1, 1], 3000),
+                        [0.0, -0.0, 1.0, -1.0, np.pi, 88.7, -104.0, 1e-45]]).astype(np.float32)
+    y = rng.permutation(x)
+    differ = []
+    with np.errstate(all="ignore"):
+        for name in ("exp", "log", "cos", "sin", "tan", "arctan", "sqrt", "rint", "arctan2", "power", "copysign"):
+            f = getattr(np, name)
+            args = (np.abs(x),) if name in ("log", "sqrt") else (x,)
+            if name in ("arctan2", "power", "copysign"):
+                args = (np.abs(x), y * np.float32(0.01)) if name == "power" else (x, y)
+            one = (lambda a, b: _ops.FLOATS32.copysign(a, b, None)) if name == "copysign" else f   # (`_copysign32`)
+            got = np.array([one(*a) for a in zip(*args)])
+            if not (got.dtype == np.float32 and np.array_equal(got.view(np.int32), f(*args).view(np.int32))):
+                differ.append(name)
+    f = _ops.compiled(_every_operation, 3)
+    a, b, c = (rng.standard_normal((3, 700)) * 10.0 ** rng.uniform(-15, 15, (3, 700))).astype(np.float32)
+    arrays = SimpleNamespace(**{**vars(_ops.ARRAYS), "copy": lambda a, out: a.copy()})   # (new rows: no out)
+    rows = [np.asarray(r).reshape(-1, a.size) for r in _every_operation(arrays, _ops.STACKS, a, b, c)]
+    assert all(r.dtype == np.float32 for r in rows)
+    rows = np.concatenate(rows).T
+    same = True
+    for i in range(a.size):
+        got = f.float32(a[i], b[i], c[i])
+        want = _every_operation(_ops.FLOATS32, _ops.FLOAT_STACKS, a[i], b[i], c[i])
+        same &= all(type(v) is np.float32 for v in got) and got == want
+        same &= np.array_equal(np.array(got).view(np.int32), rows[i].view(np.int32))
+    return {"svml": _ops.SVML, "differ": differ, "formula": bool(same)}
+
+
+def test_float32_scalars_have_the_float32_loops_bits():
+    assert _float32_checks() == {"svml": _ops.SVML, "differ": [], "formula": True}
+
+
+def test_float32_scalars_without_avx512():
+    """The same with NumPy's AVX-512 loops switched off (``NPY_DISABLE_CPU_FEATURES``),
+    where NumPy runs other float32 loops and `_kernels.arctan2` its ratio route: the scalar
+    calls follow the loops, and one float32 rotation's Euler angles, log and power keep
+    the batch's bits."""
+    code = ("import json, numpy as np, tests.test_ops as t\n"
+            "from quatarray import QuatArray, Rotation, slerp\n"
+            "q = (Rotation.random(300, rng=4).as_quat(scalar_first=True)\n"
+            "     * np.linspace(0.5, 3.0, 300)[:, None]).astype(np.float32)\n"
+            "q[::7, 0] = 1e-4\n"
+            "P, Q = QuatArray(q[::-1]), QuatArray(q)\n"
+            "ops = {'as_euler': lambda x, y: x.as_euler('xyz'),\n"
+            "       'as_davenport': lambda x, y: x.as_davenport([[0, 0, 1], [1, 0, 0], [0, 1, 0]], 'e'),\n"
+            "       'log': lambda x, y: x.log(), 'power': lambda x, y: x ** 0.3, 'exp': lambda x, y: x.exp(),\n"
+            "       'as_rotvec': lambda x, y: x.as_rotvec(), 'slerp': lambda x, y: slerp(x, y, 0.3)}\n"
+            "report = t._float32_checks()\n"
+            "for name, f in ops.items():\n"
+            "    whole = np.asarray(f(Q, P))\n"
+            "    report[name] = all(np.array_equal(np.asarray(f(Q[i], P[i])), whole[i]) for i in range(300))\n"
+            "print(json.dumps(report))\n")
+    assert _without_avx512(code) == {"svml": False, "differ": [], "formula": True, "as_euler": True,
+                                     "as_davenport": True, "log": True, "power": True, "exp": True,
+                                     "as_rotvec": True, "slerp": True}
+
+
+def _without_avx512(code):
+    """The JSON report that Python `code` prints last, run from the repository in a new
+    process with NumPy's AVX-512 loops switched off (``NPY_DISABLE_CPU_FEATURES``, where
+    this CPU has them)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ)
+    if _ops.SVML:
+        env["NPY_DISABLE_CPU_FEATURES"] = ("AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL "
+                                           "AVX512_SPR X86_V4")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True,
+                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def test_a_branch_on_values_cannot_be_compiled():
@@ -79,14 +163,6 @@ def test_arctan_of_a_float_without_svml(tmp_path):
     """With NumPy's AVX-512 loops switched off (``NPY_DISABLE_CPU_FEATURES``, where this CPU
     has them), NumPy's float64 arctan is the C library's atan, and `arctan_float` is
     ``math.atan`` with the same bits; as_euler of one rotation then keeps the batch's bits."""
-    import json
-    import os
-    import subprocess
-    import sys
-    env = dict(os.environ)
-    if _ops.SVML:
-        env["NPY_DISABLE_CPU_FEATURES"] = ("AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL "
-                                           "AVX512_SPR X86_V4")
     code = ("import json, numpy as np, tests.test_ops as t\n"
             "from quatarray import Rotation\n"
             "r = Rotation.random(200, rng=3)\n"
@@ -95,7 +171,4 @@ def test_arctan_of_a_float_without_svml(tmp_path):
             "report = t._arctan_checks()\n"
             "report['euler'] = bool(np.array_equal(whole, alone))\n"
             "print(json.dumps(report))\n")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True,
-                         cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    report = json.loads(out.stdout.strip().splitlines()[-1])
-    assert report == {"svml": False, "math": True, "same": True, "euler": True}
+    assert _without_avx512(code) == {"svml": False, "math": True, "same": True, "euler": True}
