@@ -762,14 +762,16 @@ def _half_turn_floats(q):
     (w, x, y, z, tan(θ/2), |v|, kind), kind its `_ops.Kind`, or None where the block kernel
     would rescale or find a row `exact` (its own path), or, in float32, where |v|² / w²
     overflows (float32 scalars would warn; the kernel's rows take inf there)."""
-    c, kind = _ops.floats64(q), _ops.F64
-    if c is None:
+    if q.size == 4 and q.dtype is _F64 and q.ndim <= 2:   # (`_ops.floats64`'s test written out: a
+        c = q.tolist() if q.ndim == 1 else q.tolist()[0]   # tenth of a single call)
+        kind, low, high, ratio, sqrt = _HALF_TURN64
+    else:
         c, kind = _ops.floats32(q)
-    if c is None:
-        return None
+        if c is None:
+            return None
+        low, high, ratio, sqrt = _HALF_TURN[kind]
     w, x, y, z = c
     w2, v2 = w * w, (x * x + y * y) + z * z
-    low, high, ratio, sqrt = _HALF_TURN[kind]
     if not (low <= w2 and low <= v2 and w2 + v2 <= high):
         return None
     if ratio and not float(v2) < float(w2) * ratio:
@@ -781,6 +783,7 @@ _HALF_TURN = {_ops.F64: (*_scale.BOUNDS[_ops.F64], None, math.sqrt),
               _ops.F32: (*_scale.BOUNDS[_ops.F32], 2.0 ** 127, np.sqrt)}
 """`_half_turn_floats`' bounds of |q|², bound of |v|² / w² (float32: below its maximum, with
 room for the quotient's rounding) and square root, by `_ops.Kind`."""
+_HALF_TURN64 = (_ops.F64, *_HALF_TURN[_ops.F64])
 
 _F64, _F32 = np.dtype(np.float64), np.dtype(np.float32)
 
@@ -860,10 +863,13 @@ def as_rotvec(q, degrees=False, unit=False):
     one = _half_turn_floats(q)
     if one is not None:   # one float64 or float32 rotation: the same formula on its floats
         w, x, y, z, tan_half, nv, kind = one   # (unpacked: a fifth of splatting with the factor)
-        v = _rotvec_floats.kinds[kind](w, x, y, z, tan_half, nv, _ROTVEC_FACTOR[bool(degrees)])
+        f64 = kind is _ops.F64   # (a test of the kind: cheaper than its table's lookups)
+        v = (_rotvec_floats if f64 else _rotvec_floats.float32)(w, x, y, z, tan_half, nv,
+                                                                  _ROTVEC_FACTOR[bool(degrees)])
         if q.ndim == 1:
             return np.array(v)
-        out = np.empty((1, 3), kind.dtype)   # q is (1, 4): `_ops.to_array`'s batch of one, without its call
+        # q is (1, 4): `_ops.to_array`'s batch of one, without its call
+        out = np.empty((1, 3)) if f64 else np.empty((1, 3), _F32)
         out[0, 0], out[0, 1], out[0, 2] = v
         return out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
@@ -1168,12 +1174,12 @@ def magnitude(q, unit=False):
         return out
     one = _half_turn_floats(q)
     if one is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
-        kind = one[6]
-        angle = _angle_floats.kinds[kind](one[4])   # np.array, not np.full (5x its cost) nor a reshape (2x)
+        f64 = one[6] is _ops.F64   # (a test of the kind: cheaper than its table's lookups)
+        angle = (_angle_floats if f64 else _angle_floats.float32)(one[4])
         if q.ndim == 1:
-            return np.array(angle)
-        out = np.empty(1, kind.dtype)   # q is (1, 4): an element assigned costs half of np.array([angle])
-        out[0] = angle
+            return np.array(angle)   # np.array, not np.full (5x its cost) nor a reshape (2x)
+        out = np.empty(1) if f64 else np.empty(1, _F32)   # q is (1, 4): an element assigned costs
+        out[0] = angle                                     # half of np.array([angle])
         return out
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)
         out = np.empty(len(q), q.dtype)
