@@ -178,11 +178,18 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     if x_nonneg:
         return out
     neg = np.signbit(x)
-    if neg.any():   # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan
+    # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan.  Where no x is
+    # negative the sum is out + (±0 of out's sign), out to the bit, so a few elements take it
+    # rather than the reduction that would skip it (which costs as much as the three calls)
+    if out.size <= _FIX_ALWAYS or neg.any():
         turn = np.copysign(np.pi, y, dtype=out.dtype)
         turn *= neg
         out += turn
     return out
+
+
+_FIX_ALWAYS = 96
+"""Up to this many angles `arctan2`'s ±π fix is added without first testing for a negative x."""
 
 
 def _contig_last(a, dtype):
