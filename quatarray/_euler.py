@@ -212,7 +212,7 @@ _UFUNCS = {"mul": np.multiply, "add": np.add, "sub": np.subtract, "sqrt": np.sqr
 _NORMS_UFUNCS = tuple((_UFUNCS[name], *rows) for name, *rows in _NORMS)
 _ARGUMENTS_UFUNCS = {first: tuple((_UFUNCS[name], *rows) for name, *rows in steps)
                      for first, steps in _ARGUMENTS.items()}
-_SLICES = tuple((name, slice(*rows)) for name, rows in _ROWS.items())
+_SLICE = {name: slice(*rows) for name, rows in _ROWS.items()}
 
 
 def _steps_on_floats(steps, buf, op):
@@ -220,14 +220,13 @@ def _steps_on_floats(steps, buf, op):
     element in `op`'s arithmetic (`_ops.FLOATS`, or `_ops.compiled`'s tracer)."""
     for name, x, y, into in steps:
         f = getattr(op, name)
-        xs = buf[slice(*_ROWS[x])]
-        start, stop = _ROWS[into]
+        xs = buf[_SLICE[x]]
         if y is None:
-            buf[start:stop] = [f(a, None) for a in xs]
+            buf[_SLICE[into]] = [f(a, None) for a in xs]
         elif type(y) is float:
-            buf[start:stop] = [f(a, y, None) for a in xs]
+            buf[_SLICE[into]] = [f(a, y, None) for a in xs]
         else:
-            buf[start:stop] = [f(a, b, None) for a, b in zip(xs, buf[slice(*_ROWS[y])])]
+            buf[_SLICE[into]] = [f(a, b, None) for a, b in zip(xs, buf[_SLICE[y]])]
 
 
 class _EulerRows:
@@ -241,7 +240,7 @@ class _EulerRows:
 
     def __init__(self, buf):
         self.nbytes = buf.nbytes
-        views = {name: buf[where] for name, where in _SLICES}
+        views = {name: buf[where] for name, where in _SLICE.items()}
         self.e = views["e"]
         self.rows = rows = tuple(self.e)             # a, c, b, d, -a
         self.abcd = (rows[0], rows[2], rows[1], rows[3])
@@ -317,6 +316,13 @@ def _operands(abcd, op, first, third):
     _steps_on_floats(_ARGUMENTS[first], buf, op)
     g, n = _ROWS["g"], _ROWS["n"]
     return buf[g[0] + 1:g[1]:2] + buf[g[0]:g[1]:2] + [op.add(*buf[slice(*n)], None)]
+
+
+_OPERANDS_FLOATS = {extrinsic: _ops.compiled(
+    lambda op, stack, *abcd, first=first, third=third: _operands(list(abcd), op, first, third), 4)
+    for extrinsic, (first, third) in _FIRST_THIRD.items()}
+"""`_operands` compiled for the four floats ``[a, c, b, d]`` of one rotation, by `extrinsic`
+(`_ops.compiled`; the Euler sequences compile theirs from the quaternion, `_euler_plan`)."""
 
 
 def _angles_floats(v, extrinsic, symmetric, sign, lamb):
@@ -684,9 +690,8 @@ def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     comps = _ops.floats64(q)
     if comps is None:
         return None
-    first, third = _FIRST_THIRD[extrinsic]
     abcd = _davenport_abcd(comps, lmat, _ops.FLOATS, _ops.NONE, None)
-    o = _angles_floats(_operands(abcd, _ops.FLOATS, first, third), extrinsic, False, 1, lamb)
+    o = _angles_floats(_OPERANDS_FLOATS[extrinsic](*abcd), extrinsic, False, 1, lamb)
     if o is not None and flip:
         o[1] = -o[1]
     return o
