@@ -290,18 +290,21 @@ def _euler_rows(shape, dtype):
         buf = work.rows(_ROW_COUNT, shape, dtype)
         if buf.base is None:   # a fresh array: past the scratch's limit
             return _EulerRows(buf)
-        # the scratch's buffer is the same object while kept views of it hold it
+        # (the scratch's buffer is the same object while kept views of it hold it)
         key = (id(work.buf), work.top, shape, dtype)
         rows = kept.get(key)
         if rows is None:
-            if sum(type(k[0]) is int for k in kept) >= _KEEP_SCRATCH:
-                kept.clear()
+            on_scratch = [k for k in kept if type(k[0]) is int]
+            for k in on_scratch:   # views of a buffer the scratch has replaced, or too many
+                if k[0] != key[0] or len(on_scratch) >= _KEEP_SCRATCH:
+                    del kept[k]
             rows = kept[key] = _EulerRows(buf)
         return rows
     key = (shape, dtype)
     rows = kept.get(key)
     if rows is None:
-        if sum(r.nbytes for k, r in kept.items() if type(k[0]) is tuple) + _ROW_COUNT * shape[0] * dtype.itemsize > _KEEP_BYTES:
+        fresh = sum(r.nbytes for k, r in kept.items() if type(k[0]) is tuple)
+        if fresh + _ROW_COUNT * shape[0] * dtype.itemsize > _KEEP_BYTES:
             kept.clear()
         rows = kept[key] = _EulerRows(np.empty((_ROW_COUNT,) + shape, dtype))
     return rows
