@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 
-from . import _blocks, _ops, _scale
+from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise, from_rotvec
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
@@ -183,12 +183,13 @@ which an intrinsic sequence reverses."""
 
 _ROWS = {"e": (0, 5), "a": (0, 1), "-a": (4, 5), "e04": (0, 4), "e15": (1, 5), "sq": (5, 9),
          "sq01": (5, 7), "sq23": (7, 9), "n": (9, 11), "g": (11, 17), "g0": (11, 13), "g1": (13, 15),
-         "g2": (15, 17), "t": (17, 20)}
+         "g2": (15, 17), "num": (5, 8), "den": (8, 11), "t": (17, 20)}
 """The rows of the Euler angles' work buffer (`_EulerRows`; one rotation's floats take a list
 laid out alike): the chain ``e = [a, c, b, d, -a]`` (a, b, c, d as `_abcd` writes them), its
 squares (then its products), the norms ``n = [|(a, b)|², |(c, d)|²]``, arctan2's three
-(denominator, numerator) pairs ``g0, g1, g2`` in the order of the angles, and the three
-arctangents ``t``."""
+(denominator, numerator) pairs ``g0, g1, g2`` in the order of the angles (then, where
+`_angles` copies them into rows of their own, in the squares' and norms' rows ``num``,
+``den``), and the three arctangents ``t``."""
 
 _ROW_COUNT = 20
 
@@ -235,8 +236,8 @@ class _EulerRows:
     the views would cost a good part of the calls): `_NORMS` and `_ARGUMENTS` bound to them as
     ``(ufunc, x, y, into)``, `y` a view, a 0-d constant or None."""
 
-    __slots__ = ("nbytes", "e", "abcd", "rows", "norms", "arguments", "num", "den", "t", "t_rows", "tmp",
-                 "minus_one", "two")
+    __slots__ = ("nbytes", "e", "abcd", "rows", "norms", "arguments", "num", "den", "num_rows", "den_rows",
+                 "t", "t_rows", "tmp", "minus_one", "two")
 
     def __init__(self, buf):
         self.nbytes = buf.nbytes
@@ -246,6 +247,7 @@ class _EulerRows:
         self.abcd = (rows[0], rows[2], rows[1], rows[3])
         pairs = views["g"].reshape((3, 2) + buf.shape[1:])
         self.den, self.num = pairs[:, 0], pairs[:, 1]
+        self.num_rows, self.den_rows = views["num"], views["den"]
         self.t = views["t"]
         self.t_rows = tuple(self.t)
         self.tmp = self.t_rows[0]   # free until the arctangents
@@ -392,11 +394,16 @@ def _angles(w, o, extrinsic, symmetric, sign, lamb, unit=False):
                 raise ValueError(_scale.ZERO)
     _run(w.arguments[first])
     T = w.t
-    # into contiguous rows, then copied: a transcendental loop's bits may depend on the
-    # layout (SIMD for contiguous rows), and o is strided
-    arctan2(w.num, w.den, out=T, defined=unit)
     t = w.t_rows
     few = len(t[0]) <= _COPY_ALL_MAX   # finished in T and copied in one call, else row by row
+    num, den = w.num, w.den
+    if few and not _trig.SIMD_TAN:   # the ratio route (`_kernels.arctan2`) reads y and x three
+        np.copyto(w.num_rows, num)   # times: from contiguous rows, as few calls as it has
+        np.copyto(w.den_rows, den)
+        num, den = w.num_rows, w.den_rows
+    # into contiguous rows, then copied: a transcendental loop's bits may depend on the
+    # layout (SIMD for contiguous rows), and o is strided
+    arctan2(num, den, out=T, defined=unit)
     mid = np.multiply(t[1], w.two, out=t[1] if few else o[1])          # the middle angle, in [0, π]
     lo, hi = _extremes(mid)
     gimbal = lo <= _GIMBAL_EPS or hi >= _PI_LOCK
