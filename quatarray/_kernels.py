@@ -178,10 +178,9 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     if x_nonneg:
         return out
     neg = np.signbit(x)
-    # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan.  Where no x is
-    # negative the sum is out + (±0 of out's sign), out to the bit, so a few elements take it
-    # rather than the reduction that would skip it (which costs as much as the three calls)
-    if out.size <= _FIX_ALWAYS or neg.any():
+    if out.size <= _FIX_ALWAYS:   # a few: one masked add, without the reduction that would skip it
+        np.add(out, np.copysign(np.pi, y, dtype=out.dtype), out=out, where=neg)
+    elif neg.any():   # + copysign(π, y) · neg: on long rows a masked add would cost more than arctan
         turn = np.copysign(np.pi, y, dtype=out.dtype)
         turn *= neg
         out += turn
@@ -189,7 +188,8 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
 
 
 _FIX_ALWAYS = 96
-"""Up to this many angles `arctan2`'s ±π fix is added without first testing for a negative x."""
+"""Up to this many angles `arctan2`'s ±π fix is one masked add, without first testing for a
+negative x (at a few elements the test costs as much as the fix)."""
 
 
 def _contig_last(a, dtype):
