@@ -312,10 +312,10 @@ def _euler_rows(shape, dtype):
     return rows
 
 
-def _operands(abcd, op, first, third):
+def _operands(abcd, op, first):
     """`_NORMS` and `_ARGUMENTS` on floats (`abcd`: ``[a, c, b, d]``, completed by -a into the
-    chain): arctan2's three numerators and three denominators, and |(a, b, c, d)|² (for the
-    range check), seven floats."""
+    chain; `first` the row of the first angle): arctan2's three numerators and three
+    denominators, and |(a, b, c, d)|² (for the range check), seven floats."""
     buf = list(abcd) + [None] * (_ROW_COUNT - 4)
     _steps_on_floats(_NORMS, buf, op)
     _steps_on_floats(_ARGUMENTS[first], buf, op)
@@ -324,8 +324,8 @@ def _operands(abcd, op, first, third):
 
 
 _OPERANDS_FLOATS = {extrinsic: _ops.compiled(
-    lambda op, stack, *abcd, first=first, third=third: _operands(list(abcd), op, first, third), 4)
-    for extrinsic, (first, third) in _FIRST_THIRD.items()}
+    lambda op, stack, *abcd, first=first: _operands(list(abcd), op, first), 4)
+    for extrinsic, (first, _) in _FIRST_THIRD.items()}
 """`_operands` compiled for the four floats ``[a, c, b, d]`` of one rotation, by `extrinsic`
 (`_ops.compiled`; the Euler sequences compile theirs from the quaternion, `_euler_plan`)."""
 
@@ -494,12 +494,12 @@ _HALF_PI = np.pi / 2
 def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
     four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows."""
-    first, third = _FIRST_THIRD[extrinsic]
+    first = _FIRST_THIRD[extrinsic][0]
 
     def operands(op, stack, *q):
         qk = op.mul(q[k + 1], -1.0, None) if sign < 0 else q[k + 1]
         abcd = _abcd(q[0], q[i + 1], q[j + 1], qk, symmetric, op, _ops.NONE)
-        return _operands(abcd, op, first, third)
+        return _operands(abcd, op, first)
     return _ops.compiled(operands, 4)
 
 
