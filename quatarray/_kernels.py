@@ -179,7 +179,8 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
         return out
     neg = np.signbit(x)
     if out.size <= _FIX_ALWAYS:   # a few: one masked add, without the reduction that would skip it
-        np.add(out, np.copysign(np.pi, y, dtype=out.dtype), out=out, where=neg)
+        pi = _ops.const(np.pi, out.dtype)   # (a 0-d operand: no scalar to convert)
+        np.add(out, np.copysign(pi, y), out=out, where=neg)
     elif neg.any():   # + copysign(π, y) · neg: on long rows a masked add would cost more than arctan
         turn = np.copysign(np.pi, y, dtype=out.dtype)
         turn *= neg
