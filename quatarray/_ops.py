@@ -218,7 +218,10 @@ def compiled(formula, nargs):
 
         def op(*args):
             v = _Name(f"v{len(lines)}")
-            lines.append(f"    {v} = " + template.format(*map(term, args[:template.count("{")])))
+            if name == "mul" and type(args[1]) is float and args[1] == -1.0:   # x · -1 is -x, to
+                lines.append(f"    {v} = -{term(args[0])}")                     # the bit, without a
+            else:                                                               # constant's lookup
+                lines.append(f"    {v} = " + template.format(*map(term, args[:template.count("{")])))
             return v
         return op
 
