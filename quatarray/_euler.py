@@ -479,15 +479,6 @@ def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
     return _angles(w, o, extrinsic, symmetric, sign, _HALF_PI, unit)
 
 
-def _euler_floats(q, plan):
-    """`_k_as_euler` on the floats of one float64 quaternion, or None where the kernel would
-    rescale or find gimbal lock (its own path, with the warning)."""
-    comps = _ops.floats64(q)
-    if comps is None:
-        return None
-    return _angles_floats(plan[6](*comps), plan[5], plan[3], plan[4], _HALF_PI)
-
-
 _HALF_PI = np.pi / 2
 
 
@@ -566,8 +557,9 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
     plan = _euler_plan(seq)   # which checks seq
-    one = _euler_floats(q, plan) if q.size == 4 else None
-    if one is not None:   # one float64 rotation away from gimbal lock: the same formula on its floats
+    comps = _ops.floats64(q)   # one float64 rotation: the same formula on its floats, as `_k_as_euler`
+    one = None if comps is None else _angles_floats(plan[6](*comps), plan[5], plan[3], plan[4], _HALF_PI)
+    if one is not None:   # (None also where the kernel would rescale or find gimbal lock, with its warning)
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         i, j, k, symmetric, sign, extrinsic = plan[:6]
