@@ -395,30 +395,27 @@ def _angles(w, o, extrinsic, symmetric, sign, lamb, unit=False):
     _run(w.arguments[first])
     T = w.t
     t = w.t_rows
-    few = len(t[0]) <= _COPY_ALL_MAX   # finished in T and copied in one call, else row by row
+    few = len(t[0]) <= _COPY_ALL_MAX
     num, den = w.num, w.den
     if few and not _trig.SIMD_TAN:   # the ratio route (`_kernels.arctan2`) reads y and x three
         np.copyto(w.num_rows, num)   # times: from contiguous rows, as few calls as it has
         np.copyto(w.den_rows, den)
         num, den = w.num_rows, w.den_rows
-    # into contiguous rows, then copied: a transcendental loop's bits may depend on the
-    # layout (SIMD for contiguous rows), and o is strided
+    # into contiguous rows, finished there, then copied: a transcendental loop's bits may
+    # depend on the layout (SIMD for contiguous rows), and o is strided
     arctan2(num, den, out=T, defined=unit)
-    mid = np.multiply(t[1], w.two, out=t[1] if few else o[1])          # the middle angle, in [0, π]
+    mid = np.multiply(t[1], w.two, out=t[1])          # the middle angle, in [0, π]
     lo, hi = _extremes(mid)
     gimbal = lo <= _GIMBAL_EPS or hi >= _PI_LOCK
     if gimbal:
         mid = mid.copy()
+    if not symmetric:
+        _asymmetric(t[1], t[third], sign, (w.minus_one, _ops.const(lamb, T.dtype)), _ops.ARRAYS, t[1], t[third])
     if few:
-        if not symmetric:
-            _asymmetric(t[1], t[third], sign, (w.minus_one, _ops.const(lamb, T.dtype)), _ops.ARRAYS, t[1], t[third])
-        np.copyto(o, T)
+        np.copyto(o, T)   # one call (in inner loops of three)
     else:
-        np.copyto(o[first], t[first])
-        if symmetric or sign > 0:
-            np.copyto(o[third], t[third])
-        if not symmetric:
-            _asymmetric(o[1], t[third], sign, (w.minus_one, _ops.const(lamb, T.dtype)), _ops.ARRAYS, o[1], o[third])
+        for row, angle in zip(o, t):
+            np.copyto(row, angle)
     if gimbal:
         _lock(w.abcd, mid, o, extrinsic, third, -1.0 if not symmetric and sign < 0 else 1.0)
     return gimbal
@@ -426,9 +423,9 @@ def _angles(w, o, extrinsic, symmetric, sign, lamb, unit=False):
 
 _PI_LOCK = np.pi - _GIMBAL_EPS
 _COPY_ALL_MAX = 100
-"""Up to this many rotations `_angles` finishes the angles in its contiguous rows and copies
-all three into the strided output in one call; NumPy walks that copy in inner loops of three
-elements, so longer rows are finished in the output and copied one by one."""
+"""Up to this many rotations `_angles` copies its three rows of angles into the strided
+output in one call; NumPy walks that copy in inner loops of three elements, so longer rows
+are copied one by one."""
 
 
 def _lock(A, mid, o, extrinsic, third, third_sign):
