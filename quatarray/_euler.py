@@ -10,11 +10,12 @@ Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
 
 import functools
 import math
+import threading
 import warnings
 
 import numpy as np
 
-from . import _blocks, _ops, _scale
+from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise, from_rotvec
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
@@ -47,6 +48,24 @@ def check_seq(seq, n=None):
     return list(axes), intrinsic
 
 
+@functools.lru_cache(maxsize=128)
+def _check_str_seq(seq, n):
+    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs).
+    The messages are scipy's (its tests match them); each names what was expected and
+    what came."""
+    if n is not None and len(seq) != n:
+        raise ValueError(f"Expected {n} axes, got {seq}.")
+    if not 1 <= len(seq) <= 3:
+        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
+                         f"characters, got {seq}")
+    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
+        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
+                         f"['X', 'Y', 'Z'], got {seq}")
+    if any(a == b for a, b in zip(seq, seq[1:])):
+        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
+    return tuple("xyz".index(a) for a in seq.lower()), seq.isupper()
+
+
 def check_angles(seq, angles):
     """Validate Euler angles (..., len(seq)) against their sequence; a scalar becomes shape (1,).
 
@@ -68,24 +87,6 @@ def check_angles(seq, angles):
                          f"got {angles.shape[-1]}: expected angles of shape (..., {len(seq)}) for seq {seq!r}, "
                          f"got {angles.shape}")
     return angles
-
-
-@functools.lru_cache(maxsize=128)
-def _check_str_seq(seq, n):
-    """`check_seq` for a str, remembered (a single rotation's conversion is a few µs).
-    The messages are scipy's (its tests match them); each names what was expected and
-    what came."""
-    if n is not None and len(seq) != n:
-        raise ValueError(f"Expected {n} axes, got {seq}.")
-    if not 1 <= len(seq) <= 3:
-        raise ValueError(f"Expected axis specification to be a non-empty string of up to 3 "
-                         f"characters, got {seq}")
-    if not (seq.isupper() or seq.islower()) or set(seq.lower()) - set("xyz"):
-        raise ValueError(f"Expected axes from `seq` to be from ['x', 'y', 'z'] or "
-                         f"['X', 'Y', 'Z'], got {seq}")
-    if any(a == b for a, b in zip(seq, seq[1:])):
-        raise ValueError(f"Expected consecutive axes to be different, got {seq}")
-    return tuple("xyz".index(a) for a in seq.lower()), seq.isupper()
 
 
 def _negate(x):
@@ -196,47 +197,159 @@ def from_euler(seq, angles, degrees=False):
     return out
 
 
-def _norms(abcd, op, stack, sq, n):
-    """``|(a, b)|², |(c, d)|²`` of Bernardes & Viollet's a, b, c, d (`abcd`: four rows, or
-    one rotation's four floats) in `op`'s arithmetic (`_ops`, `stack` its stacked form: the
-    four squares are one call, into `sq`, four rows), into the two rows `n`."""
-    sq = stack.mul(abcd, abcd, sq)
-    return op.add(sq[0], sq[1], n[0]), op.add(sq[2], sq[3], n[1])
-
-
 _FIRST_THIRD = {True: (0, 2), False: (2, 0)}
-"""`_arguments`' `first` and `third` by `extrinsic`: the rows of arctan2's three
-arguments that hold the angle from ``ac + bd`` and the one from ``ac - bd`` (rows in the
-output's order of angles, which an intrinsic sequence reverses)."""
+"""The rows of arctan2's three arguments, by `extrinsic`, that hold the angle from
+``ac + bd`` (first) and the one from ``ac - bd`` (third), in the output's order of angles,
+which an intrinsic sequence reverses."""
+
+_ROWS = {"e": (0, 5), "a": (0, 1), "-a": (4, 5), "e04": (0, 4), "e15": (1, 5), "sq": (5, 9),
+         "sq01": (5, 7), "sq23": (7, 9), "n": (9, 11), "g": (11, 17), "g0": (11, 13), "g1": (13, 15),
+         "g2": (15, 17), "num": (5, 8), "den": (8, 11), "t": (17, 20)}
+"""The rows of the Euler angles' work buffer (`_EulerRows`; one rotation's floats take a list
+laid out alike): the chain ``e = [a, c, b, d, -a]`` (a, b, c, d as `_abcd` writes them), its
+squares (then its products), the norms ``n = [|(a, b)|², |(c, d)|²]``, arctan2's three
+(denominator, numerator) pairs ``g0, g1, g2`` in the order of the angles (then, where
+`_angles` copies them into rows of their own, in the squares' and norms' rows ``num``,
+``den``), and the three arctangents ``t``."""
+
+_ROW_COUNT = 20
+
+_NORMS = (("mul", "a", -1.0, "-a"),       # the chain's end
+          ("mul", "e04", "e04", "sq"),    # [a², c², b², d²]
+          ("add", "sq01", "sq23", "n"))   # [a² + b², c² + d²]
+"""The chain and the norms of Bernardes & Viollet's (a, b) and (c, d), as steps
+``(operation, x, y, into)`` on `_ROWS` (`y` a row, a constant or None): each one call on a
+block's rows."""
+
+_ARGUMENTS = {first: (("mul", "e04", "e15", "sq"),   # [ac, bc, bd, -ad]: the chain times itself shifted
+                      ("sqrt", "n", None, "g1"),      # (u, r) = (|(a, b)|, |(c, d)|)
+                      ("add", "sq01", "sq23", f"g{first}"),       # (re₁, im₁) = (ac + bd, bc - ad)
+                      ("sub", "sq01", "sq23", f"g{2 - first}"))   # (re₂, im₂) = (ac - bd, bc + ad)
+              for first in (0, 2)}
+"""arctan2's arguments from the chain and the norms, by the row of the first angle, as
+`_NORMS`: ``(a + ib)(c ∓ id) = re + i im``; ``x + (-y)`` is ``x - y`` and ``a·(-d)`` is
+``-(a·d)`` to the bit, so ``[ac, bc] ± [bd, -ad]`` are the pairs of both angles."""
+
+_UFUNCS = {"mul": np.multiply, "add": np.add, "sub": np.subtract, "sqrt": np.sqrt}
+_NORMS_UFUNCS = tuple((_UFUNCS[name], *rows) for name, *rows in _NORMS)
+_ARGUMENTS_UFUNCS = {first: tuple((_UFUNCS[name], *rows) for name, *rows in steps)
+                     for first, steps in _ARGUMENTS.items()}
+_SLICE = {name: slice(*rows) for name, rows in _ROWS.items()}
 
 
-def _arguments(abcd, u2, r2, op, first, third, yx, work):
-    """arctan2's numerators ``[im₁, r, im₂]`` and denominators ``[re₁, u, re₂]``, in the rows'
-    order of the angles (`first`, `third`), from a, b, c, d (`abcd`) and `_norms`' ``u2``,
-    ``r2``, in `op`'s arithmetic (`_ops`): ``(a + ib)(c ∓ id) = re + i im`` (re₁ = ac + bd,
-    re₂ = ac - bd, im₁ = bc - ad, im₂ = bc + ad), ``r = |(c, d)|``, ``u = |(a, b)|``; into the
-    six rows `yx` (numerators, then denominators) with the two work rows `work`."""
-    a, b, c, d = abcd[0], abcd[1], abcd[2], abcd[3]
-    ys, xs = [None] * 3, [None] * 3
-    ys[1] = op.sqrt(r2, yx[1])
-    xs[1] = op.sqrt(u2, yx[4])
-    ac = op.mul(a, c, work[0])
-    bd = op.mul(b, d, work[1])
-    xs[first] = op.add(ac, bd, yx[3 + first])
-    xs[third] = op.sub(ac, bd, yx[3 + third])
-    bc = op.mul(b, c, work[0])
-    ad = op.mul(a, d, work[1])
-    ys[first] = op.sub(bc, ad, yx[first])
-    ys[third] = op.add(bc, ad, yx[third])
-    return ys, xs
+def _steps_on_floats(steps, buf, op):
+    """`steps` (`_NORMS`, `_ARGUMENTS`) on the list `buf` laid out as `_ROWS`, element by
+    element in `op`'s arithmetic (`_ops.FLOATS`, or `_ops.compiled`'s tracer)."""
+    for name, x, y, into in steps:
+        f = getattr(op, name)
+        xs = buf[_SLICE[x]]
+        if y is None:
+            buf[_SLICE[into]] = [f(a, None) for a in xs]
+        elif type(y) is float:
+            buf[_SLICE[into]] = [f(a, y, None) for a in xs]
+        else:
+            buf[_SLICE[into]] = [f(a, b, None) for a, b in zip(xs, buf[_SLICE[y]])]
 
 
-def _operands(abcd, op, stack, first, third):
-    """`_norms` and `_arguments` on floats: arctan2's three numerators and three
+class _EulerRows:
+    """The work rows of `_angles` for blocks of one shape and dtype (`buf`, `_ROW_COUNT` rows),
+    laid out as `_ROWS`, with every view its calls use made once (at a few rotations, making
+    the views would cost a good part of the calls): `_NORMS` and `_ARGUMENTS` bound to them as
+    ``(ufunc, x, y, into)``, `y` a view, a 0-d constant or None."""
+
+    __slots__ = ("nbytes", "e", "abcd", "rows", "norms", "arguments", "num", "den", "num_rows", "den_rows",
+                 "t", "t_rows", "tmp", "minus_one", "two")
+
+    def __init__(self, buf):
+        self.nbytes = buf.nbytes
+        views = {name: buf[where] for name, where in _SLICE.items()}
+        self.e = views["e"]
+        self.rows = rows = tuple(self.e)             # a, c, b, d, -a
+        self.abcd = (rows[0], rows[2], rows[1], rows[3])
+        pairs = views["g"].reshape((3, 2) + buf.shape[1:])
+        self.den, self.num = pairs[:, 0], pairs[:, 1]
+        self.num_rows, self.den_rows = views["num"], views["den"]
+        self.t = views["t"]
+        self.t_rows = tuple(self.t)
+        self.tmp = self.t_rows[0]   # free until the arctangents
+        views[-1.0] = self.minus_one = _ops.const(-1.0, buf.dtype)
+        self.two = _ops.const(2.0, buf.dtype)
+        views[None] = None
+        self.norms = tuple((f, views[x], views[y], views[into]) for f, x, y, into in _NORMS_UFUNCS)
+        self.arguments = {first: tuple((f, views[x], views[y], views[into]) for f, x, y, into in steps)
+                          for first, steps in _ARGUMENTS_UFUNCS.items()}
+
+
+def _run(steps):
+    """Bound steps (`_EulerRows`), one ufunc call each."""
+    for f, x, y, into in steps:
+        if y is None:
+            f(x, out=into)
+        else:
+            f(x, y, out=into)
+
+
+_local = threading.local()
+
+
+_KEEP_BYTES = 1 << 20
+"""Bytes of fresh `_EulerRows` a thread keeps between calls (the few sizes a program converts)."""
+
+_KEEP_SCRATCH = 4
+"""`_EulerRows` on scratch a thread keeps between calls (a block's rows lie in the same place
+of the thread's scratch from call to call)."""
+
+
+def _euler_rows(shape, dtype):
+    """The calling thread's `_EulerRows` for blocks of `shape` (m,) and `dtype`, kept with
+    their views (building them costs as much as a dozen small ufunc calls): up to
+    `_blocks.FEW` rotations in fresh rows, within `_KEEP_BYTES`; past it on the thread's
+    scratch (rows taken for the block as usual), kept by where they lie there."""
+    kept = getattr(_local, "rows", None)
+    if kept is None:
+        kept = _local.rows = {}
+    if shape[0] > _blocks.FEW:
+        work = _blocks.scratch()
+        buf = work.rows(_ROW_COUNT, shape, dtype)
+        if buf.base is None:   # a fresh array: past the scratch's limit
+            return _EulerRows(buf)
+        # (the scratch's buffer is the same object while kept views of it hold it)
+        key = (id(work.buf), work.top, shape, dtype)
+        rows = kept.get(key)
+        if rows is None:
+            on_scratch = [k for k in kept if type(k[0]) is int]
+            for k in on_scratch:   # views of a buffer the scratch has replaced, or too many
+                if k[0] != key[0] or len(on_scratch) >= _KEEP_SCRATCH:
+                    del kept[k]
+            rows = kept[key] = _EulerRows(buf)
+        return rows
+    key = (shape, dtype)
+    rows = kept.get(key)
+    if rows is None:
+        fresh = sum(r.nbytes for k, r in kept.items() if type(k[0]) is tuple)
+        if fresh + _ROW_COUNT * shape[0] * dtype.itemsize > _KEEP_BYTES:
+            kept.clear()
+        rows = kept[key] = _EulerRows(np.empty((_ROW_COUNT,) + shape, dtype))
+    return rows
+
+
+def _operands(abcd, op, first):
+    """`_NORMS` and `_ARGUMENTS` on floats (`abcd`: ``[a, c, b, d]``, completed by -a into the
+    chain; `first` the row of the first angle): arctan2's three numerators and three
     denominators, and |(a, b, c, d)|² (for the range check), seven floats."""
-    u2, r2 = _norms(abcd, op, stack, None, _ops.NONE)
-    ys, xs = _arguments(abcd, u2, r2, op, first, third, _ops.NONE, _ops.NONE)
-    return ys + xs + [op.add(u2, r2, None)]
+    buf = list(abcd) + [None] * (_ROW_COUNT - 4)
+    _steps_on_floats(_NORMS, buf, op)
+    _steps_on_floats(_ARGUMENTS[first], buf, op)
+    g, n = _ROWS["g"], _ROWS["n"]
+    return buf[g[0] + 1:g[1]:2] + buf[g[0]:g[1]:2] + [op.add(*buf[slice(*n)], None)]
+
+
+_OPERANDS_FLOATS = {extrinsic: _ops.compiled(
+    lambda op, stack, *abcd, first=first: _operands(list(abcd), op, first), 4).kinds
+    for extrinsic, (first, _) in _FIRST_THIRD.items()}
+"""`_operands` compiled for the four floats ``[a, c, b, d]`` of one rotation, by `extrinsic`
+and `_ops.Kind` (`_ops.compiled`; the Euler sequences compile theirs from the quaternion,
+`_euler_plan`)."""
 
 
 def _angles_floats(v, extrinsic, symmetric, sign, lamb, kind):
@@ -279,63 +392,69 @@ _ASYMMETRIC_FLOATS = {sign: _ops.compiled(lambda op, stack, mid, third, lamb, si
 (`_ops.compiled`)."""
 
 
-def _angles(abcd, o, extrinsic, symmetric, sign, lamb, unit=False):
-    """Bernardes & Viollet's step 2-3 from a, b, c, d (`abcd`: four rows (4, m), a buffer that
-    may be rescaled in place) into o (three rows).  Returns whether any element is in gimbal
-    lock.  One rotation's floats take `_operands` and `_angles_floats`: the same operations.
+def _angles(w, o, extrinsic, symmetric, sign, lamb, unit=False):
+    """Bernardes & Viollet's step 2-3 from a, b, c, d (in the rows ``w.abcd`` of `_euler_rows`'
+    `w`; they may be rescaled in place) into o (three rows).  Returns whether any element is
+    in gimbal lock.  One rotation's floats take `_operands` and `_angles_floats`: the same
+    operations.
 
     The middle angle is 2 atan2(|(c, d)|, |(a, b)|); the first and third angles are
     half_sum ∓ half_diff with half_sum = arg(a + ib) and half_diff = arg(c + id), each read as
     one argument, of (a + ib)(c ∓ id) = Re + i Im, which lands in [-π, π] without the wrap
     scipy applies to the sum.  The three arctangents (`_kernels.arctan2`) are one call on
-    arrays, numerators and denominators stacked in the rows' order of `o`, written into it.
-    In gimbal lock (middle angle within 1e-7 of 0 or π) the third angle is set to 0 and the
-    first takes the whole turn, as in scipy.  `unit`: a, b, c, d come from finite unit
-    quaternions (`Rotation`'s storage), whose squared norms always fit: no range check."""
+    arrays, on the numerators and denominators of `_ARGUMENTS`' pairs in the rows' order of
+    `o`.  In gimbal lock (middle angle within 1e-7 of 0 or π) the third angle is set to 0 and
+    the first takes the whole turn, as in scipy.  `unit`: a, b, c, d come from finite unit
+    quaternions (`Rotation`'s storage), whose squared norms always fit: no range check.
+
+    Each step is one call on several rows (at a few rotations the calls, not the elements,
+    take the time): the chain, its squares, their pair sums, the products, the pairs' sums
+    and differences, their square roots, the arctangents, their copy into `o`."""
     first, third = _FIRST_THIRD[extrinsic]
-    op = _ops.ARRAYS
-    shape, dtype = abcd.shape[1:], abcd.dtype
-    rows = (_blocks.scratch().rows(15, shape, dtype) if abcd.size > 4 * _blocks.FEW
-            else np.empty((15,) + shape, dtype))
-    # rows 0-3: squares, then products; 4-5: the norms; 6-8 and 9-11: arctan2's numerators
-    # and denominators in the rows' order of o; 12-14: the arctangents
-    n = (rows[4], rows[5])   # rows by indexing (a fifth of the cost of unpacking an array)
-    u2, r2 = _norms(abcd, op, op, rows[0:4], n)   # (on a block's contiguous rows ARRAYS stacks too)
+    _run(w.norms)
     if not unit:   # the range guard of `_scale`, on |(a, b, c, d)|² (|q|² or 2|q|²)
-        n2 = np.add(u2, r2, out=rows[9])
-        if not _scale.fits(n2):
-            if not np.isfinite(abcd).all():
+        u2, r2 = w.norms[-1][3]
+        if not _scale.fits(np.add(u2, r2, out=w.tmp)):
+            if not np.isfinite(w.e).all():
                 raise ValueError(_scale.NONFINITE)
-            _scale.rescale(abcd, _scale.outside(n2))   # by powers of two: the angles are unchanged
-            u2, r2 = _norms(abcd, op, op, rows[0:4], n)
-            if not np.add(u2, r2, out=rows[9]).all():
+            _scale.rescale(w.e, _scale.outside(w.tmp))   # by powers of two: the angles are unchanged
+            _run(w.norms)
+            if not np.add(u2, r2, out=w.tmp).all():
                 raise ValueError(_scale.ZERO)
-    _arguments(abcd, u2, r2, _ops.ARRAYS, first, third, (rows[6], rows[7], rows[8], rows[9], rows[10], rows[11]),
-               (rows[2], rows[3]))
-    T = rows[12:15]
-    # into contiguous rows, then copied: a transcendental loop's bits may depend on the
-    # layout (SIMD for contiguous rows), and o is strided
-    arctan2(rows[6:9], rows[9:12], out=T, defined=unit)
-    o0, o1, o2 = o[0], o[1], o[2]
-    mid = np.multiply(T[1], _ops.const(2.0, dtype), out=o1)          # the middle angle, in [0, π]
+    _run(w.arguments[first])
+    T = w.t
+    t = w.t_rows
+    few = len(t[0]) <= _COPY_ALL_MAX
+    num, den = w.num, w.den
+    if few and not _trig.SIMD_TAN:   # the ratio route (`_kernels.arctan2`) reads y and x three
+        np.copyto(w.num_rows, num)   # times: from contiguous rows, as few calls as it has
+        np.copyto(w.den_rows, den)
+        num, den = w.num_rows, w.den_rows
+    # into contiguous rows, finished there, then copied: a transcendental loop's bits may
+    # depend on the layout (SIMD for contiguous rows), and o is strided
+    arctan2(num, den, out=T, defined=unit)
+    mid = np.multiply(t[1], w.two, out=t[1])          # the middle angle, in [0, π]
     lo, hi = _extremes(mid)
     gimbal = lo <= _GIMBAL_EPS or hi >= _PI_LOCK
     if gimbal:
         mid = mid.copy()
-    angles = [T[0], o1, T[2]]
-    angles[first] = op.copy(angles[first], o0 if first == 0 else o2)
-    if symmetric or sign > 0:
-        angles[third] = op.copy(angles[third], o2 if third == 2 else o0)
     if not symmetric:
-        angles[1], angles[third] = _asymmetric(angles[1], angles[third], sign,
-                                               (_ops.const(-1.0, dtype), _ops.const(lamb, dtype)), op,
-                                               angles[1], o2 if third == 2 else o0)
+        _asymmetric(t[1], t[third], sign, (w.minus_one, _ops.const(lamb, T.dtype)), _ops.ARRAYS, t[1], t[third])
+    if few:
+        np.copyto(o, T)   # one call (in inner loops of three)
+    else:
+        for row, angle in zip(o, t):
+            np.copyto(row, angle)
     if gimbal:
-        _lock(abcd, mid, o, extrinsic, third, -1.0 if not symmetric and sign < 0 else 1.0)
+        _lock(w.abcd, mid, o, extrinsic, third, -1.0 if not symmetric and sign < 0 else 1.0)
     return gimbal
 
 
 _PI_LOCK = np.pi - _GIMBAL_EPS
+_COPY_ALL_MAX = 100
+"""Up to this many rotations `_angles` copies its three rows of angles into the strided
+output in one call; NumPy walks that copy in inner loops of three elements, so longer rows
+are copied one by one."""
 
 
 def _lock(A, mid, o, extrinsic, third, third_sign):
@@ -366,37 +485,24 @@ def _extremes(a):
 
 _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.float64))}
 _TINY64 = _TINY[np.dtype(np.float64)]
-_BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
-_F64 = _ops.F64
 
 
 def _abcd(w, qi, qj, qk, symmetric, op, rows):
     """Bernardes & Viollet's a, b, c, d from the components a sequence reads (qk already
-    signed), in `op`'s arithmetic (`_ops`), into the four `rows`."""
+    signed), in `op`'s arithmetic (`_ops`), in the chain's order ``[a, c, b, d]`` (`_ROWS`), into the
+    four `rows`."""
     if symmetric:
-        return [op.copy(w, rows[0]), op.copy(qi, rows[1]), op.copy(qj, rows[2]), op.copy(qk, rows[3])]
-    return [op.sub(w, qj, rows[0]), op.add(qi, qk, rows[1]), op.add(qj, w, rows[2]), op.sub(qk, qi, rows[3])]
+        return [op.copy(w, rows[0]), op.copy(qj, rows[1]), op.copy(qi, rows[2]), op.copy(qk, rows[3])]
+    return [op.sub(w, qj, rows[0]), op.add(qj, w, rows[1]), op.add(qi, qk, rows[2]), op.sub(qk, qi, rows[3])]
 
 
 def _k_as_euler(q, o, i, j, k, symmetric, sign, extrinsic, unit=False):
-    s = q.shape[1:]
-    abcd = _blocks.scratch().rows(5, s, q.dtype) if q.size > 4 * _blocks.FEW else np.empty((5,) + s, q.dtype)
-    w, qi, qj, qk = q[0], q[i + 1], q[j + 1], q[k + 1]
-    if sign < 0:   # q is only read (views of a Rotation's storage)
-        qk = np.multiply(qk, _ops.const(-1.0, q.dtype), out=abcd[4])
-    _abcd(w, qi, qj, qk, symmetric, _ops.ARRAYS, abcd)
-    return _angles(abcd[:4], o, extrinsic, symmetric, sign, _HALF_PI, unit)
-
-
-def _euler_floats(q, plan):
-    """`_k_as_euler` on the floats of one float64 or float32 quaternion, or None where the
-    kernel would rescale or find gimbal lock (its own path, with the warning)."""
-    comps, kind = _ops.floats64(q), _ops.F64
-    if comps is None:
-        comps, kind = _ops.floats32(q)
-    if comps is None:
-        return None
-    return _angles_floats(plan[6][kind](*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
+    w = _euler_rows(q.shape[1:], q.dtype)
+    qk = q[k + 1]
+    if sign < 0:   # q is only read (views of a Rotation's storage); the chain's last row is free
+        qk = np.multiply(qk, _ops.const(-1.0, q.dtype), out=w.rows[4])
+    _abcd(q[0], q[i + 1], q[j + 1], qk, symmetric, _ops.ARRAYS, w.rows)
+    return _angles(w, o, extrinsic, symmetric, sign, _HALF_PI, unit)
 
 
 _HALF_PI = np.pi / 2
@@ -406,15 +512,17 @@ def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
     """`_abcd` and `_operands` for one Euler sequence's plan, compiled for one rotation's
     four floats (`_ops.compiled`), as `_k_as_euler` and `_angles` run them on rows: the
     functions by `_ops.Kind`."""
-    first, third = _FIRST_THIRD[extrinsic]
+    first = _FIRST_THIRD[extrinsic][0]
 
     def operands(op, stack, *q):
         qk = op.mul(q[k + 1], -1.0, None) if sign < 0 else q[k + 1]
         abcd = _abcd(q[0], q[i + 1], q[j + 1], qk, symmetric, op, _ops.NONE)
-        return _operands(abcd, op, stack, first, third)
+        return _operands(abcd, op, first)
     return _ops.compiled(operands, 4).kinds
 
 
+_BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
+_F64 = _ops.F64
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -476,13 +584,20 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
     plan = _euler_plan(seq)   # which checks seq
-    one = _euler_floats(q, plan)
-    if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
+    comps, kind = _ops.floats64(q), _F64   # one float64 or float32 rotation: the same formula on its
+    if comps is None:                       # floats, as `_k_as_euler`
+        comps, kind = _ops.floats32(q)
+    one = None if comps is None else _angles_floats(plan[6][kind](*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
+    if one is not None:   # (None also where the kernel would rescale or find gimbal lock, with its warning)
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
     else:
         i, j, k, symmetric, sign, extrinsic = plan[:6]
-        out = np.empty(q.shape[:-1] + (3,), q.dtype)
-        flat, oflat = q.reshape(-1, 4), out.reshape(-1, 3)
+        if q.ndim == 2:   # (n, 4), as a Rotation stores them: no reshapes (a small call's cost)
+            flat = q
+            out = oflat = np.empty((len(q), 3), q.dtype)
+        else:
+            out = np.empty(q.shape[:-1] + (3,), q.dtype)
+            flat, oflat = q.reshape(-1, 4), out.reshape(-1, 3)
         if unit and 0 < len(flat) <= _blocks.VIEWS_MAX:   # a Rotation's few: the kernel at once on
             gimbal = _k_as_euler(flat.T, oflat.T, i, j, k, symmetric, sign, extrinsic, True)   # views
         elif unit:   # up to a block on views too, then blocks on threads
@@ -603,23 +718,23 @@ def from_davenport(axes, order, angles, degrees=False):
 def _davenport_floats(q, lmat, extrinsic, lamb, flip):
     """`_k_davenport_angles` on the floats of one float64 or float32 quaternion, or None (as
     `_angles_floats`)."""
-    comps, kind = _ops.floats64(q), _ops.F64
+    comps, kind = _ops.floats64(q), _F64
     if comps is None:
         comps, kind = _ops.floats32(q)
     if comps is None:
         return None
-    first, third = _FIRST_THIRD[extrinsic]
     abcd = _davenport_abcd(comps, lmat, kind.op, _ops.NONE, None)
-    o = _angles_floats(_operands(abcd, kind.op, _ops.FLOAT_STACKS, first, third), extrinsic, False, 1, lamb, kind)
+    o = _angles_floats(_OPERANDS_FLOATS[extrinsic][kind](*abcd), extrinsic, False, 1, lamb, kind)
     if o is not None and flip:
         o[1] = -o[1]
     return o
 
 
 def _davenport_abcd(q, lmat, op, rows, t):
-    """(a, b, c, d) = L q, each summed in one order (q0 c0 + q1 c1 + q2 c2 + q3 c3, left to
-    right), in `op`'s arithmetic (`_ops`): into the four `rows` with the work row `t` (or
-    `_ops.NONE` and None on floats); returned as a list."""
+    """(a, c, b, d) = L q (`_davenport_frame`'s L: the chain's order, `_ROWS`), each summed in one order
+    (q0 c0 + q1 c1 + q2 c2 + q3 c3, left to right), in `op`'s arithmetic (`_ops`): into the
+    first four `rows` with the work row `t` (or `_ops.NONE` and None on floats); returned as
+    a list."""
     abcd = []
     for row, coef in zip(rows, lmat):
         row = op.mul(q[0], coef[0], row)
@@ -630,10 +745,9 @@ def _davenport_abcd(q, lmat, op, rows, t):
 
 
 def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
-    with _blocks.scratch().frame() as work:
-        A = work.rows(4, q.shape[1:], q.dtype)
-        _davenport_abcd(q, lmat, _ops.ARRAYS, A, work.rows(1, q.shape[1:], q.dtype)[0])
-        gimbal = _angles(A, o, extrinsic, False, 1, lamb)
+    w = _euler_rows(q.shape[1:], q.dtype)
+    _davenport_abcd(q, lmat, _ops.ARRAYS, w.rows, w.tmp)
+    gimbal = _angles(w, o, extrinsic, False, 1, lamb)
     if flip:
         _negate(o[1])
     return gimbal
@@ -721,7 +835,8 @@ def as_davenport_batched(q, axes, order, degrees=False, suppress_warnings=False)
 @functools.lru_cache(maxsize=64)
 def _davenport_frame(axes_bytes, shape, extrinsic):
     """(4x4 matrix L as nested tuples, λ, flip) for `as_davenport`'s axes, remembered:
-    the same few axes serve many calls, and building L costs more than one rotation."""
+    the same few axes serve many calls, and building L costs more than one rotation.  L's
+    rows give a, b, c, d in the chain's order, ``[a, c, b, d]`` (`_ROWS`)."""
     n1, n2, n3 = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3, signed=True)
     if not extrinsic:
         n1, n3 = n3, n1
@@ -739,4 +854,4 @@ def _davenport_frame(axes_bytes, shape, extrinsic):
     proj = np.zeros((4, 4))
     proj[0, 0] = 1
     proj[1:, 1:] = [n1, n2, ncross]
-    return tuple(map(tuple, (proj @ left).tolist())), lamb, flip
+    return tuple(map(tuple, (proj @ left)[[0, 2, 1, 3]].tolist())), lamb, flip

@@ -182,11 +182,19 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
     if x_nonneg:
         return out
     neg = np.signbit(x)
-    if neg.any():   # + copysign(π, y) · neg: a masked add (where=) would cost more than arctan
+    if out.size <= _FIX_ALWAYS:   # a few: one masked add, without the reduction that would skip it
+        pi = _ops.const(np.pi, out.dtype)   # (a 0-d operand: no scalar to convert)
+        np.add(out, np.copysign(pi, y), out=out, where=neg)
+    elif neg.any():   # + copysign(π, y) · neg: on long rows a masked add would cost more than arctan
         turn = np.copysign(np.pi, y, dtype=out.dtype)
         turn *= neg
         out += turn
     return out
+
+
+_FIX_ALWAYS = 96
+"""Up to this many angles `arctan2`'s ±π fix is one masked add, without first testing for a
+negative x (at a few elements the test costs as much as the fix)."""
 
 
 def _contig_last(a, dtype):

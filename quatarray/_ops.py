@@ -255,10 +255,13 @@ def compiled(formula, nargs, calls=None):
         consts[key] = v
         return key
 
-    def emit(template):
+    def emit(name, template):
         def op(*args):
             v = _Name(f"v{len(lines)}")
-            lines.append(f"    {v} = " + template.format(*map(term, args[:template.count("{")])))
+            if name == "mul" and type(args[1]) is float and args[1] == -1.0:   # x · -1 is -x, to
+                lines.append(f"    {v} = -{term(args[0])}")                     # the bit, without a
+            else:                                                               # constant's lookup
+                lines.append(f"    {v} = " + template.format(*map(term, args[:template.count("{")])))
             return v
         return op
 
@@ -268,7 +271,7 @@ def compiled(formula, nargs, calls=None):
     calls = calls or {}
     templates = {**_TEMPLATES, **{name: f"_call_{name}(" + ", ".join(f"{{{i}}}" for i in range(n)) + ")"
                                   for name, (n, *_) in calls.items()}}
-    trace = SimpleNamespace(**{name: emit(t) for name, t in templates.items()}, copy=lambda a, out: a, where=raise_)
+    trace = SimpleNamespace(**{name: emit(name, t) for name, t in templates.items()}, copy=lambda a, out: a, where=raise_)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul", "div")}
     stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,

@@ -1,6 +1,7 @@
 """Euler and Davenport angles (`quatarray._euler`) cross-checked against scipy:
 all 24 sequences both ways, ranges, gimbal lock, float32, shapes and bad input."""
 
+import sys
 import warnings
 
 import numpy as np
@@ -274,3 +275,26 @@ def test_euler_of_quarter_turns_and_signed_zeros_like_scipy_in_any_batch(rng, se
                 np.testing.assert_array_equal(f(batch[i]), whole[i])
                 np.testing.assert_array_equal(f(batch[i:i + 1])[0], whole[i])
             assert angle_diff(whole, want).max() <= tol(np.float64)
+
+
+def test_kept_work_rows_give_the_same_angles_in_any_order_of_sizes_and_threads(rng):
+    """`_euler._euler_rows` keeps each thread's work rows and their views by block shape and
+    dtype (past `_blocks.FEW` rotations, by their place in the thread's scratch): sizes and
+    dtypes in any order, and four threads at once, give the bits of the first calls."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    qs = [unit(rng, (n,), dtype) for n in (1, 3, 10, 100, 1500, 20000) for dtype in (np.float64, np.float32)]
+    calls = [(q, seq) for q in qs for seq in ("xyz", "ZXZ", "yzx")]
+    want = [E.as_euler(q, seq) for q, seq in calls]
+
+    def run(order):
+        return all(np.array_equal(E.as_euler(*calls[k]), want[k]) for k in order)
+    orders = [list(range(len(calls)))[::step] for step in (1, -1, 2, -3)]
+    assert run(orders[1])
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)   # threads switch between any two ufunc calls
+    try:
+        with ThreadPoolExecutor(4) as pool:
+            assert all(pool.map(run, orders * 4))
+    finally:
+        sys.setswitchinterval(interval)
