@@ -523,6 +523,7 @@ def _compiled_operands(i, j, k, symmetric, sign, extrinsic):
 
 _BOUNDS = _scale.BOUNDS   # (one lookup fewer a call)
 _F64 = _ops.F64
+_FLOAT64 = np.dtype(np.float64)
 
 
 def _warn_gimbal(gimbal, suppress_warnings, stacklevel=4):
@@ -584,9 +585,10 @@ def as_euler(q, seq, degrees=False, suppress_warnings=False, unit=False):
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
     plan = _euler_plan(seq)   # which checks seq
-    comps, kind = _ops.floats64(q), _F64   # one float64 or float32 rotation: the same formula on its
-    if comps is None:                       # floats, as `_k_as_euler`
-        comps, kind = _ops.floats32(q)
+    if q.size == 4 and q.dtype is _FLOAT64 and q.ndim <= 2:   # one float64 or float32 rotation: the
+        comps, kind = q.tolist() if q.ndim == 1 else q.tolist()[0], _F64   # same formula on its floats,
+    else:                                     # as `_k_as_euler` (`_ops.floats64`'s test written out:
+        comps, kind = _ops.floats32(q)        # a tenth of the call)
     one = None if comps is None else _angles_floats(plan[6][kind](*comps), plan[5], plan[3], plan[4], _HALF_PI, kind)
     if one is not None:   # (None also where the kernel would rescale or find gimbal lock, with its warning)
         out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
