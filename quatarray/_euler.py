@@ -484,8 +484,9 @@ def check_order(order, typed=False):
 
 
 def _unit_axes(axes, n=None, signed=False):
-    """Davenport axes as unit float64 vectors, shape (..., k, 3): one set of axes (3,) or
-    (k, 3), or a set per rotation (..., k, 3).
+    """Davenport axes as unit float64 component rows, shape (3, k, ...): x, y and z of the k
+    axes of a set, over the sets' batch: () for one set, (3,) or (k, 3); (...) for a set per
+    rotation, (..., k, 3).
 
     Validated as scipy validates them, with its messages: vectors of length 3, 1 to 3 of
     them in a set (exactly `n` if given: as_davenport's 3), consecutive ones orthogonal,
@@ -508,12 +509,17 @@ def _unit_axes(axes, n=None, signed=False):
     a = finite(a, "axes").astype(np.float64, copy=False)
     if a.ndim == 1:
         a = a[None]
-    largest = np.maximum.reduce(np.abs(a), axis=-1)
+    # the first calls read the strided components, the others contiguous rows (3, k, ...)
+    comps = a.transpose((a.ndim - 1, a.ndim - 2) + tuple(range(a.ndim - 2)))
+    largest = np.maximum(np.maximum(np.abs(comps[0]), np.abs(comps[1])), np.abs(comps[2]))
     if not largest.all():
         raise ValueError(f"expected non-zero axes, got a zero vector among axes of shape {shape}")
-    scaled = np.ldexp(a, -np.frexp(largest)[1][..., None])
-    unit = scaled / np.sqrt(_dot(scaled, scaled))[..., None]
-    cos = _dot(unit[..., 1:, :], unit[..., :-1, :])
+    power = np.negative(np.frexp(largest)[1])
+    unit = np.empty((3,) + largest.shape)
+    for c in range(3):
+        np.ldexp(comps[c], power, out=unit[c])
+    np.divide(unit, np.sqrt(_dot(unit, unit)), out=unit)
+    cos = _dot(unit[:, 1:], unit[:, :-1])
     bad = cos >= 1e-7 if signed else np.abs(cos) > 1e-7
     if bad.any():
         raise ValueError(f"Consecutive axes must be orthogonal: got cos = "
@@ -522,8 +528,8 @@ def _unit_axes(axes, n=None, signed=False):
 
 
 def _dot(u, v):
-    """u · v of vectors (..., 3), summed in one order (x, then y, then z)."""
-    return u[..., 0] * v[..., 0] + u[..., 1] * v[..., 1] + u[..., 2] * v[..., 2]
+    """u · v of vectors given as their component rows (x, y, z), summed in that order."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 @functools.lru_cache(maxsize=64)
@@ -531,7 +537,7 @@ def _shared_axes(axes_bytes, shape, dtype):
     """`_unit_axes` of one set of axes (a float64 array's bytes and shape) as
     `_k_from_davenport` takes them: (k, 1, 3) in `dtype`, read-only; remembered, as the
     same few axes serve many calls and validating them costs more than one rotation."""
-    axes = _unit_axes(np.frombuffer(axes_bytes).reshape(shape)).astype(dtype)[:, None, :]
+    axes = _unit_axes(np.frombuffer(axes_bytes).reshape(shape)).T.astype(dtype)[:, None, :]
     axes.flags.writeable = False
     return axes
 
@@ -557,10 +563,10 @@ def _k_from_davenport(angles, q, axes, extrinsic, scale):
 
 
 def _k_from_davenport_rows(angles, axes, q, extrinsic, scale):
-    """`_k_from_davenport` with a set of axes per rotation: `axes` (3k, m), the k axes'
-    components in turn."""
+    """`_k_from_davenport` with a set of axes per rotation: `axes` (3k, m), `_unit_axes`' rows
+    (x of the k axes, then y, then z)."""
     k, m = angles.shape
-    _k_from_davenport(angles, q, axes.reshape(k, 3, m).transpose(0, 2, 1), extrinsic, scale)
+    _k_from_davenport(angles, q, axes.reshape(3, k, m).transpose(1, 2, 0), extrinsic, scale)
 
 
 def _angles_mismatch(angles, axes, k):
@@ -617,12 +623,12 @@ def from_davenport(axes, order, angles, degrees=False):
                    axes=turn_axes, extrinsic=extrinsic, scale=scale, read_only=True)
         return out
     unit = _unit_axes(ax)   # a set of axes per rotation
-    k = unit.shape[-2]
+    k, sets = unit.shape[1], unit.shape[2:]
     if a.shape[-1] != k:
         raise _angles_mismatch(a, ax, k)
-    batch = _joint_batch(unit.shape[:-2], a.shape[:-1], lambda: _angles_mismatch(a, ax, k))
+    batch = _joint_batch(sets, a.shape[:-1], lambda: _angles_mismatch(a, ax, k))
     finite(a, "angles")
-    rows = unit.reshape(unit.shape[:-2] + (3 * k,)).astype(a.dtype)
+    rows = np.moveaxis(unit.astype(a.dtype, copy=False).reshape((3 * k,) + sets), 0, -1)   # (..., 3k) view
     out = np.empty(batch + (4,), a.dtype)
     _blockwise(_k_from_davenport_rows, [_flat(a, batch), _flat(rows, batch)], [out.reshape(-1, 4)],
                extrinsic=extrinsic, scale=scale, read_only=True)
@@ -743,13 +749,14 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
                             extrinsic=extrinsic, lamb=_ops.const(lamb, q.dtype),
                             sign=_ops.const(-1.0, q.dtype) if flip else None)
     else:   # a set of axes per rotation
-        frames = _davenport_frames(_unit_axes(ax, 3, signed=True), extrinsic).astype(q.dtype)
+        frames = np.moveaxis(_davenport_frames(_unit_axes(ax, 3, signed=True), extrinsic).astype(q.dtype, copy=False),
+                             0, -1)   # (..., 18) view
         batch = _joint_batch(frames.shape[:-1], q.shape[:-1], lambda: ValueError(
             f"Expected `axes` to match number of rotations, got {ax.shape} axes and {q.shape} rotations: "
             f"expected axes of shape (..., 3, 3) broadcasting with {q.shape[:-1]}"))
         out = np.empty(batch + (3,), q.dtype)
         gimbal = _blockwise(_k_davenport_angles_rows, [_flat(q, batch), _flat(frames, batch)],
-                            [out.reshape(-1, 3)], extrinsic=extrinsic)
+                            [out.reshape(-1, 3)], extrinsic=extrinsic, read_only=True)
     _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
 
@@ -760,33 +767,36 @@ def _davenport_frame(axes_bytes, shape, extrinsic):
     `as_davenport` takes them: (L as nested tuples of floats, λ, flip); remembered, as the
     same few axes serve many calls and building L costs more than one rotation."""
     unit = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3, signed=True)
-    frame = _davenport_frames(unit[None], extrinsic)[0].tolist()   # (a batch of one: the batches' code)
+    frame = _davenport_frames(unit[..., None], extrinsic)[:, 0].tolist()   # (a batch of one: the batches' calls)
     return tuple(tuple(frame[r:r + 4]) for r in range(0, 16, 4)), frame[16], frame[17] < 0
 
 
 def _davenport_frames(unit, extrinsic):
-    """What `as_davenport` reads rotations with, per set of unit axes (..., 3, 3): (..., 18),
-    the matrix L (16, row by row) that gives Bernardes & Viollet's (a, b, c, d) = L q, the
-    angle λ between the first and third axes and the sign (±1) of the middle angle.
+    """What `as_davenport` reads rotations with, per set of unit axes (`_unit_axes`' rows
+    (3, 3, ...)): rows (18, ...), the matrix L (16, row by row) that gives Bernardes &
+    Viollet's (a, b, c, d) = L q, the angle λ between the first and third axes and the sign
+    (±1) of the middle angle.
 
     As scipy: q is turned by λ about n2, then read along n1, n2 and n1 × n2; where λ < 0, n2
     is reversed instead (λ in [0, π], the middle angle's sign flipped), which keeps the
     angles compatible with `as_euler`.  Element by element, each sum in one order (no matrix
     product): a set of axes gets the same numbers alone and in any batch."""
-    n1, n2, n3 = unit[..., 0, :], unit[..., 1, :], unit[..., 2, :]
+    n1, n2, n3 = unit[:, 0], unit[:, 1], unit[:, 2]   # component rows (3, ...)
     if not extrinsic:
         n1, n3 = n3, n1
-    ncross = np.stack([n1[..., 1] * n2[..., 2] - n1[..., 2] * n2[..., 1],
-                       n1[..., 2] * n2[..., 0] - n1[..., 0] * n2[..., 2],
-                       n1[..., 0] * n2[..., 1] - n1[..., 1] * n2[..., 0]], axis=-1)
-    lamb = np.arctan2(_dot(n3, ncross), _dot(n3, n1))
-    sign = np.where(lamb < 0, -1.0, 1.0)
-    n2, ncross, lamb = n2 * sign[..., None], ncross * sign[..., None], lamb * sign
-    half = lamb / 2
-    p0, pv = np.cos(half), np.sin(half)[..., None] * n2
-    x, y, z = pv[..., 0], pv[..., 1], pv[..., 2]
+    # row by row (on long batches, (3, 4, ...) stacks of the products would leave the cache)
+    ncross = [n1[1] * n2[2] - n1[2] * n2[1], n1[2] * n2[0] - n1[0] * n2[2], n1[0] * n2[1] - n1[1] * n2[0]]
+    frames = np.empty((18,) + unit.shape[2:])
+    lamb = np.arctan2(_dot(n3, ncross), _dot(n3, n1), out=frames[16])
+    sign = frames[17]
+    sign[...] = np.where(lamb < 0, -1.0, 1.0)
+    n2, ncross = [c * sign for c in n2], [c * sign for c in ncross]
+    np.multiply(lamb, sign, out=lamb)
+    p0, s = _half_angle(lamb, 0.25)
+    x, y, z = s * n2[0], s * n2[1], s * n2[2]
     left = [[p0, -x, -y, -z], [x, p0, -z, y], [y, z, p0, -x], [z, -y, x, p0]]   # q_λ q = left · q
-    lmat = list(left[0])
-    for n in (n1, n2, ncross):   # L = P · left, P = diag(1, [n1; n2; n1 × n2])
-        lmat += [n[..., 0] * left[1][j] + n[..., 1] * left[2][j] + n[..., 2] * left[3][j] for j in range(4)]
-    return np.stack(lmat + [lamb, sign], axis=-1)
+    frames[0:4] = left[0]
+    for r, n in enumerate((n1, n2, ncross)):   # L = P · left, P = diag(1, [n1; n2; n1 × n2])
+        for j in range(4):
+            np.add(n[0] * left[1][j] + n[1] * left[2][j], n[2] * left[3][j], out=frames[4 + 4 * r + j])
+    return frames
