@@ -686,7 +686,7 @@ def _k_davenport_angles(q, o, lmat, extrinsic, lamb, sign):
         A = work.rows(4, q.shape[1:], q.dtype)
         _davenport_abcd(q, lmat, _ops.ARRAYS, A, work.rows(1, q.shape[1:], q.dtype)[0])
         gimbal = _angles(A, o, extrinsic, True, 1, None)
-    _asymmetric(o[1], None, 1, (None, lamb), _ops.ARRAYS, o[1], None)
+    _asymmetric(o[1], None, 1, (None, lamb), _ops.ARRAYS, o[1], None)   # the middle angle less λ
     if sign is not None:
         np.multiply(o[1], sign, out=o[1])   # (not np.negative in place: see `_negate`)
     return gimbal
