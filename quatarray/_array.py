@@ -528,7 +528,7 @@ class QuatArray(np.ndarray):
         return cls._wrap(_euler.from_euler(seq, angles, degrees=degrees))
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
-        """Davenport angles (..., 3) of q/|q| about three axes (3, 3).
+        """Davenport angles (..., 3) of q/|q| about three axes (3, 3), or a set per quaternion (..., 3, 3).
 
         >>> import numpy as np
         >>> from quatarray import QuatArray
@@ -545,7 +545,7 @@ class QuatArray(np.ndarray):
 
     @classmethod
     def from_davenport(cls, axes, order, angles, degrees=False):
-        """Unit quaternions of Davenport angles about 1 to 3 axes (n, 3).
+        """Unit quaternions of Davenport angles about 1 to 3 axes (n, 3), or a set per rotation (..., n, 3).
 
         >>> import numpy as np
         >>> from quatarray import QuatArray

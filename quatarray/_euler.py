@@ -9,21 +9,20 @@ Bernardes & Viollet (no matrices).  Blocks, dtypes and half angles as in
 """
 
 import functools
-import math
 import threading
 import warnings
 
 import numpy as np
 
 from . import _blocks, _ops, _scale, _trig
-from ._convert import _blockwise, from_rotvec
+from ._convert import _blockwise
 from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._kernels import arctan2, multiply
 from ._validate import finite, float_array, quat_array
 
-__all__ = ["check_seq", "check_angles", "from_euler", "as_euler", "check_order", "from_davenport", "as_davenport",
-           "from_davenport_batched", "as_davenport_batched"]
+__all__ = ["check_seq", "check_angles", "from_euler", "as_euler", "check_order", "from_davenport",
+           "as_davenport"]
 
 _GIMBAL_EPS = 1e-7
 _GIMBAL_MESSAGE = ("Gimbal lock detected. Setting third angle to zero since it is not "
@@ -634,47 +633,95 @@ def check_order(order, typed=False):
 
 
 def _unit_axes(axes, n=None, signed=False):
-    """Axes as unit float64 rows (k, 3); consecutive axes must be orthogonal: |cos| <= 1e-7
-    between them (scipy's from_davenport), or with `signed` cos < 1e-7 (its as_davenport's
-    test, which lets obtuse axes through)."""
-    a = float_array(axes, "axes").astype(np.float64)
+    """Davenport axes as unit float64 component rows, shape (3, k, ...): x, y and z of the k
+    axes of a set, over the sets' batch: () for one set, (3,) or (k, 3); (...) for a set per
+    rotation, (..., k, 3).
+
+    Validated as scipy validates them, with its messages: vectors of length 3, 1 to 3 of
+    them in a set (exactly `n` if given: as_davenport's 3), consecutive ones orthogonal,
+    |cos| <= 1e-7 between them (scipy's from_davenport) or, with `signed`, cos < 1e-7 (its
+    as_davenport's test, which lets obtuse axes through); besides, finite and non-zero
+    (scipy would return NaN).  Each axis is scaled by the power of two of its largest
+    component (exact, and no square can overflow or underflow), then divided by its norm:
+    element by element, so a set of axes has the same unit axes alone and in any batch.
+    """
+    a = float_array(axes, "axes")
+    shape = a.shape
+    if n is not None and (a.ndim < 2 or shape[-2] != n):
+        raise ValueError(f"Expected {n} axes, got {shape}.")
+    if a.ndim == 0 or shape[-1] != 3:
+        raise ValueError(f"Axes must be vectors of length 3: expected axes of shape (3,), (n, 3) or "
+                         f"(..., n, 3), got {shape}")
+    if a.ndim > 1 and not 1 <= shape[-2] <= 3:
+        raise ValueError(f"Expected up to 3 axes, got {shape[-2]}: expected axes of shape (n, 3) or "
+                         f"(..., n, 3) with n from 1 to 3, got {shape}")
+    a = finite(a, "axes").astype(np.float64, copy=False)
     if a.ndim == 1:
         a = a[None]
-    if a.ndim != 2 or a.shape[-1] != 3:
-        raise ValueError(f"expected axes of shape (3,) or (n, 3): vectors of length 3, got {np.shape(axes)}")
-    if n is not None and a.shape[0] != n:
-        raise ValueError(f"expected {n} axes, got {a.shape[0]}")
-    if not 1 <= a.shape[0] <= 3:
-        raise ValueError(f"expected 1 to 3 axes, got {a.shape[0]}")
-    # at most 3 rows: Python floats (numpy calls would cost more than a single rotation's maths)
-    rows = a.tolist()
-    norms = [math.hypot(*row) for row in rows]   # (no overflow of the squares for huge axes)
-    if not (all(map(math.isfinite, a.flat)) and all(n > 0 for n in norms)):
-        raise ValueError("expected finite, non-zero axes")
-    unit = [[x / n, y / n, z / n] for (x, y, z), n in zip(rows, norms)]
-    dots = [u[0] * v[0] + u[1] * v[1] + u[2] * v[2] for u, v in zip(unit[1:], unit)]
-    if any(d >= 1e-7 if signed else abs(d) > 1e-7 for d in dots):
+    # the first calls read the strided components, the others contiguous rows (3, k, ...)
+    comps = a.transpose((a.ndim - 1, a.ndim - 2) + tuple(range(a.ndim - 2)))
+    largest = np.maximum(np.maximum(np.abs(comps[0]), np.abs(comps[1])), np.abs(comps[2]))
+    if not largest.all():
+        raise ValueError(f"expected non-zero axes, got a zero vector among axes of shape {shape}")
+    power = np.negative(np.frexp(largest)[1])
+    unit = np.empty((3,) + largest.shape)
+    for c in range(3):
+        np.ldexp(comps[c], power, out=unit[c])
+    np.divide(unit, np.sqrt(_dot(unit, unit)), out=unit)
+    cos = _dot(unit[:, 1:], unit[:, :-1])
+    bad = cos >= 1e-7 if signed else np.abs(cos) > 1e-7
+    if bad.any():
         raise ValueError(f"Consecutive axes must be orthogonal: got cos = "
-                         f"{max(dots, key=abs):.3g} between them")
-    return np.array(unit)
+                         f"{cos[bad][np.argmax(np.abs(cos[bad]))]:.3g} between them")
+    return unit
+
+
+def _dot(u, v):
+    """u · v of vectors given as their component rows (x, y, z), summed in that order."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+@functools.lru_cache(maxsize=64)
+def _shared_axes(axes_bytes, shape, dtype):
+    """`_unit_axes` of one set of axes (a float64 array's bytes and shape) as
+    `_k_from_davenport` takes them: (k, 1, 3) in `dtype`, read-only; remembered, as the
+    same few axes serve many calls and validating them costs more than one rotation."""
+    axes = _unit_axes(np.frombuffer(axes_bytes).reshape(shape)).T.astype(dtype)[:, None, :]
+    axes.flags.writeable = False
+    return axes
 
 
 def _k_from_davenport(angles, q, axes, extrinsic, scale):
     """One elementary quaternion (cos, sin · axis) per axis, all half angles in one call,
-    composed in order with `_kernels.multiply` on (m, 4) rows."""
+    composed in order with `_kernels.multiply` on (m, 4) rows.  `axes`: (k, 1, 3), one set
+    for the block (`_shared_axes`), or (k, m, 3), a set per rotation
+    (`_k_from_davenport_rows`): the same products, broadcast."""
     if angles.shape[1] == 1 and angles.dtype == np.float64:
         # one float64 rotation: each half angle's `cos_sin` on its float (the same formula)
         cs = [_cos_sin(a * (2 * scale)) for a in angles[:, 0].tolist()]
-        turns = np.array([[[c, s * x, s * y, s * z]] for (c, s), (x, y, z) in zip(cs, axes)])
+        turns = np.array([[[c, s * x, s * y, s * z]] for (c, s), (x, y, z) in zip(cs, axes[:, 0].tolist())])
     else:
         c, s = _half_angle(angles, scale)                 # (k, m) each
         turns = np.empty(angles.shape + (4,), q.dtype)    # (k, m, 4): one elementary turn per axis
         turns[..., 0] = c
-        np.multiply(s[..., None], np.asarray(axes, q.dtype)[:, None, :], out=turns[..., 1:])
+        np.multiply(s[..., None], axes, out=turns[..., 1:])
     p = turns[0]
     for e in turns[1:]:
         p = multiply(e, p) if extrinsic else multiply(p, e)
     np.copyto(q, p.T)
+
+
+def _k_from_davenport_rows(angles, axes, q, extrinsic, scale):
+    """`_k_from_davenport` with a set of axes per rotation: `axes` (3k, m), `_unit_axes`' rows
+    (x of the k axes, then y, then z)."""
+    k, m = angles.shape
+    _k_from_davenport(angles, q, axes.reshape(3, k, m).transpose(1, 2, 0), extrinsic, scale)
+
+
+def _angles_mismatch(angles, axes, k):
+    return ValueError(f"Expected `angles` to match number of axes, got {angles.shape} angles and "
+                      f"{axes.shape} axes: expected angles of shape (..., {k})"
+                      + (f" broadcasting with the axes' {axes.shape[:-2]}" if axes.ndim > 2 else ""))
 
 
 def from_davenport(axes, order, angles, degrees=False):
@@ -682,8 +729,9 @@ def from_davenport(axes, order, angles, degrees=False):
 
     Parameters
     ----------
-    axes : array_like, shape (3,) or (n, 3), n ≤ 3
+    axes : array_like, shape (3,), (n, 3) or (..., n, 3), n ≤ 3
         Rotation axes (normalised here); consecutive axes must be orthogonal.
+        A batch of sets of axes broadcasts with the angles' batch.
     order : {'e', 'extrinsic', 'i', 'intrinsic'}
     angles : array_like, shape (..., n)
         A scalar is accepted for a single axis.
@@ -692,6 +740,8 @@ def from_davenport(axes, order, angles, degrees=False):
     Returns
     -------
     ndarray, shape (..., 4)
+        In the angles' dtype.  A rotation has the same bits whether its axes are
+        shared with the batch or its own: the same kernel, the shared axes broadcast.
 
     Examples
     --------
@@ -701,20 +751,51 @@ def from_davenport(axes, order, angles, degrees=False):
     >>> q = from_davenport([ez, ex], "extrinsic", [90, 45], degrees=True)
     >>> np.allclose(q, from_euler("zx", [90, 45], degrees=True))
     True
+    >>> from_davenport([[ez, ex], [ex, ez]], "e", [90, 45], degrees=True).shape
+    (2, 4)
     """
     extrinsic = check_order(order, typed=True)
-    ax = _unit_axes(axes)
-    a = finite(float_array(angles, "angles"), "angles")
+    ax = float_array(axes, "axes")
+    a = float_array(angles, "angles")
     if a.ndim == 0:
         a = a.reshape(1)
-    if a.shape[-1] != ax.shape[0]:
-        raise ValueError(f"Expected `angles` to match number of axes: expected angles of shape "
-                         f"(..., {ax.shape[0]}), got {a.shape}")
     scale = np.pi / 720.0 if degrees else 0.25
-    out = np.empty(a.shape[:-1] + (4,), a.dtype)
-    _blockwise(_k_from_davenport, [a.reshape(-1, ax.shape[0])], [out.reshape(-1, 4)],
-               axes=ax.astype(a.dtype).tolist(), extrinsic=extrinsic, scale=scale, read_only=True)
+    if ax.ndim <= 2:   # one set of axes for every rotation
+        key = ax.astype(np.float64, copy=False)
+        turn_axes = _shared_axes(key.tobytes(), key.shape, a.dtype)
+        k = turn_axes.shape[0]
+        if a.shape[-1] != k:
+            raise _angles_mismatch(a, ax, k)
+        finite(a, "angles")
+        out = np.empty(a.shape[:-1] + (4,), a.dtype)
+        _blockwise(_k_from_davenport, [a.reshape(-1, k)], [out.reshape(-1, 4)],
+                   axes=turn_axes, extrinsic=extrinsic, scale=scale, read_only=True)
+        return out
+    unit = _unit_axes(ax)   # a set of axes per rotation
+    k, sets = unit.shape[1], unit.shape[2:]
+    if a.shape[-1] != k:
+        raise _angles_mismatch(a, ax, k)
+    batch = _joint_batch(sets, a.shape[:-1], lambda: _angles_mismatch(a, ax, k))
+    finite(a, "angles")
+    rows = np.moveaxis(unit.astype(a.dtype, copy=False).reshape((3 * k,) + sets), 0, -1)   # (..., 3k) view
+    out = np.empty(batch + (4,), a.dtype)
+    _blockwise(_k_from_davenport_rows, [_flat(a, batch), _flat(rows, batch)], [out.reshape(-1, 4)],
+               extrinsic=extrinsic, scale=scale, read_only=True)
     return out
+
+
+def _joint_batch(axes_batch, batch, error):
+    """The batch of rotations with a set of axes each: `axes_batch` and `batch` broadcast,
+    or ``error()`` raised."""
+    try:
+        return np.broadcast_shapes(axes_batch, batch)
+    except ValueError:
+        raise error() from None
+
+
+def _flat(a, batch):
+    """`a` (..., k) broadcast to `batch` (..., k), as (N, k): a view where no axis is broadcast."""
+    return np.broadcast_to(a, batch + a.shape[-1:]).reshape(-1, a.shape[-1])
 
 
 def _davenport_floats(q, lmat, extrinsic, lamb, flip):
@@ -746,13 +827,31 @@ def _davenport_abcd(q, lmat, op, rows, t):
     return abcd
 
 
-def _k_davenport_angles(q, o, lmat, extrinsic, lamb, flip):
+def _k_davenport_angles(q, o, lmat, extrinsic, lamb, sign):
+    """(a, c, b, d) = L q (the chain's order, `_ROWS`) read by `_angles` without its λ step
+    (as a symmetric sequence is read), then the middle angle less λ and times `sign`
+    (`_davenport_frames`).  `lmat` (4 × 4), `lamb` and `sign` are one set of axes' numbers
+    (floats, 0-d arrays of q's dtype; `sign` None for +1) or rows of q's dtype, a set per
+    rotation (`_k_davenport_angles_rows`): the same operations, broadcast."""
     w = _euler_rows(q.shape[1:], q.dtype)
     _davenport_abcd(q, lmat, _ops.ARRAYS, w.rows, w.tmp)
-    gimbal = _angles(w, o, extrinsic, False, 1, lamb)
-    if flip:
-        _negate(o[1])
+    gimbal = _angles(w, o, extrinsic, True, 1, None)
+    _asymmetric(o[1], None, 1, (None, lamb), _ops.ARRAYS, o[1], None)   # the middle angle less λ
+    if sign is not None:
+        np.multiply(o[1], sign, out=o[1])   # (not np.negative in place: see `_negate`)
     return gimbal
+
+
+def _k_davenport_angles_rows(q, frame, o, extrinsic):
+    """`_k_davenport_angles` with a set of axes per rotation: `frame` (18, m), the rows of
+    `_davenport_frames`."""
+    lmat = tuple(frame[r:r + 4] for r in _CHAIN_L_ROWS)
+    return _k_davenport_angles(q, o, lmat, extrinsic, frame[16], frame[17])
+
+
+_CHAIN_L_ROWS = (0, 8, 4, 12)
+"""Where L's rows for a, c, b, d (the chain's order, `_ROWS`) start among `_davenport_frames`'
+rows (a, b, c, d)."""
 
 
 def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
@@ -765,8 +864,9 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     Parameters
     ----------
     q : ndarray, shape (..., 4)
-    axes : array_like, shape (3, 3)
-        Three axes; the middle one must be orthogonal to the other two.
+    axes : array_like, shape (3, 3) or (..., 3, 3)
+        Three axes; the middle one must be orthogonal to the other two.  A
+        batch of sets of axes broadcasts with q's batch.
     order : {'e', 'extrinsic', 'i', 'intrinsic'}
     degrees : bool, default False
     suppress_warnings : bool, default False
@@ -775,7 +875,8 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     -------
     ndarray, shape (..., 3)
         First and third angles in [-π, π], the second in a range of width π
-        set by λ; gimbal lock warns and sets the third angle to 0.
+        set by λ; gimbal lock warns and sets the third angle to 0.  A rotation
+        has the same bits whether its axes are shared with the batch or its own.
 
     Examples
     --------
@@ -785,75 +886,73 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     >>> q = from_euler("zxy", [90, 30, 10], degrees=True)
     >>> np.round(as_davenport(q, [ez, ex, ey], "e", degrees=True), 9)
     array([90., 30., 10.])
+    >>> np.round(as_davenport(q, [[ez, ex, ey], [ez, ey, ez]], "e", degrees=True), 9)[0]
+    array([90., 30., 10.])
     """
     extrinsic = check_order(order)
     q = quat_array(q, "quat")
-    key = float_array(axes, "axes").astype(np.float64, copy=False)
-    lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
-    one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
-    if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
-        out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
-    else:
+    ax = float_array(axes, "axes")
+    if ax.ndim <= 2:   # one set of axes for every rotation
+        key = ax.astype(np.float64, copy=False)
+        lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
+        one = _davenport_floats(q, lmat, extrinsic, lamb, flip)
+        if one is not None:   # one float64 or float32 rotation away from gimbal lock: the same formula on its floats
+            out = one if q.ndim == 1 else one[None]   # (4,) or (1, 4) here
+            return np.rad2deg(out, out=out) if degrees else out
         out = np.empty(q.shape[:-1] + (3,), q.dtype)
-        gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)],
-                            lmat=lmat, extrinsic=extrinsic, lamb=lamb, flip=flip)
-        _warn_gimbal(gimbal, suppress_warnings)
+        gimbal = _blockwise(_k_davenport_angles, [q.reshape(-1, 4)], [out.reshape(-1, 3)], lmat=lmat,
+                            extrinsic=extrinsic, lamb=_ops.const(lamb, q.dtype),
+                            sign=_ops.const(-1.0, q.dtype) if flip else None)
+    else:   # a set of axes per rotation
+        frames = np.moveaxis(_davenport_frames(_unit_axes(ax, 3, signed=True), extrinsic).astype(q.dtype, copy=False),
+                             0, -1)   # (..., 18) view
+        batch = _joint_batch(frames.shape[:-1], q.shape[:-1], lambda: ValueError(
+            f"Expected `axes` to match number of rotations, got {ax.shape} axes and {q.shape} rotations: "
+            f"expected axes of shape (..., 3, 3) broadcasting with {q.shape[:-1]}"))
+        out = np.empty(batch + (3,), q.dtype)
+        gimbal = _blockwise(_k_davenport_angles_rows, [_flat(q, batch), _flat(frames, batch)],
+                            [out.reshape(-1, 3)], extrinsic=extrinsic, read_only=True)
+    _warn_gimbal(gimbal, suppress_warnings)
     return np.rad2deg(out, out=out) if degrees else out
-
-
-def from_davenport_batched(unit, angles, extrinsic, degrees=False):
-    """`from_davenport` with a batch of axes: `unit` (..., n, 3) unit axes, consecutive ones
-    orthogonal, broadcasting with `angles` (..., n).  One elementary turn per axis
-    (`_convert.from_rotvec`), composed in order with `_kernels.multiply`."""
-    dtype = np.result_type(angles.dtype, unit.dtype)
-    angle = np.deg2rad(angles) if degrees else angles
-    q = None
-    for i in range(unit.shape[-2]):
-        qi = from_rotvec((angle[..., i, None] * unit[..., i, :]).astype(dtype))
-        q = qi if q is None else (multiply(qi, q) if extrinsic else multiply(q, qi))
-    return q
-
-
-def as_davenport_batched(q, axes, order, degrees=False, suppress_warnings=False):
-    """`as_davenport` with a set of axes per rotation: `axes` (..., 3, 3) broadcasting with
-    `q`'s batch; each distinct set of axes reads its rotations with `as_davenport`, and a
-    gimbal-lock warning is given once."""
-    batch = np.broadcast_shapes(axes.shape[:-2], q.shape[:-1])
-    qb = np.broadcast_to(q, batch + (4,)).reshape(-1, 4)
-    axb = np.broadcast_to(axes, batch + (3, 3)).reshape(-1, 3, 3)
-    uniq, inverse = np.unique(axb.reshape(-1, 9), axis=0, return_inverse=True)
-    out = np.empty((qb.shape[0], 3), q.dtype)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        for k, u in enumerate(uniq):
-            sel = inverse.ravel() == k
-            out[sel] = as_davenport(qb[sel], u.reshape(3, 3), order, degrees=degrees,
-                                    suppress_warnings=suppress_warnings)
-    if caught:
-        warnings.warn(caught[0].message, caught[0].category, stacklevel=3)
-    return out.reshape(batch + (3,))
 
 
 @functools.lru_cache(maxsize=64)
 def _davenport_frame(axes_bytes, shape, extrinsic):
-    """(4x4 matrix L as nested tuples, λ, flip) for `as_davenport`'s axes, remembered:
-    the same few axes serve many calls, and building L costs more than one rotation.  L's
-    rows give a, b, c, d in the chain's order, ``[a, c, b, d]`` (`_ROWS`)."""
-    n1, n2, n3 = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3, signed=True)
+    """`_davenport_frames` of one set of axes (a float64 array's bytes and shape) as
+    `as_davenport` takes them: (L as nested tuples of floats, its rows in the chain's order
+    ``[a, c, b, d]`` (`_ROWS`), λ, flip); remembered, as the same few axes serve many calls
+    and building L costs more than one rotation."""
+    unit = _unit_axes(np.frombuffer(axes_bytes).reshape(shape), 3, signed=True)
+    frame = _davenport_frames(unit[..., None], extrinsic)[:, 0].tolist()   # (a batch of one: the batches' calls)
+    return tuple(tuple(frame[r:r + 4]) for r in _CHAIN_L_ROWS), frame[16], frame[17] < 0
+
+
+def _davenport_frames(unit, extrinsic):
+    """What `as_davenport` reads rotations with, per set of unit axes (`_unit_axes`' rows
+    (3, 3, ...)): rows (18, ...), the matrix L (16, row by row) that gives Bernardes &
+    Viollet's (a, b, c, d) = L q, the angle λ between the first and third axes and the sign
+    (±1) of the middle angle.
+
+    As scipy: q is turned by λ about n2, then read along n1, n2 and n1 × n2; where λ < 0, n2
+    is reversed instead (λ in [0, π], the middle angle's sign flipped), which keeps the
+    angles compatible with `as_euler`.  Element by element, each sum in one order (no matrix
+    product): a set of axes gets the same numbers alone and in any batch."""
+    n1, n2, n3 = unit[:, 0], unit[:, 1], unit[:, 2]   # component rows (3, ...)
     if not extrinsic:
         n1, n3 = n3, n1
-    ncross = np.cross(n1, n2)
-    lamb = float(np.arctan2(n3 @ ncross, n3 @ n1))
-    flip = lamb < 0
-    if flip:
-        n2, ncross, lamb = -n2, -ncross, -lamb
-    # (a, b, c, d) = P L(q_λ) q: q turned by λ about n2, read along n1, n2, n1 × n2
-    p0, pv = np.cos(lamb / 2), np.sin(lamb / 2) * n2
-    left = np.array([[p0, -pv[0], -pv[1], -pv[2]],
-                     [pv[0], p0, -pv[2], pv[1]],
-                     [pv[1], pv[2], p0, -pv[0]],
-                     [pv[2], -pv[1], pv[0], p0]])
-    proj = np.zeros((4, 4))
-    proj[0, 0] = 1
-    proj[1:, 1:] = [n1, n2, ncross]
-    return tuple(map(tuple, (proj @ left)[[0, 2, 1, 3]].tolist())), lamb, flip
+    # row by row (on long batches, (3, 4, ...) stacks of the products would leave the cache)
+    ncross = [n1[1] * n2[2] - n1[2] * n2[1], n1[2] * n2[0] - n1[0] * n2[2], n1[0] * n2[1] - n1[1] * n2[0]]
+    frames = np.empty((18,) + unit.shape[2:])
+    lamb = np.arctan2(_dot(n3, ncross), _dot(n3, n1), out=frames[16])
+    sign = frames[17]
+    sign[...] = np.where(lamb < 0, -1.0, 1.0)
+    n2, ncross = [c * sign for c in n2], [c * sign for c in ncross]
+    np.multiply(lamb, sign, out=lamb)
+    p0, s = _half_angle(lamb, 0.25)
+    x, y, z = s * n2[0], s * n2[1], s * n2[2]
+    left = [[p0, -x, -y, -z], [x, p0, -z, y], [y, z, p0, -x], [z, -y, x, p0]]   # q_λ q = left · q
+    frames[0:4] = left[0]
+    for r, n in enumerate((n1, n2, ncross)):   # L = P · left, P = diag(1, [n1; n2; n1 × n2])
+        for j in range(4):
+            np.add(n[0] * left[1][j] + n[1] * left[2][j], n[2] * left[3][j], out=frames[4 + 4 * r + j])
+    return frames

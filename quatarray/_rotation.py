@@ -363,26 +363,7 @@ class Rotation:
         >>> bool(r.approx_equal(Rotation.from_euler("zx", [90, 45], degrees=True)))
         True
         """
-        extrinsic = _euler.check_order(order, typed=True)
-        ax = float_array(axes, "axes")
-        if ax.ndim == 0 or ax.shape[-1] != 3:
-            raise ValueError("Axes must be vectors of length 3.")
-        ax2 = ax if ax.ndim > 1 else ax[None]
-        n = ax2.shape[-2]
-        if not 1 <= n <= 3:
-            raise ValueError(f"Expected up to 3 axes, got {n}")
-        a = float_array(angles, "angles")
-        if a.ndim == 0:
-            a = a.reshape(1)
-        if a.shape[-1] != n or (ax2.ndim > 2 and not _broadcastable(ax2.shape[:-2], a.shape[:-1])):
-            raise ValueError(f"Expected `angles` to match number of axes, got {a.shape} angles "
-                             f"and {ax2.shape} axes.")
-        if ax2.ndim == 2:   # `_euler.from_davenport` checks that consecutive axes are orthogonal
-            return cls._wrap(_euler.from_davenport(ax2, order, a, degrees=degrees), unit=True)
-        unit = ax2 / np.linalg.norm(ax2, axis=-1, keepdims=True)
-        if (np.abs(np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1)) > 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
-        return cls._wrap(_euler.from_davenport_batched(unit, a, extrinsic, degrees))
+        return cls._wrap(_euler.from_davenport(axes, order, angles, degrees=degrees), unit=True)
 
     def as_davenport(self, axes, order, degrees=False, *, suppress_warnings=False):
         """Davenport angles about three axes (the middle one orthogonal to the others), shape (..., 3).
@@ -394,22 +375,7 @@ class Rotation:
         >>> np.round(r.as_davenport([ez, ex, ey], "e", degrees=True), 9)
         array([90., 30., 10.])
         """
-        _euler.check_order(order)
-        ax = float_array(axes, "axes")
-        if ax.ndim < 2 or ax.shape[-2] != 3:
-            raise ValueError(f"Expected 3 axes, got {ax.shape}.")
-        if ax.shape[-1] != 3:
-            raise ValueError("Axes must be vectors of length 3.")
-        if ax.ndim > 2 and not _broadcastable(ax.shape[:-2], self._q.shape[:-1]):
-            raise ValueError(f"Expected `axes` to match number of rotations, got {ax.shape} axes "
-                             f"and {self._q.shape} rotations.")
-        if ax.ndim == 2:   # (scipy's test of the axes, cos < 1e-7: `_euler._unit_axes`)
-            return _euler.as_davenport(self._q, ax, order, degrees=degrees,
-                                  suppress_warnings=suppress_warnings)
-        unit = ax / np.linalg.norm(ax, axis=-1, keepdims=True)
-        if (np.sum(unit[..., 1:, :] * unit[..., :-1, :], axis=-1) >= 1e-7).any():
-            raise ValueError("Consecutive axes must be orthogonal.")
-        return _euler.as_davenport_batched(self._q, ax, order, degrees, suppress_warnings)
+        return _euler.as_davenport(self._q, axes, order, degrees=degrees, suppress_warnings=suppress_warnings)
 
     # --- acting on vectors, composing, inverting, measuring -------------------------------
     def apply(self, vectors, inverse=False):

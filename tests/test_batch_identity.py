@@ -180,6 +180,85 @@ def test_rotation_methods(dtype, b):
            ("from_davenport", lambda x: R.from_davenport(axes, "e", x))], (r.as_euler("xyz", suppress_warnings=True),), i)
 
 
+def _davenport_axes(seed, kinds):
+    """A set of Davenport axes for each row of `_rows(seed, kinds, ...)`, (n, 3, 3) float64:
+    the gimbal kinds get the axes they lock in extrinsic order ('xyz', z-y-z); the others a
+    random orthonormal n1, n2 and n3 turned from n1 about n2 by any angle; each axis of a
+    random length."""
+    rng = np.random.default_rng(seed + 2)
+    sets = []
+    for kind in kinds:
+        if kind == "gimbal xyz":
+            axes = np.eye(3)
+        elif kind == "gimbal zyz":
+            axes = np.eye(3)[[2, 1, 2]]
+        else:
+            frame = np.linalg.qr(rng.standard_normal((3, 3)))[0].T
+            t = rng.uniform(-np.pi, np.pi)
+            axes = np.array([frame[0], frame[1], np.cos(t) * frame[0] + np.sin(t) * frame[2]])
+        sets.append(axes * rng.uniform(0.2, 5, (3, 1)))
+    return np.array(sets)
+
+
+@DTYPE
+@given(b=batches())
+def test_davenport_with_a_set_of_axes_per_rotation(dtype, b):
+    """Davenport angles with a set of axes per rotation (..., 3, 3): element i has the bits of
+    its rotation alone with its own (3, 3) axes (the shared-axes path), as a batch of one and
+    in blocks of two on two threads; the gimbal kinds are in gimbal lock for their axes."""
+    (seed, kinds, scale), i = b
+    q = _rows(seed, kinds, dtype, scale)
+    ax = _davenport_axes(seed, kinds)
+    R, Q = Rotation, QuatArray
+    check([("as_davenport e", lambda ax, q: R.from_quat(q, scalar_first=True).as_davenport(ax, "e")),
+           ("as_davenport i degrees", lambda ax, q: R.from_quat(q, scalar_first=True).as_davenport(ax, "i", degrees=True)),
+           ("QuatArray as_davenport", lambda ax, q: Q(q).as_davenport(ax, "e"))], (ax, q), i)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        x = R.from_quat(q, scalar_first=True).as_davenport(ax, "e")   # the lock rows' lock angles
+    check([("from_davenport e", lambda ax, x: R.from_davenport(ax, "e", x)),
+           ("from_davenport i degrees", lambda ax, x: R.from_davenport(ax, "i", x, degrees=True)),
+           ("QuatArray from_davenport", lambda ax, x: Q.from_davenport(ax, "e", x)),
+           ("from_davenport, two axes", lambda ax, x: R.from_davenport(ax[..., :2, :], "e", x[..., :2]))], (ax, x), i)
+    if dtype == np.float64 and any(kind.startswith("gimbal") for kind in kinds):
+        with pytest.warns(UserWarning, match="Gimbal lock"):
+            R.from_quat(q, scalar_first=True).as_davenport(ax, "e")
+
+
+DAVENPORT_AXES = [np.eye(3), np.eye(3)[[2, 1, 2]], [[2.0, 0, 0], [0, 1, 0], [1, 0, 1]],
+                  [[1, 1, 0], [0, 0, 3], [1, -0.5, 0]], [[1, 0, 0], [0, 1, 0], [-1, 0, 0.1]]]
+
+
+@DTYPE
+@pytest.mark.parametrize("n", [1, 2, 33, _blocks.VIEWS_MAX + 1, _blocks.BLOCK + 3])
+def test_davenport_axes_repeated_per_rotation_give_the_shared_axes_bits(dtype, n):
+    """One set of axes given once (3, 3), once per rotation (n, 3, 3) or as a batch of one
+    (1, 3, 3) gives the same bits, both ways and in either order (one kernel, the shared axes
+    broadcast), up to and past one block; and per rotation along another batch axis
+    (n, 1, 3, 3)."""
+    kinds = [KINDS[k % len(KINDS)] for k in range(n)]
+    r = Rotation.from_quat(_rows(n, kinds, dtype, False), scalar_first=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # gimbal lock
+        for axes in map(np.asarray, DAVENPORT_AXES):
+            for order in ("e", "i"):
+                name = f"{axes.tolist()} {order}"
+                shared = r.as_davenport(axes, order)
+                assert shared.dtype == dtype
+                x = shared
+                want = _raw(Rotation.from_davenport(axes, order, x))
+                for per in (np.broadcast_to(axes, (n, 3, 3)), axes[None]):
+                    _same(r.as_davenport(per, order), shared, f"as_davenport {name} {per.shape}")
+                    _same(_raw(Rotation.from_davenport(per, order, x)), want, f"from_davenport {name} {per.shape}")
+                _same(_raw(Rotation.from_davenport(np.broadcast_to(axes[:2], (n, 2, 3)), order, x[:, :2])),
+                      _raw(Rotation.from_davenport(axes[:2], order, x[:, :2])), f"from_davenport {name} two axes")
+                if n <= 33:
+                    outer = np.broadcast_to(axes, (n, 1, 3, 3))
+                    _same(r.as_davenport(outer, order), np.broadcast_to(shared, (n, n, 3)), f"as_davenport {name} (n, 1)")
+                    _same(_raw(Rotation.from_davenport(outer, order, x)), np.broadcast_to(want, (n, n, 4)),
+                          f"from_davenport {name} (n, 1)")
+
+
 @DTYPE
 @given(b=batches())
 def test_interpolation(dtype, b):

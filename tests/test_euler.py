@@ -213,14 +213,81 @@ def test_davenport_gimbal_lock_warns():
         E.as_davenport(q, axes, "e", suppress_warnings=True)
 
 
+def _axes_per_rotation(rng, n):
+    """A set of Davenport axes per rotation (n, 3, 3): random orthonormal n1, n2 and the third
+    axis turned from n1 about n2 by any angle (obtuse ones too), each of a random length."""
+    frames = np.linalg.qr(rng.standard_normal((n, 3, 3)))[0]
+    n1, n2, m = frames[..., 0], frames[..., 1], frames[..., 2]
+    t = rng.uniform(-np.pi, np.pi, (n, 1))
+    return np.stack([n1, n2, np.cos(t) * n1 + np.sin(t) * m], axis=1) * rng.uniform(0.2, 5, (n, 3, 1))
+
+
+def _lock_angle(axes):
+    """The middle angle that puts extrinsic Davenport angles about `axes` (..., 3, 3) in gimbal
+    lock: the turn about n2 that takes n1 to n3 (then the first and third turns share an axis)."""
+    n1, n2, n3 = (axes[..., k, :] / np.linalg.norm(axes[..., k, :], axis=-1, keepdims=True) for k in range(3))
+    return np.arctan2(np.sum(n2 * np.cross(n1, n3), axis=-1), np.sum(n1 * n3, axis=-1))
+
+
+@pytest.mark.parametrize("order", ["e", "i"])
+def test_davenport_with_a_set_of_axes_per_rotation_matches_scipy_row_by_row(rng, dtype, order):
+    """as_davenport with a set of axes per rotation gives each row scipy's angles for its own
+    axes (scipy 1.17 takes one set of axes per call for (n, 4) quaternions: its Cython
+    backend), gimbal lock included, and from_davenport turns them back into the rotations;
+    from_davenport matches scipy's batched from_davenport."""
+    n = 120
+    ax = _axes_per_rotation(rng, n)
+    q = unit(rng, (n,), dtype)
+    if dtype == np.float64:   # every fourth rotation in gimbal lock, at either end (a float32
+        # quaternion's rounding moves the middle angle by about the lock's 1e-7: scipy, reading
+        # it in float64, may judge otherwise)
+        lock = np.arange(n) % 4 == 0
+        ends = _lock_angle(ax[lock] if order == "e" else ax[lock, ::-1]) + np.pi * (np.arange(lock.sum()) % 2)
+        lock_angles = np.stack([rng.uniform(-3, 3, len(ends)), ends, rng.uniform(-3, 3, len(ends))], axis=-1)
+        q[lock] = E.from_davenport(ax[lock] if order == "e" else ax[lock, ::-1], "e", lock_angles)
+        with pytest.warns(UserWarning, match="Gimbal lock"):
+            got = E.as_davenport(q, ax, order)
+        assert (got[lock, 2] == 0).all()   # (as scipy, for either order)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            got = E.as_davenport(q, ax, order)
+    assert got.dtype == dtype and got.shape == (n, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        want = np.array([sp(q[i]).as_davenport(ax[i], order) for i in range(n)])
+    assert angle_diff(got, want).max() <= tol(dtype, 100)
+    back = E.from_davenport(ax, order, got)
+    assert back.dtype == dtype
+    assert_same_rotation(back, q, tol(dtype, 8))
+    angles = rng.uniform(-np.pi, np.pi, (n, 3)).astype(dtype)
+    assert_same_rotation(E.from_davenport(ax, order, angles),
+                         sp_quat(R.from_davenport(ax, order, angles.astype(np.float64))), tol(dtype, 8))
+    assert_same_rotation(Rotation.from_davenport(ax[:, :2], order, angles[:, :2]).as_quat(),
+                         R.from_davenport(ax[:, :2], order, angles[:, :2].astype(np.float64)).as_quat(), tol(dtype, 8))
+
+
 @pytest.mark.parametrize("call, match", [
     (lambda: E.from_davenport(np.eye(3), "x", [1, 2, 3]), "order should be 'e'/'extrinsic' .* or 'i'/'intrinsic' .*, got 'x'"),
     (lambda: E.from_davenport([[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), "Consecutive axes must be orthogonal"),
-    (lambda: E.from_davenport(np.ones((4, 3)), "e", [1, 2, 3, 4]), "1 to 3 axes, got 4"),
-    (lambda: E.from_davenport(np.eye(3), "e", [1, 2]), r"angles of shape \(\.\.\., 3\), got \(2,\)"),
-    (lambda: E.from_davenport(np.eye(2), "e", [1, 2]), "vectors of length 3"),
-    (lambda: E.from_davenport([[0, 0, 0], [0, 1, 0]], "e", [1, 2]), "non-zero axes"),
-    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3)[:2], "e"), "expected 3 axes, got 2"),
+    (lambda: E.from_davenport(np.ones((4, 3)), "e", [1, 2, 3, 4]), r"Expected up to 3 axes, got 4: .* got \(4, 3\)"),
+    (lambda: E.from_davenport(np.eye(3), "e", [1, 2]),
+     r"Expected `angles` to match number of axes, got \(2,\) angles and \(3, 3\) axes: expected angles of shape \(\.\.\., 3\)$"),
+    (lambda: E.from_davenport(np.eye(2), "e", [1, 2]), r"Axes must be vectors of length 3: .* got \(2, 2\)"),
+    (lambda: E.from_davenport([[0, 0, 0], [0, 1, 0]], "e", [1, 2]), r"non-zero axes, got a zero vector among axes of shape \(2, 3\)"),
+    (lambda: E.from_davenport([[np.nan, 0, 0], [0, 1, 0]], "e", [1, 2]), r"finite values in axes, got nan or inf at index \(0, 0\)"),
+    (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3)[:2], "e"), r"Expected 3 axes, got \(2, 3\)\."),
+    # a set of axes per rotation: the same validator, element by element
+    (lambda: E.from_davenport(np.stack([np.eye(3), [[1, 0, 0], [1, 1, 0], [0, 0, 1]]]), "e", [1, 2, 3]),
+     r"Consecutive axes must be orthogonal: got cos = 0\.707"),
+    (lambda: E.from_davenport(np.stack([np.eye(3), np.eye(3) * [[1], [0], [1]]]), "e", [1, 2, 3]), "non-zero axes"),
+    (lambda: E.from_davenport(np.ones((2, 4, 3)), "e", [1, 2, 3, 4]), r"Expected up to 3 axes, got 4: .* got \(2, 4, 3\)"),
+    (lambda: E.from_davenport(np.stack([np.eye(3)] * 2), "e", np.zeros((3, 3))),
+     r"got \(3, 3\) angles and \(2, 3, 3\) axes: expected angles of shape \(\.\.\., 3\) broadcasting with the axes' \(2,\)"),
+    (lambda: E.as_davenport(np.ones((3, 4)), np.stack([np.eye(3)] * 2), "e"),
+     r"Expected `axes` to match number of rotations, got \(2, 3, 3\) axes and \(3, 4\) rotations"),
+    (lambda: E.as_davenport(np.ones((2, 4)), np.stack([np.eye(3), [[1, 0, 0], [1, 1, 0], [0, 0, 1]]]), "e"), "orthogonal"),
+    (lambda: E.as_davenport(np.ones((2, 4)), np.ones((2, 2, 3)), "e"), r"Expected 3 axes, got \(2, 2, 3\)\."),
     (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), [[1, 0, 0], [1, 1, 0], [0, 0, 1]], "e"), "orthogonal"),
     (lambda: E.from_davenport([[1, 0, 0], [-1, 1, 0], [0, 0, 1]], "e", [1, 2, 3]), "orthogonal"),
     (lambda: E.as_davenport(np.array([1.0, 0, 0, 0]), np.eye(3), "intrinsic-ish"), "order"),
