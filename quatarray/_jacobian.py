@@ -30,21 +30,42 @@ __all__ = ["SMALL", "DERIVATIVE_SMALL", "one_minus_cos", "one_minus_sinc", "one_
 SMALL = 1e-3
 
 
-def _branches(theta):
-    """(small, huge, ts, th): where the series applies, where θ is infinite, θ with 0 outside
-    the series' range and θ with 1 inside it and where θ is infinite; both branches are
-    evaluated everywhere, and so raise no warnings (inf - inf, 0/0) where they are not used."""
-    small, huge = theta < SMALL, np.isinf(theta)
-    return small, huge, np.where(small, theta, 0.0), np.where(small | huge, 1.0, theta)
+def _piecewise(theta, cut, series, closed, limit=None):
+    """``series(θ)`` where θ < `cut`, ``closed(θ)`` elsewhere (`limit` where θ is infinite, if
+    given), element by element; `series` and `closed` may return tuples (of as many arrays),
+    taken the same way term by term.  Each branch runs only when some element needs it (a
+    spline's keys are usually all on one side: half the passes), and where both do, each
+    on the angles of the other replaced by a harmless value (0, 1), so that neither warns
+    (inf - inf, 0/0) where it is not used; an element's value is its branch's either way."""
+    small = theta < cut
+    if small.all():
+        return series(theta)
+    huge = np.isinf(theta) if limit is not None else None
+    far = huge is not None and huge.any()
+    if not small.any():
+        value = closed(np.where(huge, 1.0, theta) if far else theta)
+        return _where(huge, limit, value) if far else value
+    value = closed(np.where(small | huge if far else small, 1.0, theta))
+    if far:
+        value = _where(huge, limit, value)
+    return _where(small, series(np.where(small, theta, 0.0)), value)
+
+
+def _where(mask, a, b):
+    """``np.where(mask, a, b)``, term by term where `b` is a tuple (`a` then one too, or one
+    value for every term)."""
+    if type(b) is tuple:
+        return tuple(np.where(mask, x, y) for x, y in zip(a if type(a) is tuple else (a,) * len(b), b))
+    return np.where(mask, a, b)
 
 
 def _coefficient(theta, power, c0, d1, d2, closed, limit):
     """``closed(θ) / θ**power`` where `closed` is ``θ² (c0 + θ²/d1 + θ⁴/d2 + ...)``: below
     `SMALL` its three Taylor terms times ``θ**(2 - power)``, `limit` where θ is infinite."""
-    small, huge, ts, th = _branches(theta)
-    z = ts * ts
-    series = (c0 + z / d1 + z * z / d2) * ts ** (2 - power)
-    return np.where(small, series, np.where(huge, limit, closed(th) / th ** power))
+    def series(ts):
+        z = ts * ts
+        return (c0 + z / d1 + z * z / d2) * ts ** (2 - power)
+    return _piecewise(theta, SMALL, series, lambda th: closed(th) / th ** power, limit)
 
 
 def one_minus_cos(theta, power):
@@ -97,11 +118,11 @@ def derivative(theta):
     ``(2 (1 - cos θ) - θ sin θ)/θ⁴`` and ``(3 sin θ - 2θ - θ cos θ)/θ⁵``, for finite θ ≥ 0.
 
     Their numerators are of order θ⁴ and θ⁵ and made of terms of order θ² and θ, so the
-    closed forms lose about 24 eps/θ² and 180 eps/θ⁴ relative: below `DERIVATIVE_SMALL`
-    (1) the Taylor series take over, eight terms each: against mpmath over [1e-8, 20]
-    within 2e-14 and 3e-14 relative (the second's largest just above 1).  scipy's closed
+    closed forms lose about 130 eps/θ² and 180 eps/θ⁴ relative: below `DERIVATIVE_SMALL`
+    (0.3) the Taylor series take over, five terms each.  Against mpmath over [1e-8, 3]
+    both are within 2e-13 and 4e-12 relative (the largest just above 0.3).  scipy's closed
     forms down to 1e-4 and two-term series leave relative errors of 13 and 2e2 just above
-    1e-4, and its series has 12604 where the coefficient is 1260.  ``2 (1 - cos θ)`` is ``4 sin²(θ/2)``, which does not cancel.
+    1e-4, and its series has 12604 where the coefficient is 1260.
 
     Examples
     --------
@@ -110,12 +131,15 @@ def derivative(theta):
     >>> [c.tolist() for c in _jacobian.derivative(np.array([0.0]))] == [[1 / 12], [-1 / 60]]
     True
     """
-    small = theta < DERIVATIVE_SMALL
-    ts, th = np.where(small, theta, 0.0), np.where(small, 1.0, theta)
-    z = ts * ts
-    sn, cs, sh = np.sin(th), np.cos(th), np.sin(th / 2)
-    return (np.where(small, _horner(_K1, z), (4 * sh * sh - th * sn) / th ** 4),
-            np.where(small, _horner(_K2, z), (3 * sn - 2 * th - th * cs) / th ** 5))
+    def closed(th):
+        sn, cs = np.sin(th), np.cos(th)
+        return (-th * sn - 2 * (cs - 1)) / th ** 4, (3 * sn - 2 * th - th * cs) / th ** 5
+
+    def series(ts):
+        z = ts * ts
+        return _horner(_K1, z), _horner(_K2, z)
+
+    return _piecewise(theta, DERIVATIVE_SMALL, series, closed)
 
 
 def _horner(coefficients, z):
@@ -127,9 +151,9 @@ def _horner(coefficients, z):
 
 
 #: Below this angle `derivative` takes its series.
-DERIVATIVE_SMALL = 1.0
+DERIVATIVE_SMALL = 0.3
 
 # Taylor coefficients in z = θ²: (-1)^m (2m - 2) / (2m)! for m >= 2, and (-1)^n (2 - 2n) / (2n + 1)!
-# for n >= 2 (from the series of sin and cos), eight of each
-_K1 = [(-1) ** m * (2 * m - 2) / math.factorial(2 * m) for m in range(2, 10)]
-_K2 = [(-1) ** n * (2 - 2 * n) / math.factorial(2 * n + 1) for n in range(2, 10)]
+# for n >= 2 (from the series of sin and cos), five of each
+_K1 = [(-1) ** m * (2 * m - 2) / math.factorial(2 * m) for m in range(2, 7)]
+_K2 = [(-1) ** n * (2 - 2 * n) / math.factorial(2 * n + 1) for n in range(2, 7)]

@@ -30,9 +30,9 @@ def test_jacobian_coefficients_against_mpmath(name, f, tol):
 
 def test_acceleration_coefficients_against_mpmath():
     """The spline's acceleration coefficients: the closed forms cancel to 1e-3 and 3e-2 relative
-    near 1e-3 (and scipy's to 13 and 2e2 near 1e-4); the series below 1 keep 3e-14."""
+    near 1e-3 (and scipy's to 13 and 2e2 near 1e-4); with the series below 0.3, 2e-13 and 4e-12."""
     k1, k2 = _jacobian.derivative(THETA)
     np.testing.assert_allclose(k1, _reference(lambda t: (2 * (1 - mp.cos(t)) - t * mp.sin(t)) / t**4),
-                               rtol=3e-14, atol=0)
+                               rtol=3e-13, atol=0)
     np.testing.assert_allclose(k2, _reference(lambda t: (3 * mp.sin(t) - 2 * t - t * mp.cos(t)) / t**5),
-                               rtol=5e-14, atol=0)
+                               rtol=6e-12, atol=0)
