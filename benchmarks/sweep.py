@@ -195,12 +195,12 @@ COPIES = ("from_quat", "as_quat", "as_matrix", "from_matrix", "inv", "apply", "m
 def target(name, n):
     """Issue 23's target for scipy's time ÷ quatarray's of operation `name` at size `n` (None:
     a single rotation), or None where it sets none: 1 for one rotation and a batch of one,
-    1/3 at 10 and 100, and from 10³ on 1 for `TRANSCENDENTAL` and 1/2 for `COPIES` (10⁶ has
+    0.33 at 10 and 100, and from 10³ on 1 for `TRANSCENDENTAL` and 0.5 for `COPIES` (10⁶ has
     further targets of its own, in ``benchmarks.compare --targets``)."""
     if n is None or n == 1:
         return 1.0
     if n < 1000:
-        return 1 / 3
+        return 0.33
     return 1.0 if name in TRANSCENDENTAL else 0.5 if name in COPIES else None
 
 
