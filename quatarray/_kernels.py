@@ -446,14 +446,10 @@ def norm(q):
     array([5.e+000, 0.e+000, 1.e+300])
     """
     q = np.asarray(q)
-    one, kind = _ops.floats64(q), _ops.F64
-    if one is None:
-        one, kind = _ops.floats32(q)
-    if one is not None:   # one float64 or float32 quaternion: `_k_norm` on its floats, where it would not rescale
-        n2 = _SQNORM_FLOATS[kind](one)
-        if n2 is not None:
-            n = kind.sqrt(n2)
-            return np.array(n if q.ndim == 1 else [n])
+    one = _sqnorm_of_one(q)
+    if one is not None:   # one float64 or float32 quaternion: `_k_norm` on its floats
+        n = one[1].sqrt(one[2])
+        return np.array(n if q.ndim == 1 else [n])
     dtype = result_dtype(q)
     out = np.empty(q.shape[:-1] + (1,), dtype)
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
@@ -546,6 +542,19 @@ _SQNORM_FLOATS = _ops.by_kind(_sqnorm_floats_of)
 None where it does not `_scale.fits` (the block kernels rescale there, or find nan or inf)."""
 
 
+def _sqnorm_of_one(q):
+    """(components, kind, |q|²) of one float64 or float32 quaternion `q` ((4,) or (1, 4)), its
+    floats' `_SQNORM_FLOATS`, or None for any other input and where the block kernels would
+    rescale or find nan or inf (norm's and inverse's float paths)."""
+    one, kind = _ops.floats64(q), _ops.F64
+    if one is None:
+        one, kind = _ops.floats32(q)
+        if one is None:
+            return None
+    n2 = _SQNORM_FLOATS[kind](one)
+    return None if n2 is None else (one, kind, n2)
+
+
 def _normalize_floats_of(kind):
     """`normalize_floats` for `kind`."""
     sqnorm, sqrt, op = _SQNORM_FLOATS[kind], kind.sqrt, kind.op
@@ -627,13 +636,10 @@ def inverse(q):
     >>> inverse(np.array([0., 2, 0, 0]))
     array([ 0. , -0.5, -0. , -0. ])
     """
-    one, kind = _ops.floats64(q), _ops.F64
-    if one is None:
-        one, kind = _ops.floats32(q)
-    if one is not None:   # one float64 or float32 quaternion: `_k_inverse` on its floats, where it would not rescale
-        n2 = _SQNORM_FLOATS[kind](one)
-        if n2 is not None:
-            return _ops.to_array(_inverse_floats.kinds[kind](*one, n2), q.shape, kind.dtype)
+    one = _sqnorm_of_one(q)
+    if one is not None:   # one float64 or float32 quaternion: `_k_inverse` on its floats
+        comps, kind, n2 = one
+        return _ops.to_array(_inverse_floats.kinds[kind](*comps, n2), q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
     with np.errstate(over="ignore"):   # squares that overflow are rescaled
         _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
