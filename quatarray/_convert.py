@@ -456,16 +456,28 @@ def _shepperd(mat, q):
     for i in range(4):  # symmetric: fill the lower triangle
         for j in range(i):
             k[i, j] = k[j, i]
-    # column choice: x if m00 is the largest of (m00, m11, m22, tr), ...; first wins ties
-    best = m00.copy()
-    choice = np.ones(m, np.intp)
-    for col, value in ((2, m11), (3, m22), (0, tr)):
-        bigger = value > best
-        np.maximum(best, value, out=best)
-        np.copyto(choice, col, where=bigger)
+    choice = _shepperd_column(m00, m11, m22, tr, _ops.ARRAYS)
     index = choice * (4 * m) + (np.arange(4)[:, None] * m + np.arange(m))
     np.take(k.reshape(-1), index, out=q)
-    q /= np.sqrt(_scale.squares(q, _ops.ARRAYS, None, None))
+    _unit(q, _ops.ARRAYS, _ops.STACKS, q)
+
+
+def _shepperd_column(m00, m11, m22, tr, op):
+    """The column of K (`_shepperd_k`) to take, written once, in `op`'s arithmetic (`_ops`;
+    ARRAYS: integer rows): x (1) if m00 is the largest of (m00, m11, m22, tr), then y (2),
+    z (3), w (0); the first wins ties."""
+    best, choice = m00, 1
+    for col, value in ((2, m11), (3, m22), (0, tr)):
+        choice = op.where(value > best, col, choice)
+        best = op.max(best, value, None)
+    return choice
+
+
+def _unit(q, op, stack, out):
+    """``q / |q|`` (four rows or floats), written once: |q|² summed in component order
+    (`_scale.squares`), each component divided by its square root (into `out`)."""
+    n = op.sqrt(_scale.squares(q, op, None, None), None)
+    return stack.div(q, n, out)
 
 
 def det3(mat):
@@ -511,13 +523,8 @@ def _from_matrix_floats(m, tol_diag, tol_off, kind):
     if not (worst_diag <= tol_diag and worst_off <= tol_off and 0 < det < math.inf):
         return None
     tr, e = _shepperd_k(m, kind.op, _ops.NONE)
-    best, choice = m[0], 1
-    for col, value in ((2, m[4]), (3, m[8]), (0, tr)):   # the kernel's choice, ties included
-        if value > best:
-            best, choice = value, col
-    q = [e[i] for i in _K_INDEX[choice]]
-    n = kind.sqrt(_scale.squares(q, kind.op, None, None))
-    return [c / n for c in q]
+    q = [e[i] for i in _K_INDEX[_shepperd_column(m[0], m[4], m[8], tr, kind.op)]]
+    return _unit(q, kind.op, _ops.FLOAT_STACKS, None)
 
 
 def _k_shepperd(mat, q):
@@ -690,9 +697,9 @@ def _flip_mask(w, x, y, z):
 def _half_turn(q, unit=False):
     """(t, exact) for the rotation angle θ of quaternions `q` (four component rows (4, *s):
     views of `Rotation` storage, only read, with `unit`; else a block's scratch copy, rescaled
-    in place first where |q|² would over- or underflow): ``t[0] = tan(θ/2)² = |v|² / w²``
-    and ``t[1] = |v|²``, two contiguous rows of one array in a block, a list of two rows
-    for a few.  `exact`: some row has w² or |v|² below
+    in place first where |q|² would over- or underflow): ``t[0] = tan(θ/2) = sqrt(|v|² / w²)``
+    (`_tan_half`) and ``t[1] = |v|²`` (`_squares`), two contiguous rows of one array in a
+    block, a list of two rows for a few.  `exact`: some row has w² or |v|² below
     `_scale.LOW` (w = 0, or |v|² lost to underflow), which `_tangent_rows` and the kernels
     then handle; only then is w² floored at the dtype's smallest normal number (a unit q
     with w = 0 gives a huge finite ratio, no division by zero).  The common path pays one
@@ -704,23 +711,17 @@ def _half_turn(q, unit=False):
     dtype = q.dtype
     if q.size > 4 * _blocks.FEW:   # a block: scratch rows (the squares in q's layout)
         rows = _blocks.scratch().rows
-        sq = np.multiply(q, q, out=rows(q.shape[1], (4,), dtype).T if q.ndim == 2 and q.flags.f_contiguous
-                         else rows(4, q.shape[1:], dtype))
+        sq = rows(q.shape[1], (4,), dtype).T if q.ndim == 2 and q.flags.f_contiguous else rows(4, q.shape[1:], dtype)
         t = rows(2, q.shape[1:], dtype)
-        t0, v2 = t[0], np.add(sq[1], sq[2], t[1])   # rows (indexing: a fifth of unpacking)
+        t0, v2 = t[0], t[1]   # rows (indexing: a fifth of unpacking)
     else:   # a few: rows the ufuncs allocate (a fifth cheaper than views of one buffer)
-        t = t0 = None
-        sq = np.multiply(q, q)
-        v2 = np.add(sq[1], sq[2])
-    w2 = sq[0]
-    np.add(v2, sq[3], v2)                          # |v|² = (x² + y²) + z²
+        t = t0 = sq = v2 = None
+    w2, v2 = _squares(q, _ops.ARRAYS, _ops.ARRAYS, sq, v2)
     if not unit:   # the range guard on |q|² = w² + |v|²: extreme magnitudes are rescaled
-        n2 = np.add(w2, v2, out=sq[1])
+        n2 = np.add(w2, v2, out=t0)
         if not _scale.fits(n2):
             _scale.guard(q, n2, zero=True)
-            np.multiply(q, q, out=sq)
-            np.add(sq[1], sq[2], out=v2)
-            np.add(v2, sq[3], out=v2)
+            w2, v2 = _squares(q, _ops.ARRAYS, _ops.ARRAYS, sq, v2)
     low = _LOW[dtype]
     if v2.size <= 32 and v2.ndim == 1:
         exact = min(w2.tolist() + v2.tolist()) < low
@@ -728,8 +729,24 @@ def _half_turn(q, unit=False):
         exact = float(np.minimum.reduce(np.minimum(w2, v2, out=t0), axis=None)) < low
     if exact:
         w2 = np.maximum(w2, _ops.const(_TINY[dtype], dtype), out=t0)
-    t0 = np.divide(v2, w2, t0)
+    t0 = _tan_half(w2, v2, _ops.ARRAYS, t0)
     return (t if t is not None else [t0, v2]), exact
+
+
+def _squares(q, op, stack, sq, v2):
+    """(w², |v|²) of quaternions `q` (four rows, or the four floats of one), written once, in
+    `op`'s arithmetic (`_ops`): the four squares in one call of `stack` (`_ops.ARRAYS` on
+    the rows (4, *s), into `sq` or None; element by element on floats), then
+    ``|v|² = (x² + y²) + z²`` (into the row `v2`)."""
+    sq = stack.mul(q, q, sq)
+    v2 = op.add(sq[1], sq[2], v2)
+    return sq[0], op.add(v2, sq[3], v2)
+
+
+def _tan_half(w2, v2, op, out):
+    """``tan(θ/2) = sqrt(|v|² / w²)`` from `_squares`, written once, into the row `out`."""
+    t = op.div(v2, w2, out)
+    return op.sqrt(t, t)
 
 
 _LOW = _scale.LOW
@@ -739,16 +756,11 @@ _TINY = {d: float(np.finfo(d).tiny) for d in (np.dtype(np.float32), np.dtype(np.
 
 
 def _tangent_rows(q, t, exact):
-    """`_half_turn`'s t as ``[tan(θ/2), |v|]`` (a block's both square roots in one call), where
-    no row is `exact`; else also correcting the rows whose |v|² underflowed: their |v| from
-    the vector scaled by a power of two (`_scale.small_norms`), tan(θ/2) = |v| / |w| (w ≠ 0
-    there: |q|² is in range)."""
+    """`_half_turn`'s t as ``[tan(θ/2), |v|]``, where no row is `exact`; else also correcting
+    the rows whose |v|² underflowed: their |v| from the vector scaled by a power of two
+    (`_scale.small_norms`), tan(θ/2) = |v| / |w| (w ≠ 0 there: |q|² is in range)."""
     small = t[1] < _scale.LOW[q.dtype] if exact else None   # |v|² underflowed
-    if type(t) is list:
-        np.sqrt(t[0], t[0])
-        np.sqrt(t[1], t[1])
-    else:
-        np.sqrt(t, out=t)
+    np.sqrt(t[1], t[1])
     if exact and small.any():
         tan_half, nv = t
         v = q[1:, small]
@@ -758,31 +770,35 @@ def _tangent_rows(q, t, exact):
 
 
 def _half_turn_floats(q):
-    """`_half_turn` and `_tangent_rows` on the floats of one float64 or float32 quaternion:
-    (w, x, y, z, tan(θ/2), |v|, kind), kind its `_ops.Kind`, or None where the block kernel
-    would rescale or find a row `exact` (its own path), or, in float32, where |v|² / w²
-    overflows (float32 scalars would warn; the kernel's rows take inf there)."""
+    """`_half_turn`'s `_squares` on the floats of one float64 or float32 quaternion, and its
+    range tests: (w, x, y, z, w², |v|², kind), kind its `_ops.Kind`, or None where the block
+    kernel would rescale or find a row `exact` (its own path), or, in float32, where
+    |v|² / w² overflows (float32 scalars would warn; the kernel's rows take inf there).
+    The callers' compiled formulas go on with `_tan_half`."""
     if q.size == 4 and q.dtype is _F64 and q.ndim <= 2:   # (`_ops.floats64`'s test written out: a
         c = q.tolist() if q.ndim == 1 else q.tolist()[0]   # tenth of a single call)
-        kind, low, high, ratio, sqrt = _HALF_TURN64
+        kind, squares, low, high, ratio = _HALF_TURN64
     else:
         c, kind = _ops.floats32(q)
         if c is None:
             return None
-        low, high, ratio, sqrt = _HALF_TURN[kind]
+        squares, low, high, ratio = _HALF_TURN[kind]
     w, x, y, z = c
-    w2, v2 = w * w, (x * x + y * y) + z * z
+    w2, v2 = squares(w, x, y, z)
     if not (low <= w2 and low <= v2 and w2 + v2 <= high):
         return None
     if ratio and not float(v2) < float(w2) * ratio:
         return None
-    return w, x, y, z, sqrt(v2 / w2), sqrt(v2), kind
+    return w, x, y, z, w2, v2, kind
 
 
-_HALF_TURN = {_ops.F64: (*_scale.BOUNDS[_ops.F64], None, math.sqrt),
-              _ops.F32: (*_scale.BOUNDS[_ops.F32], 2.0 ** 127, np.sqrt)}
-"""`_half_turn_floats`' bounds of |q|², bound of |v|² / w² (float32: below its maximum, with
-room for the quotient's rounding) and square root, by `_ops.Kind`."""
+_squares_floats = _ops.compiled(lambda op, stack, *q: list(_squares(list(q), op, stack, None, None)), 4)
+"""`_squares` on one quaternion's floats (`_ops.compiled`)."""
+
+_HALF_TURN = {kind: (_squares_floats.kinds[kind], *_scale.BOUNDS[kind], ratio)
+              for kind, ratio in ((_ops.F64, None), (_ops.F32, 2.0 ** 127))}
+"""`_half_turn_floats`' squares, bounds of |q|² and bound of |v|² / w² (float32: below its
+maximum, with room for the quotient's rounding), by `_ops.Kind`."""
 _HALF_TURN64 = (_ops.F64, *_HALF_TURN[_ops.F64])
 
 _F64, _F32 = np.dtype(np.float64), np.dtype(np.float32)
@@ -862,10 +878,9 @@ def as_rotvec(q, degrees=False, unit=False):
         q = quat_array(q, "quat")
     one = _half_turn_floats(q)
     if one is not None:   # one float64 or float32 rotation: the same formula on its floats
-        w, x, y, z, tan_half, nv, kind = one   # (unpacked: a fifth of splatting with the factor)
+        w, x, y, z, w2, v2, kind = one   # (unpacked: a fifth of splatting with the factor)
         f64 = kind is _ops.F64   # (a test of the kind: cheaper than its table's lookups)
-        v = (_rotvec_floats if f64 else _rotvec_floats.float32)(w, x, y, z, tan_half, nv,
-                                                                  _ROTVEC_FACTOR[bool(degrees)])
+        v = (_rotvec_floats if f64 else _rotvec_floats.float32)(w, x, y, z, w2, v2, _ROTVEC_FACTOR[bool(degrees)])
         if q.ndim == 1:
             return np.array(v)
         # q is (1, 4): `_ops.to_array`'s batch of one, without its call
@@ -882,9 +897,10 @@ _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 """Rotation vector over half-angle times unit axis, radians and degrees."""
 
 _rotvec_floats = _ops.compiled(
-    lambda op, stack, w, x, y, z, tan_half, nv, factor: _rotvec(w, [x, y, z], tan_half, nv, factor, op, stack,
-                                                                 None, _ops.NONE), 7)
-"""`_rotvec` on one rotation's floats ``(w, x, y, z, tan_half, nv, factor)`` (`_ops.compiled`)."""
+    lambda op, stack, w, x, y, z, w2, v2, factor: _rotvec(w, [x, y, z], _tan_half(w2, v2, op, None),
+                                                           op.sqrt(v2, None), factor, op, stack, None, _ops.NONE), 7)
+"""`_tan_half` and `_rotvec` on one rotation's floats ``(w, x, y, z, w², |v|², factor)``
+(`_half_turn_floats`; `_ops.compiled`)."""
 
 
 # --- powers of rotations ------------------------------------------------------------------
@@ -901,12 +917,16 @@ def _powered(w, tan_half, nv, vec, n, op, stack, o, rows):
     half = op.arctan(tan_half, rows[0])
     half = op.copysign(half, w, half)
     a = op.mul(half, n, half)
-    if type(a) is float:   # (a float64 rotation: NumPy's on the float, without op's calls)
-        c, s = float(np.cos(a)), float(np.sin(a))
-    else:
-        c, s = op.cos(a, o[0]), op.sin(a, a)
+    c, s = op.cos(a, o[0]), op.sin(a, a)
     s = op.div(s, nv, s)   # sin(n θ/2) / |v|, with v itself the axis
     return [c, *stack.scale(vec, s, o[1:4])]
+
+
+_powered_floats = _ops.compiled(
+    lambda op, stack, w, x, y, z, w2, v2, n: _powered(w, _tan_half(w2, v2, op, None), op.sqrt(v2, None), [x, y, z],
+                                                      n, op, stack, _ops.NONE, _ops.NONE), 7)
+"""`_tan_half` and `_powered` on one rotation's floats ``(w, x, y, z, w², |v|², n)``
+(`_half_turn_floats`; `_ops.compiled`)."""
 
 
 def _k_power(q, o, n, unit=False):
@@ -969,9 +989,7 @@ def rotation_power(q, n, unit=False):
             raise ValueError(f"expected an exponent n of magnitude at most {top:.3g}, got {n}")
         one = _half_turn_floats(q)
         if one is not None:   # one float64 or float32 rotation: the same formula on its floats
-            w, x, y, z, tan_half, nv, kind = one
-            quat = _powered(w, tan_half, nv, [x, y, z], n, kind.op, _ops.FLOAT_STACKS, _ops.NONE, _ops.NONE)
-            return _ops.to_array(quat, q.shape, kind.dtype)
+            return _ops.to_array(_powered_floats.kinds[one[6]](*one[:6], n), q.shape, one[6].dtype)
         out = np.empty(q.shape, q.dtype)
         _blockwise_unit(_k_power, _rows(q, 4), _rows(out, 4), unit, n=np.array(n, q.dtype))
         return out
@@ -1131,7 +1149,7 @@ def from_rotvec(rotvec, degrees=False):
 
 def _k_magnitude(q, o, unit=False):
     t, exact = _half_turn(q, unit)
-    tan_half = _tangent_rows(q, t, exact)[0] if exact else np.sqrt(t[0], t[0])   # (a row: cheaper than a stack)
+    tan_half = _tangent_rows(q, t, exact)[0] if exact else t[0]
     _angle(tan_half, _ops.ARRAYS, None, o[0])
 
 
@@ -1141,8 +1159,8 @@ def _angle(tan_half, op, stack, o):
     return op.add(half, half, o)
 
 
-_angle_floats = _ops.compiled(lambda op, stack, tan_half: _angle(tan_half, op, stack, None), 1)
-"""`_angle` on one rotation's float (`_ops.compiled`)."""
+_angle_floats = _ops.compiled(lambda op, stack, w2, v2: _angle(_tan_half(w2, v2, op, None), op, stack, None), 2)
+"""`_tan_half` and `_angle` on one rotation's w², |v|² (`_half_turn_floats`; `_ops.compiled`)."""
 
 
 def magnitude(q, unit=False):
@@ -1175,7 +1193,7 @@ def magnitude(q, unit=False):
     one = _half_turn_floats(q)
     if one is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
         f64 = one[6] is _ops.F64   # (a test of the kind: cheaper than its table's lookups)
-        angle = (_angle_floats if f64 else _angle_floats.float32)(one[4])
+        angle = (_angle_floats if f64 else _angle_floats.float32)(one[4], one[5])
         if q.ndim == 1:
             return np.array(angle)   # np.array, not np.full (5x its cost) nor a reshape (2x)
         out = np.empty(1) if f64 else np.empty(1, _F32)   # q is (1, 4): an element assigned costs

@@ -31,9 +31,11 @@ def test_compiled_formula_gives_the_floats_bits():
 def test_compiled_rotvec_is_the_formula_on_floats():
     rng = np.random.default_rng(6)
     for q in rng.standard_normal((500, 4)):
-        w, x, y, z, t, nv, _ = _convert._half_turn_floats(q / np.linalg.norm(q))
-        want = _convert._rotvec(w, [x, y, z], t, nv, 2.0, _ops.FLOATS, _ops.FLOAT_STACKS, None, _ops.NONE)
-        assert _convert._rotvec_floats(w, x, y, z, t, nv, 2.0) == want
+        w, x, y, z, w2, v2, _ = _convert._half_turn_floats(q / np.linalg.norm(q))
+        assert [w2, v2] == list(_convert._squares([w, x, y, z], _ops.FLOATS, _ops.FLOAT_STACKS, None, None))
+        t = _convert._tan_half(w2, v2, _ops.FLOATS, None)
+        want = _convert._rotvec(w, [x, y, z], t, math.sqrt(v2), 2.0, _ops.FLOATS, _ops.FLOAT_STACKS, None, _ops.NONE)
+        assert _convert._rotvec_floats(w, x, y, z, w2, v2, 2.0) == want
 
 
 def test_compiled_rows_of_three_are_float_rows():
