@@ -17,7 +17,6 @@ All functions take the key axis first and any batch after it; the last axis
 holds components.  float32 stays float32.
 """
 
-import math
 from math import prod
 
 import numpy as np
@@ -611,18 +610,24 @@ def _rotation(G, s, op, vec, tan, tiny, check, renorm, rows):
     return Q
 
 
+def _renormed(Q, e, op, vec):
+    """Q divided by its norm, from ``e = |Q|² - 1`` (`_rotation`'s check), written once, in
+    `op`'s arithmetic (`vec` its stacked form)."""
+    n = op.sqrt(op.add(e, 1.0, None), None)
+    return vec.div(Q, n, None)
+
+
 def _renorm_rows(Q, e):
     off = _UNIT_TOL[e.dtype]
     if e.size and not (e.max() <= off and e.min() >= -off):
         bad = ~(np.abs(e) <= off)
-        Q[:, bad] /= np.sqrt(e[bad] + 1)
+        Q[:, bad] = _renormed(Q[:, bad], e[bad], _ops.ARRAYS, _ops.STACKS)
     return Q
 
 
 def _renorm_floats(Q, e):
     if not abs(e) <= _UNIT_TOL[np.dtype(np.float64)]:
-        n = math.sqrt(e + 1)
-        return [x / n for x in Q]
+        return _renormed(Q, e, _ops.FLOATS, _ops.FLOAT_STACKS)
     return Q
 
 
