@@ -159,12 +159,14 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
             return np.arctan2(y, x)   # (the lists as float64 arrays, or float32: the arrays' loop and bits)
         if type(y[0]) is not float:   # float32 scalars: as arrays, in the array code below
             return arctan2(np.array(y), np.array(x))
+        if len(y) == 3:   # (one rotation's three angles: one call)
+            b0, b1, b2 = x
+            if (b0 > 0 or b0 < 0) and (b1 > 0 or b1 < 0) and (b2 > 0 or b2 < 0):
+                return np.array(_RATIO_ROUTE3[b0 < 0, b1 < 0, b2 < 0](*y, b0, b1, b2))
         angles = []
-        for a, b in zip(y, x):   # the ratio route below, one float at a time (no call each)
-            if b > 0:
-                angles.append(_ops.arctan_float(a / b))
-            elif b < 0:
-                angles.append(_ops.arctan_float(a / b) + math.copysign(math.pi, a))
+        for a, b in zip(y, x):   # `_ratio_route` compiled, one float at a time
+            if b > 0 or b < 0:
+                angles.append(_ratio_route_floats(a, b, b < 0))
             else:   # x = ±0 (or NaN): the array code
                 angles.append(float(arctan2(np.array(a), np.array(b), out=np.empty(()), x_nonneg=x_nonneg)))
         return np.array(angles)
@@ -172,29 +174,52 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
         return float(np.arctan2(y, x)) if type(y) is float else np.arctan2(y, x, out=out)
     if type(y) is float:   # the ratio route on one float: NumPy's arctan (the arrays' bits), the ±π fix
         return arctan2([y], [x], x_nonneg=x_nonneg).item(0)
+    neg = turn = None
+    if not x_nonneg:
+        neg = np.signbit(x)
+        turn = np.empty(neg.shape, out.dtype if out is not None else np.result_type(y, x))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        out = np.divide(y, x, out=out)
+        out = _ratio_route(y, x, neg, None if neg is None else _ops.const(np.pi, turn.dtype), _ops.ARRAYS, out, turn)
     # a reduction, no mask, when no ratio is 0 / 0
     if not defined and out.size and np.isnan(np.minimum.reduce(out, axis=None)):
-        nan = np.isnan(out)   # 0 / 0: the ratio y (±0) gives np.arctan2's signed zeros and ±π
-        np.copyto(out, y, where=nan & (x == 0))
-    np.arctan(out, out=out)
-    if x_nonneg:
-        return out
-    neg = np.signbit(x)
-    if out.size <= _FIX_ALWAYS:   # a few: one masked add, without the reduction that would skip it
-        pi = _ops.const(np.pi, out.dtype)   # (a 0-d operand: no scalar to convert)
-        np.add(out, np.copysign(pi, y), out=out, where=neg)
-    elif neg.any():   # + copysign(π, y) · neg: on long rows a masked add would cost more than arctan
-        turn = np.copysign(np.pi, y, dtype=out.dtype)
-        turn *= neg
-        out += turn
+        # 0 / 0: y (±0) plus the turn gives np.arctan2's signed zeros and ±π
+        fix = np.isnan(out) & (x == 0)
+        np.copyto(out, y if turn is None else np.add(y, turn), where=fix)
     return out
 
 
-_FIX_ALWAYS = 96
-"""Up to this many angles `arctan2`'s ±π fix is one masked add, without first testing for a
-negative x (at a few elements the test costs as much as the fix)."""
+def _ratio_route(y, x, neg, pi, op, out, turn):
+    """``arctan(y / x) + copysign(π, y) · neg``, `arctan2`'s ratio route, written once, in
+    `op`'s arithmetic (`_ops`; into the rows `out` and `turn`; `pi` π as its operand): `neg`
+    is 1 (True) where x is negative or -0.0, else 0, where the turn is ±0 with y's sign,
+    which adds nothing (signed zeros kept); None when the caller knows x >= +0 (no turn).
+    A formula compiled for known signs takes ``neg`` True or False: the same bits, without
+    the product (or the turn)."""
+    a = op.div(y, x, out)
+    a = op.arctan(a, a)
+    if neg is None or neg is False:
+        return a
+    turn = op.copysign(pi, y, turn)
+    if neg is not True:
+        turn = op.mul(turn, neg, turn)
+    return op.add(a, turn, a)
+
+
+_ratio_route_floats = _ops.compiled(lambda op, stack, y, x, neg: _ratio_route(y, x, neg, math.pi, op, None, None), 3)
+"""`_ratio_route` on one pair of Python floats and whether x < 0 (`_ops.compiled`)."""
+
+
+class _RatioRoute3(dict):
+    """`_ratio_route` on three pairs of floats ``(y0, y1, y2, x0, x1, x2)``, compiled for
+    the signs ``(x0 < 0, x1 < 0, x2 < 0)`` (the key) when first asked for."""
+
+    def __missing__(self, negs):
+        f = self[negs] = _ops.compiled(lambda op, stack, *a: [
+            _ratio_route(a[i], a[3 + i], negs[i], math.pi, op, None, None) for i in range(3)], 6)
+        return f
+
+
+_RATIO_ROUTE3 = _RatioRoute3()
 
 
 def _contig_last(a, dtype):
@@ -250,15 +275,21 @@ def _hamilton_stacked(P, Q, O):
     if n == 1 and O.dtype == np.complex128:   # one float64 quaternion: the operands from its
         (a, b), (c, d) = P[0].tolist(), Q[0].tolist()   # Python complex numbers (exact)
         m = (np.array([a, a, b, b]) * np.array([c, d, d.conjugate(), c.conjugate()])).tolist()
-        O[0] = m[0] - m[2], m[1] + m[3]   # Python's complex - and + round as NumPy's
+        O[0] = _stacked_sum(m, _ops.FLOATS, None, None)   # Python's complex - and + round as NumPy's
         return
     L, R = np.empty((2, 4, n), O.dtype)
     L.reshape(2, 2, n)[...] = P.T[:, None, :]   # a, a, b, b
     R[:2] = Q.T                                 # c, d
     np.conjugate(Q.T[::-1], R[2:])              # conj d, conj c
     np.multiply(L, R, L)   # at least 4 elements: never the length-1 in-place multiply
-    np.subtract(L[0], L[2], O[:, 0])
-    np.add(L[1], L[3], O[:, 1])
+    _stacked_sum(L, _ops.ARRAYS, O[:, 0], O[:, 1])
+
+
+def _stacked_sum(m, op, o0, o1):
+    """``p q = (a c - b conj(d)) + (a d + b conj(c)) j`` from `_hamilton_stacked`'s products
+    ``m = [a c, a d, b conj(d), b conj(c)]`` (rows, or Python complex numbers), written
+    once, in `op`'s arithmetic (`_ops`), into `o0`, `o1`."""
+    return op.sub(m[0], m[2], o0), op.add(m[1], m[3], o1)
 
 
 def _mul_views(P, Q, O):
