@@ -27,7 +27,6 @@ sin(Omega), Omega from arcsin): float32 sin and arcsin are SIMD loops on
 every x86 CPU, tan and arctan are not (costs in benchmarks/README.md).
 """
 
-import math
 from math import prod
 from types import SimpleNamespace
 
@@ -121,8 +120,7 @@ def slerp_weights(a2, b2, h, sign=None):
     dtype = a2.dtype
     r2, rho, tau, t2, w0 = _rows(5, s, dtype)
     if sign is not None:
-        np.minimum(a2, b2, out=r2)
-        np.maximum(a2, b2, out=b2)
+        r2, b2 = _folded(a2, b2, _ops.ARRAYS, r2)
     else:
         np.copyto(r2, a2)
     if dtype == np.float32:
@@ -130,9 +128,23 @@ def slerp_weights(a2, b2, h, sign=None):
     else:
         w0, w1 = _tangent_weights(r2, b2, h, w0, tau, t2, rho, a2)
     if sign is not None:
-        np.copysign(1, sign, out=sign)   # +1, or -1 to follow -B (x - x is +0: ties keep B)
-        w1 *= sign
+        w1 = _signed(w1, sign, _ops.const(1.0, dtype), _ops.ARRAYS, sign)
     return w0, w1
+
+
+def _folded(a2, b2, op, r2):
+    """The chords (r², b²) of the arc followed where B counts as -B for A·B < 0, whose chords
+    |B - A| and |B + A| then swap: the shorter first, written once, in `op`'s arithmetic
+    (`_ops`), into `r2` and `b2`."""
+    return op.min(a2, b2, r2), op.max(a2, b2, b2)
+
+
+def _signed(w1, d, one, op, sign):
+    """w1 for B counted as -B where ``d = b² - a² = 4 A·B`` (`hemisphere`) is negative: times
+    ``copysign(1, d)`` (d = +0, as x - x is: ties keep B), written once (`one`: 1 as `op`'s
+    operand; `sign` a work row, may be d)."""
+    sign = op.copysign(one, d, sign)
+    return op.mul(w1, sign, w1)
 
 
 def _sine_weights(r2, b2, h, w0, th, s2, w1):
@@ -227,7 +239,7 @@ def hemisphere(A, B, a2, b2, out):
     there the dot is summed again in float64, where the products of float32
     numbers are exact.
     """
-    np.subtract(b2, a2, out=out)
+    out = _chord_difference(a2, b2, _ops.ARRAYS, out)
     if out.dtype == np.float32:   # (in scratch rows: four fresh block-sized temporaries cost page faults)
         bound, size = _rows(2, out.shape, out.dtype)
         unsure = np.less_equal(*_doubt32(a2, b2, out, _ops.ARRAYS, size, bound))
@@ -238,6 +250,11 @@ def hemisphere(A, B, a2, b2, out):
                      np.broadcast_to(B, (4,) + s)[at].astype(np.float64), 0)
             out[at[1:]] = np.sign(d)      # 0 stays +0: ties keep B
     return out
+
+
+def _chord_difference(a2, b2, op, out):
+    """``b² - a² = |B + A|² - |B - A|² = 4 A·B``, written once, in `op`'s arithmetic."""
+    return op.sub(b2, a2, out)
 
 
 #: |b² - a²| below this times a² + b² leaves the float32 sign of A·B in doubt.
@@ -623,6 +640,7 @@ def slerp(q0, q1, t, shortest=True, check=False):
 def _slerp_floats_of(kind):
     """`_SLERP_FLOATS`' function for `kind`."""
     chords, blend, op = _chords_floats.kinds[kind], _blend_floats.kinds[kind], kind.op
+    fold, signed_blend = _fold_floats.kinds[kind], _signed_blend_floats.kinds[kind]
     low, high = _scale.BOUNDS[kind]
     python = kind is _ops.F64
 
@@ -631,24 +649,22 @@ def _slerp_floats_of(kind):
         if not (low <= a2 + b2 <= high and -1.0 <= h <= 2.0):
             return None
         if shortest:   # `slerp_weights` and `hemisphere`: B counts as -B where A·B < 0
-            d = b2 - a2
+            d, r2, b2 = fold(a2, b2)
             if not python:
                 size, bound = _doubt32(a2, b2, d, op, None, None)
                 if size <= bound:
                     return None
-            sign = math.copysign(1.0, d)
-            r2, b2 = min(a2, b2), max(a2, b2)
         elif b2 < a2:
             return None
         else:
-            sign, r2 = 1.0, a2
+            r2 = a2
         if python:
             r2, rho, tau = _tangent_angle_floats(r2, b2, h)
             w0, w1 = _tangent_blend_floats(tan_float(tau), r2, rho)
         else:   # `slerp_weights`' float32 route, on float32 scalars
             w0, w1 = _sine_floats.float32(r2, b2, h)
         if shortest:
-            w1 = w1 * sign
+            return signed_blend(*A, *B, w0, w1, d)
         return blend(*A, *B, w0, w1)
     return slerp_floats
 
@@ -678,6 +694,13 @@ _tangent_blend_floats = _ops.compiled(
     lambda op, stack, tau, r2, rho: _tangent_blend(tau, r2, rho, op, 1.0, None, None, None), 3)
 _blend_floats = _ops.compiled(
     lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], c[9], stack, _ops.NONE, None), 10)
+_fold_floats = _ops.compiled(
+    lambda op, stack, a2, b2: [_chord_difference(a2, b2, op, None), *_folded(a2, b2, op, None)], 2)
+"""`_chord_difference` and `_folded` on one pair's (a², b²): [d, r², b²]."""
+_signed_blend_floats = _ops.compiled(
+    lambda op, stack, *c: _blend(list(c[:4]), list(c[4:8]), c[8], _signed(c[9], c[10], 1.0, op, None), stack,
+                                 _ops.NONE, None), 11)
+"""`_signed` and `_blend` on one pair's floats ``(*A, *B, w0, w1, d)``."""
 _SLERP_FLOATS = _ops.by_kind(_slerp_floats_of)
 """`slerp_core` of one pair (lists of four floats) at a float h, by `_ops.Kind`: ``f(A, B, h,
 shortest)``, the four floats, or None where the block kernel has more to do (|A|² + |B|²

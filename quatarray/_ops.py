@@ -75,6 +75,7 @@ from the C library's in about 1 case in 1000."""
 
 ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
                          where=np.where, max=lambda a, b, out: np.maximum(a, b, out=out),
+                         min=lambda a, b, out: np.minimum(a, b, out=out),
                          abs=np.absolute, copysign=np.copysign, rint=np.rint, arctan=np.arctan,
                          copy=lambda a, out: np.copyto(out, a) or out,
                          exp=np.exp, log=np.log, cos=np.cos, sin=np.sin, power=np.power)
@@ -94,7 +95,8 @@ _NUMPY_FLOATS = {name: _numpy_float(getattr(np, name)) for name in ("exp", "log"
 FLOATS = SimpleNamespace(add=lambda a, b, out: a + b, sub=lambda a, b, out: a - b,
                          mul=lambda a, b, out: a * b, div=lambda a, b, out: a / b,
                          sqrt=lambda a, out: math.sqrt(a), where=lambda c, a, b: a if c else b,
-                         max=lambda a, b, out: max(a, b), abs=lambda a, out: abs(a),
+                         max=lambda a, b, out: max(a, b), min=lambda a, b, out: min(a, b),
+                         abs=lambda a, out: abs(a),
                          copysign=lambda a, b, out: math.copysign(a, b), copy=lambda a, out: a,
                          rint=lambda a, out: float(round(a)),   # round: half to even, as np.rint
                          arctan=lambda a, out: arctan_float(a),   # the array loop's bits
@@ -210,6 +212,7 @@ class _Name(str):
 
 _TEMPLATES = {"add": "{0} + {1}", "sub": "{0} - {1}", "mul": "{0} * {1}", "div": "{0} / {1}",
               "sqrt": "_sqrt({0})", "abs": "abs({0})", "copysign": "_copysign({0}, {1})", "max": "max({0}, {1})",
+              "min": "min({0}, {1})",
               "rint": "_rint({0})", "arctan": "_arctan({0})",
               **{name: f"_np_{name}({{0}})" for name in ("exp", "log", "cos", "sin")}, "power": "_np_power({0}, {1})"}
 """`FLOATS`' operations as Python expressions (the same calls and operators, in place)."""
