@@ -16,7 +16,6 @@ import numpy as np
 
 from . import _blocks, _ops, _scale, _trig
 from ._convert import _blockwise
-from ._kernels import cos_sin as _cos_sin
 from ._kernels import half_angle as _half_angle
 from ._kernels import arctan2, multiply
 from ._validate import finite, float_array, quat_array
@@ -697,8 +696,8 @@ def _k_from_davenport(angles, q, axes, extrinsic, scale):
     for the block (`_shared_axes`), or (k, m, 3), a set per rotation
     (`_k_from_davenport_rows`): the same products, broadcast."""
     if angles.shape[1] == 1 and angles.dtype == np.float64:
-        # one float64 rotation: each half angle's `cos_sin` on its float (the same formula)
-        cs = [_cos_sin(a * (2 * scale)) for a in angles[:, 0].tolist()]
+        # one float64 rotation: each half angle's `half_angle` on its float (the same formula)
+        cs = [_half_angle(a, scale) for a in angles[:, 0].tolist()]
         turns = np.array([[[c, s * x, s * y, s * z]] for (c, s), (x, y, z) in zip(cs, axes[:, 0].tolist())])
     else:
         c, s = _half_angle(angles, scale)                 # (k, m) each
