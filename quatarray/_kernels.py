@@ -174,34 +174,46 @@ def arctan2(y, x, out=None, x_nonneg=False, defined=False):
         return float(np.arctan2(y, x)) if type(y) is float else np.arctan2(y, x, out=out)
     if type(y) is float:   # the ratio route on one float: NumPy's arctan (the arrays' bits), the ±π fix
         return arctan2([y], [x], x_nonneg=x_nonneg).item(0)
-    neg = turn = None
-    if not x_nonneg:
-        neg = np.signbit(x)
-        turn = np.empty(neg.shape, out.dtype if out is not None else np.result_type(y, x))
+    neg = None if x_nonneg else np.signbit(x)
+    few = neg is not None and neg.size <= _MASKED_MAX
+    if not (few or neg is None or neg.any()):
+        neg = None   # long rows without a negative x: no turn (a reduction, not the fix's three passes)
+    dtype = out.dtype if out is not None else y.dtype if y.dtype == x.dtype else np.result_type(y, x)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        out = _ratio_route(y, x, neg, None if neg is None else _ops.const(np.pi, turn.dtype), _ops.ARRAYS, out, turn)
+        out = _ratio_route(y, x, neg, _ops.const(np.pi, dtype), _ops.ARRAYS, out, None, masked=few)
     # a reduction, no mask, when no ratio is 0 / 0
     if not defined and out.size and np.isnan(np.minimum.reduce(out, axis=None)):
-        # 0 / 0: y (±0) plus the turn gives np.arctan2's signed zeros and ±π
+        # 0 / 0: y (±0), and its turn where x = -0.0, gives np.arctan2's signed zeros and ±π
         fix = np.isnan(out) & (x == 0)
-        np.copyto(out, y if turn is None else np.add(y, turn), where=fix)
+        np.copyto(out, y, where=fix)
+        if neg is not None:
+            np.add(out, np.copysign(np.pi, y, dtype=dtype), out=out, where=fix & neg)
     return out
 
 
-def _ratio_route(y, x, neg, pi, op, out, turn):
-    """``arctan(y / x) + copysign(π, y) · neg``, `arctan2`'s ratio route, written once, in
-    `op`'s arithmetic (`_ops`; into the rows `out` and `turn`; `pi` π as its operand): `neg`
-    is 1 (True) where x is negative or -0.0, else 0, where the turn is ±0 with y's sign,
-    which adds nothing (signed zeros kept); None when the caller knows x >= +0 (no turn).
-    A formula compiled for known signs takes ``neg`` True or False: the same bits, without
-    the product (or the turn)."""
+_MASKED_MAX = 96
+"""Up to this many angles `arctan2`'s turn is one masked add, without first testing for a
+negative x (at a few elements the test costs as much as the turn); beyond, where some x is
+negative, the turn times 0 or 1 (a masked add costs more than arctan on long rows)."""
+
+
+def _ratio_route(y, x, neg, pi, op, out, turn, masked=False):
+    """``arctan(y / x) + copysign(π, y)`` where x is negative or -0.0 (`neg`), `arctan2`'s
+    ratio route, written once, in `op`'s arithmetic (`_ops`; into the rows `out` and `turn`;
+    `pi` π as its operand).  `neg`: rows of bools, the turn added where True (`masked`: by
+    one masked add; else as the turn times `neg`: ±0 with y's sign elsewhere, which adds
+    nothing, signed zeros kept); True or False for a formula compiled for a known sign;
+    None when x >= +0 (no turn)."""
     a = op.div(y, x, out)
     a = op.arctan(a, a)
     if neg is None or neg is False:
         return a
     turn = op.copysign(pi, y, turn)
-    if neg is not True:
-        turn = op.mul(turn, neg, turn)
+    if neg is True:
+        return op.add(a, turn, a)
+    if masked:
+        return op.add_where(a, turn, neg, a)
+    turn = op.mul(turn, neg, turn)
     return op.add(a, turn, a)
 
 

@@ -76,11 +76,13 @@ from the C library's in about 1 case in 1000."""
 ARRAYS = SimpleNamespace(add=np.add, sub=np.subtract, mul=np.multiply, div=np.divide, sqrt=np.sqrt,
                          where=np.where, max=lambda a, b, out: np.maximum(a, b, out=out),
                          min=lambda a, b, out: np.minimum(a, b, out=out),
+                         add_where=lambda a, b, where, out: np.add(a, b, out=out, where=where),
                          abs=np.absolute, copysign=np.copysign, rint=np.rint, arctan=np.arctan,
                          copy=lambda a, out: np.copyto(out, a) or out,
                          exp=np.exp, log=np.log, cos=np.cos, sin=np.sin, power=np.power)
 """Each operation writes into its last argument (a row of the block) and returns it;
-``where(c, a, b)`` picks by a condition."""
+``where(c, a, b)`` picks by a condition; ``add_where(a, b, mask, out)`` adds where mask
+(rows only: one float's formula has no mask)."""
 
 
 def _numpy_float(f):
