@@ -578,7 +578,8 @@ def frame_core(F, phi, u, O):
 
     `F` is used as scratch (overwritten).  u broadcastable to s.
     With tau = tan(u phi): cos = 2/(1 + tau²) - 1, sin = tau · 2/(1 + tau²);
-    u = 0 gives exactly k.
+    u = 0 gives exactly k.  Returns the rows (cos 2u phi, sin 2u phi), the thread's scratch
+    (`_track.rigid_block`'s translations use them).
     """
     s = O.shape[1:]
     CS = _rows(2, s, O.dtype)
@@ -600,7 +601,7 @@ def frame_core(F, phi, u, O):
     np.multiply(F[:4], c, out=F[:4])
     np.multiply(F[4:], sn, out=F[4:])
     np.add(F[:4], F[4:], out=O)
-    return O
+    return c, sn
 
 
 # --------------------------------------------------------------------------

@@ -330,16 +330,8 @@ def rigid_table(keys, translations):
 def rigid_block(G, u, O):
     """Rotations (O[:4]) and translations (O[4:7]) from gathered `rigid_table` rows."""
     s = O.shape[1:]
-    work = _blocks.scratch()
-    c, sn, rc, w = work.rows(4, s, O.dtype)
-    np.multiply(G[8], u, out=sn)
-    sn *= 2                                    # u Ω
-    np.cos(sn, out=c)
-    np.sin(sn, out=sn)
-    Fv = G[:8].reshape((2, 4) + s)
-    np.multiply(Fv[0], c, out=O[:4])
-    np.multiply(Fv[1], sn, out=Fv[1])
-    O[:4] += Fv[1]
+    c, sn = _interp_kernels.frame_core(G[:8], G[8], u, O[:4])   # the rotation: a slerp track's; cos, sin of u Ω
+    rc, w = _blocks.scratch().rows(2, s, O.dtype)
     np.multiply(sn, G[22], out=rc)             # sin(uΩ) / sin Ω ...
     np.copyto(rc, np.broadcast_to(u, s), where=G[22] == 0)   # ... -> u as Ω -> 0
     rc *= G[21]                                # times cos Ω

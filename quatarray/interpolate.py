@@ -597,8 +597,10 @@ class Track:
             method = self._method
             out = _track.evaluate(self._timeline, self._table, flat,
                               lambda G, u, O: _track.rotation_block(method, G, u, O), 4)
-        if self._timeline.extrapolate == "extend" and flat.size:
-            # far out, squad's and Bézier's rounding grows like eps u² off the unit sphere
+        if self._timeline.extrapolate == "extend" and flat.size and self._method != "slerp":
+            # far out, squad's and Bézier's rounding grows like eps u² off the unit sphere (SLERP's
+            # cos and sin of one angle on an orthonormal frame do not: its bits stay `frame_core`'s,
+            # as `RigidTrack`'s rotations)
             far = (flat < self.times[0]) | (flat > self.times[-1])
             if far.any():
                 rows = out.reshape(flat.size, -1, 4)

@@ -175,3 +175,17 @@ def test_errors(rng, call, exc, match):
     tf = _transforms(*_keys(rng, 2, ()))
     with pytest.raises(exc, match=match):
         call(tf)
+
+
+@pytest.mark.parametrize("extrapolate", ["clamp", "extend"])
+def test_rotations_are_the_slerp_tracks_bits(rng, dtype, extrapolate):
+    """A rigid track's rotations are those of the SLERP `Track` of its rotation keys, bit for
+    bit, inside the keys and extended beyond them (one formula: `frame_core`)."""
+    q, t = _keys(rng, 6, (3,), dtype)
+    times = np.cumsum(rng.uniform(0.2, 1.5, 6))
+    s = np.concatenate([rng.uniform(times[0] - 5, times[-1] + 5, 300), times])
+    tf = _transforms(q, t)
+    got = _parts(RigidTrack(times, tf, extrapolate=extrapolate)(s))[0]
+    want = np.asarray(Track(times, _parts(tf)[0], method="slerp", extrapolate=extrapolate)(s))
+    assert got.dtype == want.dtype == dtype
+    np.testing.assert_array_equal(got, want)
