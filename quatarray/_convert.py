@@ -819,16 +819,11 @@ def _rotvec(w, vec, tan_half, nv, factor, op, stack, o, rows):
 def _k_as_rotvec(q, o, factor, unit=False):
     t, exact = _half_turn(q, unit)
     _tangent_rows(q, t, exact)
-    if not exact:
-        _rotvec(q[0], q[1:4], t[0], t[1], _ops.const(factor, q.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
-        return
-    # w = 0 (the canonical sign from x, y, z) or |v| = 0 (limit: the zero vector)
-    np.arctan(t[0], out=t[0])
-    np.divide(t[0], np.maximum(t[1], _DENORM_MIN[q.dtype], out=t[1]), out=t[0])
-    np.copyto(t[0], np.where(_flip_mask(*q), -t[0], t[0]))
-    t[0] *= factor
-    for c, r in zip(q[1:], o):
-        np.multiply(c, t[0], out=r)
+    w, nv = q[0], t[1]
+    if exact:   # w = 0: the canonical sign from x, y, z; |v| = 0: 0 / tiny, the zero vector
+        w = np.where(_flip_mask(*q), q.dtype.type(-1), q.dtype.type(1))
+        np.maximum(nv, _DENORM_MIN[q.dtype], out=nv)
+    _rotvec(w, q[1:4], t[0], nv, _ops.const(factor, q.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
 
 
 _DENORM_MIN = {d: np.finfo(d).smallest_subnormal for d in _TINY}
