@@ -1324,10 +1324,8 @@ def _mrp_quat(n, op, e, h, t, w):
 
 def _k_mrp_rows(p, o, rows):
     """`from_mrp` of the rows `p` (n, 3) into `o` (n, 4) with four work rows (4, n)."""
-    n = rows[0]
-    sq = np.multiply(p, p, out=rows[1:4].reshape(p.shape))   # x², y², z² summed in that order
-    np.add(sq[:, 0], sq[:, 1], out=n)
-    n += sq[:, 2]
+    sq = np.multiply(p, p, out=rows[1:4].reshape(p.shape))   # x², y², z² in one call, then
+    n = _scale._summed(sq.T, rows[0])                       # summed in that order (`_scale.squares`')
     _, h = _mrp_quat(n, _ops.ARRAYS, rows[1], rows[2], rows[3], o[:, 0])
     np.divide(p.T, h, out=o.T[1:], order="C")   # x, y, z in one call (as in `_k_unit_mrp`)
     if not _scale.at_most(n, _scale.HIGH[n.dtype]):   # nan, inf or |p|² overflowing: look
@@ -1371,11 +1369,10 @@ def from_mrp(mrp):
     p = _vec3(mrp, "mrp")   # finiteness: found by the kernel's range check of |p|² (or n here)
     one = _ops.floats64(p, 3)   # (float32: the rows' kernel on one MRP is as fast, 3 µs)
     if one is not None:
-        x, y, z = one
-        n = x * x + y * y + z * z   # the kernel's |p|², in its order
+        n = _scale.squares(one, _ops.FLOATS, None, None)   # the kernel's |p|², in its order
         if n <= _scale.HIGH[p.dtype]:   # one float64 MRP: the kernel's formula on its floats
             w, h = _mrp_quat(n, _ops.FLOATS, None, None, None, None)
-            return _ops.to_array([w, x / h, y / h, z / h], p.shape[:-1] + (4,))
+            return _ops.to_array([w, *_ops.FLOAT_STACKS.div(one, h, None)], p.shape[:-1] + (4,))
     out = np.empty(p.shape[:-1] + (4,), p.dtype)
     try:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
