@@ -1204,27 +1204,20 @@ def magnitude(q, unit=False):
 
 
 def _k_as_mrp(q, o):
-    k = _scale.guarded_sqnorm(q, zero=True)   # a scratch row; q may be rescaled in place
-    w, x, y, z = q
+    k = _scale.guarded_sqnorm(q, zero=True)   # a scratch row; q may be rescaled in place (MRPs
+    np.sqrt(k, out=k)                         # do not change with |q|)
     with _blocks.scratch().frame() as work:
-        a = work.rows(1, k.shape, k.dtype)[0]
-        np.sqrt(k, out=k)
-        np.abs(w, out=a)
-        k += a
-        np.divide(1.0, k, out=k)            # 1 / (|q| + |w|)
-        np.add(w, 0.0, out=a)               # -0 -> +0: only w < 0 flips the sign
-        np.copysign(k, a, out=k)
-        np.multiply(x, k, out=o[0])
-        np.multiply(y, k, out=o[1])
-        np.multiply(z, k, out=o[2])
+        d = _mrp_denominator(q[0], _ops.ARRAYS, work.rows(1, k.shape, k.dtype)[0], k, _ops.const(0.0, k.dtype), k)
+        np.divide(q[1:], d, out=o)            # v / (|q| + |w|), signed as w
 
 
 def _mrp_denominator(w, op, s, d, zero=0.0, one=1.0):
-    """``|q| + |w|`` for a unit q, signed as w (w = -0 counts as positive, as in scipy), in
+    """``|q| + |w|``, signed as w (w = -0 counts as positive, as in scipy), written once, in
     `op`'s arithmetic (`_ops`), with the work rows `s`, `d`: MRPs are ``v`` over it (scipy's
-    ``v / copysign(1 + |w|, w)``).  ``s ± 1`` (s = w + 0: w with -0 made +0) is exactly
-    ``±(1 + |w|)`` (rounding is symmetric), one call fewer.  `zero`, `one`: 0 and 1 (as
-    `_ops.const` arrays on rows)."""
+    ``v / copysign(1 + |w|, w)`` for unit q).  ``s ± |q|`` (s = w + 0: w with -0 made +0) is
+    exactly ``±(|q| + |w|)`` (rounding is symmetric), one call fewer.  `zero`: 0; `one`:
+    |q|, 1 for unit q (`Rotation`'s: as scipy, no norm), else the rows of |q| (may be `d`);
+    as `_ops.const` arrays on rows."""
     s = op.add(w, zero, s)            # -0 -> +0: only w < 0 flips the sign (and a contiguous row)
     d = op.copysign(one, s, d)
     return op.add(s, d, d)

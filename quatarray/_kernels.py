@@ -622,10 +622,8 @@ def _normalize_flat(q, out):
             work = _blocks.scratch()
             t = work.rows(1, (len(o),), q.dtype)[0]
             sq = work.rows(len(o), (4,), q.dtype)
-        np.multiply(blk, blk, out=sq)        # one flat pass, then three strided adds:
-        np.add(sq[:, 0], sq[:, 1], out=t)    # half the cost of einsum's length-4 reductions
-        t += sq[:, 2]
-        t += sq[:, 3]
+        np.multiply(blk, blk, out=sq)        # one flat pass, then three strided adds (half the cost of
+        _scale._summed(sq.T, t)              # einsum's length-4 reductions), in `_scale.squares`' order
         if not _scale.fits(t):   # extreme magnitudes, zeros or nan: the general kernel
             normalize_block(soa(blk).copy(), soa(o))
             return

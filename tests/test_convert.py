@@ -18,6 +18,7 @@ from quatarray import _blocks
 from quatarray import _convert as C
 from quatarray import _euler as E
 from quatarray import _kernels as K
+from quatarray import _scale
 from quatarray._blocks import BLOCK as CHUNK
 from quatarray.testing import assert_allclose
 
@@ -365,6 +366,21 @@ def test_mrp_both_ways_match_scipy(rng, dtype, shape):
     assert (np.linalg.norm(got, axis=-1) <= 1 + tol(dtype)).all()
     p = rng.uniform(-3, 3, shape + (3,)).astype(dtype)
     np.testing.assert_allclose(C.from_mrp(p), sp_quat(R.from_mrp(p.astype(float))), rtol=0, atol=tol(dtype))
+
+
+def test_mrp_of_any_quaternion_is_the_unit_formula_with_its_norm(rng, dtype):
+    """One formula for MRPs, v / (|q| + |w|) signed as w: where |q| rounds to exactly 1, the
+    general path has the bits of `Rotation`'s (|q| taken as 1); scaling q changes nothing
+    but rounding (within 2 ulp of the largest component); signed zeros of w as scipy's."""
+    q = random_quats(rng, (5000,), dtype)
+    q[:50, 0] = 0.0
+    q[50:100, 0] = -0.0
+    got, unit = C.as_mrp(q), C.as_mrp(q, unit=True)
+    one = np.sqrt(_scale.sum_squares(np.ascontiguousarray(q.T), np.empty(len(q), dtype))) == 1   # |q|, the kernel's
+    assert one.sum() > len(q) // 4
+    np.testing.assert_array_equal(got[one], unit[one])
+    for scale in (3.0, 2.0 ** -40, 2.0 ** 40):
+        np.testing.assert_allclose(C.as_mrp(q * dtype(scale)), got, rtol=0, atol=2 * np.finfo(dtype).eps)
 
 
 def test_mrp_of_negative_w_uses_the_short_way():
