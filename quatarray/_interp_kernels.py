@@ -36,7 +36,7 @@ from . import _blocks
 from . import _ops
 from . import _scale
 from ._blocks import soa
-from ._kernels import normalize, normalize_block, result_dtype
+from ._kernels import _COS_SIN, _cos_sin_of_tangent, cos_sin, normalize, normalize_block, result_dtype
 from ._trig import SIMD_TAN, atan_unit32, tan, tan_float
 from ._validate import all_finite
 
@@ -577,25 +577,19 @@ def frame_core(F, phi, u, O):
     """``O = cos(2 u phi) k + sin(2 u phi) p`` with F = [k; p] of shape (8, *s).
 
     `F` is used as scratch (overwritten).  u broadcastable to s.
-    With tau = tan(u phi): cos = 2/(1 + tau²) - 1, sin = tau · 2/(1 + tau²);
-    u = 0 gives exactly k.  Returns the rows (cos 2u phi, sin 2u phi), the thread's scratch
+    cos and sin are `_kernels.cos_sin`'s (in float64 from tau = tan(u phi), its
+    `_cos_sin_of_tangent`); u = 0 gives exactly k.  Returns the rows (cos 2u phi, sin 2u phi), the thread's scratch
     (`_track.rigid_block`'s translations use them).
     """
     s = O.shape[1:]
-    CS = _rows(2, s, O.dtype)
-    c, sn = CS
+    c, sn, r0, r1 = _rows(4, s, O.dtype)
     np.multiply(phi, u, out=sn, casting="unsafe")
-    if O.dtype == np.float32:                # SIMD sin and cos (see `_kernels.cos_sin`)
+    if O.dtype == np.float32:                # `cos_sin`'s float32 route: SIMD sin and cos of 2 u phi
         sn *= 2
-        np.cos(sn, out=c)
-        np.sin(sn, out=sn)
-    else:
-        tan(sn, out=sn, rows=None if SIMD_TAN else _rows(3, s, O.dtype))   # tau (NumPy's SIMD tan needs no rows)
-        np.multiply(sn, sn, out=c)
-        c += _ONE64
-        np.divide(_TWO64, c, out=c)          # 2 / (1 + tau²)
-        sn *= c                              # sin
-        c -= _ONE64                          # cos
+        c, sn = cos_sin(sn, c, sn)
+    else:                                    # its float64 formula, from the one tangent of u phi
+        t = tan(sn, out=sn, rows=None if SIMD_TAN else (c, r0, r1))   # (NumPy's SIMD tan needs no rows)
+        c, sn = _cos_sin_of_tangent(t, _ops.ARRAYS, *_COS_SIN[False], c, r0, r1)
     # (two multiplies of four rows: one on the (2, 4, *s) view broadcasting (2, 1, *s) costs
     # more than both at small sizes, NumPy's iterator on 3-D and 4-D operands)
     np.multiply(F[:4], c, out=F[:4])

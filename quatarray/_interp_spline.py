@@ -577,16 +577,9 @@ def _rotation(G, s, op, vec, tan, tiny, check, renorm, rows):
     tau, d, cos_half = r[0], r[1], r[2]       # r is no longer needed
     tau = op.mul(theta, 0.25, tau)
     tau = tan(tau, out=tau, rows=(d, cos_half, tmp))   # τ = tan(θ/4)
-    d = op.mul(tau, tau, d)
-    d = op.add(d, 1.0, d)
-    d = op.div(1.0, d, d)                     # 1 / (1 + τ²)
-    cos_half = op.sub(1.0, tau, cos_half)
-    tmp = op.add(1.0, tau, tmp)
-    cos_half = op.mul(cos_half, tmp, cos_half)
-    cos_half = op.mul(cos_half, d, cos_half)  # cos(θ/2) = (1 - τ)(1 + τ) / (1 + τ²)
-    tmp = op.mul(tau, d, tmp)
-    tmp = op.mul(tmp, 2.0, tmp)
-    tmp = op.div(tmp, theta, tmp)             # sin(θ/2) / θ
+    consts = _COS_SIN_CONSTS[theta.dtype] if op is _ops.ARRAYS else (0.5, 1.0, 2.0)
+    cos_half, sin_half = _kernels._cos_sin_of_tangent(tau, op, *consts, cos_half, d, tmp)   # `cos_sin`'s formula;
+    tmp = op.div(sin_half, theta, tmp)        # sin(θ/2) / θ                          # sin in tau's row
     V = G[4:8]                                # q (0, r(s)), in place of its first coefficient
     V = vec.scale(V, s, V)
     V = vec.add(V, G[8:12], V)
@@ -608,6 +601,10 @@ def _rotation(G, s, op, vec, tan, tiny, check, renorm, rows):
         theta = op.sub(theta, 1.0, theta)
         Q = renorm(Q, theta)
     return Q
+
+
+_COS_SIN_CONSTS = {np.dtype(d): tuple(_ops.const(v, d) for v in (0.5, 1.0, 2.0)) for d in (np.float32, np.float64)}
+"""0.5, 1 and 2 as operands of rows of each dtype (`_ops.const`), for `_cos_sin_of_tangent`."""
 
 
 def _renormed(Q, e, op, vec):
