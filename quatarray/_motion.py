@@ -15,6 +15,10 @@ __all__ = ["apply", "apply_matrix", "compose", "inverse"]
 def apply(q, t, v, inverse=False, unit=False):
     """``R(q) v + t`` (or ``R(q)ᵀ (v - t)`` with `inverse`) for unit q, broadcasting; `unit`:
     q is known to be finite and unit (`_kernels.rotate`'s `unit`)."""
+    if v.shape == (3,) and q.shape == (4,) and t.shape == (3,):   # one motion, one vector: no checks
+        if inverse:
+            return _kernels.rotate(q, v - t, inverse=True, unit=unit)
+        return _kernels.rotate(q, v, unit=unit) + t
     if q.shape[:-1] == t.shape[:-1] == v.shape[:-1] and q.dtype == t.dtype == v.dtype:
         dtype, batch = q.dtype, q.shape[:-1]
     else:

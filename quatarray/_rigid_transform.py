@@ -26,7 +26,6 @@ import numpy as np
 from . import _convert
 from . import _dualquat
 from . import _jacobian
-from . import _kernels
 from . import _motion
 from . import _rotation_algorithms
 from . import _scale
@@ -368,9 +367,6 @@ class RigidTransform:
         q, t = self._q, self._t
         if self._m is not None:   # normalize=False kept the matrix: applied as given, as scipy does
             out = _motion.apply_matrix(self._m, v, inverse)
-        elif q.shape == (4,) and v.shape == (3,):
-            out = _kernels.rotate(q, v - t if inverse else v, inverse=inverse, unit=self._unit)
-            return out if inverse else out + t
         else:
             out = _motion.apply(q, t, v, inverse, self._unit)
         if self._single and v.ndim == 1:
