@@ -683,8 +683,8 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
     if order == 0 and M * B == 1 and (dtype == np.float64 or dtype == np.float32):
         # one query of one track: the same formula on Python floats, or on float32 scalars
         i = min(max(int(index.find(t)[0]), 0), K1 - 1)
-        t0 = float(times[i])
-        s = (float(t[0]) - t0) / (float(times[i + 1]) - t0)   # (in float64, then the table's dtype)
+        t0 = float(times[i])   # (in float64, then the table's dtype)
+        s = _track.segment_time(float(t[0]), t0, float(times[i + 1]) - t0, _ops.FLOATS)
         if dtype == np.float64:
             check = _needs_check(cmax, abs(s))
             out[0, 0] = _rotation(tab[:, i, 0].tolist(), s, _ops.FLOATS, _ops.FLOAT_STACKS, _trig.tan_float,
@@ -707,7 +707,7 @@ def evaluate(index, times, tab, t, order, batch, cmax=None):
         t0 = times.take(i)
         span = times.take(i + 1) - t0
         # the segment's own time (in float64, then the table's dtype): see `coefficients`
-        s = (np.subtract(tb, t0) / span).astype(dtype, copy=False)[:, None]
+        s = _track.segment_time(tb, t0, span, _ops.ARRAYS).astype(dtype, copy=False)[:, None]
         G = _track.gather(tab, i, sb)
         O = soa(out[sm, sb])
         if order == 0:

@@ -24,6 +24,7 @@ from . import _blocks
 from . import _interp_curves
 from . import _interp_kernels
 from . import _kernels
+from . import _ops
 from . import _scale
 from ._blocks import soa
 from ._interp_lookup import SegmentIndex
@@ -101,9 +102,15 @@ class Timeline:
         K = len(self.times)
         if velocity or self.extrapolate == "extend":
             np.clip(i, 0, K - 2, out=i)
-        u = np.subtract(tb, np.take(self.times, i, mode="clip"))
-        u /= np.take(self.dt, i, mode="clip")
-        return i, u
+        t0 = np.take(self.times, i, mode="clip")
+        return i, segment_time(tb, t0, np.take(self.dt, i, mode="clip"), _ops.ARRAYS, t0)
+
+
+def segment_time(t, t0, span, op, out=None):
+    """A segment's own time ``u = (t - t0) / span`` (span = t1 - t0) of queries `t`, written
+    once, in `op`'s arithmetic (`_ops`; into the row `out`, which may be t0)."""
+    u = op.sub(t, t0, out)
+    return op.div(u, span, u)
 
 
 def components_first(q, K, B):
