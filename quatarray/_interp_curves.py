@@ -19,6 +19,7 @@ uniform-spacing tangents are scaled by 2 Δ_out / (Δ_in + Δ_out) and
 import numpy as np
 
 from . import _blocks
+from . import _kernels
 from ._interp_kernels import slerp_core, vdot
 from ._kernels import conjugate as _conj
 from ._kernels import multiply as _qmul
@@ -35,22 +36,15 @@ def _dot(p, q):
 
 
 def _log_vec(q):
-    """Vector part of the principal log of unit quaternions: theta · v/|v|."""
-    v = q[..., 1:]
-    vn = np.sqrt(_dot(v, v))
-    theta = np.arctan2(vn, q[..., 0])
-    scale = np.divide(theta, vn, out=np.ones_like(vn), where=vn > 0)
-    return v * scale[..., None]
+    """Vector part of the principal log of unit quaternions, theta · v/|v| (`_kernels.log`'s)."""
+    return _kernels.log(q)[..., 1:]
 
 
 def _exp_vec(x):
-    """exp of the pure quaternion (0, x): (cos|x|, sin|x| x/|x|)."""
-    n = np.sqrt(_dot(x, x))
-    sinc = np.divide(np.sin(n), n, out=np.ones_like(n), where=n > 0)
-    out = np.empty(x.shape[:-1] + (4,))
-    out[..., 0] = np.cos(n)
-    np.multiply(x, sinc[..., None], out=out[..., 1:])
-    return out
+    """exp of the pure quaternion (0, x), (cos|x|, sin|x| x/|x|) (`_kernels.exp`'s)."""
+    p = np.zeros(x.shape[:-1] + (4,), x.dtype)
+    p[..., 1:] = x
+    return _kernels.exp(p)
 
 
 def _double(p, q):
