@@ -298,7 +298,7 @@ def arcs(A, B, h, O, where, sign=None):
     D = b - a
     a2, d2, s2 = vdot(a, a, 0), vdot(D, D, 0), vdot(S, S, 0)
     V = np.where(d2 <= s2, D, S)
-    P = V - (vdot(a, V, 0) / a2) * a
+    P = _rejection(V, a, a2)
     pn = np.sqrt(vdot(P, P, 0))
     flat = ~(pn > 0)
     pn[flat] = 1
@@ -308,6 +308,12 @@ def arcs(A, B, h, O, where, sign=None):
     if flat.any():
         res[:, flat] = np.where(hh[flat] < 0.5, a[:, flat], b[:, flat])
     O[at] = res.astype(O.dtype, copy=False)
+
+
+def _rejection(V, a, a2):
+    """``V - (a·V / a²) a``, the part of V orthogonal to a (a² = a·a), components first:
+    the tangent `arcs` and `_wide_tangents` follow, written once."""
+    return V - (vdot(a, V, 0) / a2) * a
 
 
 def slerp_core(A, B, h, O, shortest):
@@ -563,7 +569,7 @@ def _wide_tangents(k0, k1, P, phi, wide):
     at = _where(wide)
     a = k0[at]
     S = a + k1[at]
-    S -= (vdot(a, S, 0) / vdot(a, a, 0)) * a
+    S = _rejection(S, a, vdot(a, a, 0))
     n = np.sqrt(vdot(S, S, 0))
     flat = ~(n > 0)
     n[flat] = np.inf                         # p = 0
