@@ -355,7 +355,8 @@ def _chords(A, B, vec, T, ab):
 
 
 def _blend(A, B, w0, w1, vec, T, O):
-    """O = w0 A + w1 B, the SLERP blend, written once (`vec` as in `_chords`)."""
+    """O = w0 A + w1 B, the blend of SLERP's and (N)LERP's weights, written once (`vec` as in
+    `_chords`; T: eight work rows, which O may be part of)."""
     return vec.add(vec.scale(A, w0, T[:4]), vec.scale(B, w1, T[4:]), O)
 
 
@@ -775,10 +776,7 @@ def _lerp_block(A, B, h, O):
     s = O.shape[1:]
     w = _rows(1, s, O.dtype)[0]
     np.subtract(1, h, out=w, casting="unsafe")
-    T = _rows(8, s, O.dtype)
-    np.multiply(A, w, out=T[:4])
-    np.multiply(B, h, out=T[4:], casting="unsafe")
-    np.add(T[:4], T[4:], out=O)
+    _blend(A, B, w, h, _ops.STACKS, _rows(8, s, O.dtype), O)
 
 
 _ZERO_BLEND = ("nlerp: expected a non-zero blend (1 - t) q0 + t q1 to normalise, "
@@ -793,10 +791,10 @@ def nlerp(q0, q1, t, shortest=True):
     return _pairwise(_nlerp_block, (q0, q1), t, result_dtype(q0, q1), shortest=shortest)
 
 
-def _nlerp_block(A, B, h, O, shortest):
+def _nlerp_block(A, B, h, O, shortest, in_range=False):
     s = O.shape[1:]
-    w0, w1, n = _rows(3, s, O.dtype)
-    T = _rows(8, s, O.dtype)
+    W = _rows(11, s, O.dtype)   # (one request: a scratch call costs as much as a small ufunc's)
+    w0, w1, n, T = W[0], W[1], W[2], W[3:]
     np.subtract(1, h, out=w0, casting="unsafe")
     np.copyto(w1, h, casting="unsafe")
     if shortest:
@@ -807,11 +805,8 @@ def _nlerp_block(A, B, h, O, shortest):
         n += 0.0                          # -0.0 -> +0.0: a zero dot product keeps q1
         np.copysign(1, n, out=n)
         w1 *= n
-    N = T[:4]
-    np.multiply(A, w0, out=N)
-    np.multiply(B, w1, out=T[4:])
-    N += T[4:]
-    normalize_block(N, O, _ZERO_BLEND)   # the package's one q / |q|, safe at any magnitude
+    N = _blend(A, B, w0, w1, _ops.STACKS, T, T[:4])
+    normalize_block(N, O, _ZERO_BLEND, in_range)   # the package's one q / |q|, safe at any magnitude
 
 
 def unit_keys(keys, name="keys", unit=False):

@@ -515,13 +515,16 @@ def dot(p, q):
 _ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quaternion"
 
 
-def normalize_block(q, o, zero=_ZERO_NORMALIZE):
+def normalize_block(q, o, zero=_ZERO_NORMALIZE, in_range=False):
     """``o = q / |q|`` for a components-first block `q` (a scratch copy: rescaled in place
-    where its squares would over- or underflow); a zero quaternion raises ValueError(`zero`)."""
-    n = _scale.guarded_sqnorm(q)
+    where its squares would over- or underflow); a zero quaternion raises ValueError(`zero`).
+    `in_range`: the caller knows every |q|² is in `_scale`'s range (blends of unit keys at
+    bounded weights): no range test."""
+    if in_range:
+        n = _scale.sum_squares(q, np.empty(q.shape[1:], q.dtype))
+    else:
+        n = _scale.guarded_sqnorm(q, zero=zero)   # (in range, hence > 0, unless it raises)
     np.sqrt(n, out=n)
-    if not (n > 0).all():
-        raise ValueError(zero)
     np.divide(q, n, out=o)
 
 

@@ -217,8 +217,8 @@ def guard(q, n2, start=0, zero=False):
     Returns the exponents applied (None when nothing was rescaled: the
     common path).  NaN or infinite components raise
     `ValueError` (the API's policy for non-finite input), found at no cost
-    on the common path; so does a zero quaternion with `zero` (conversions
-    to rotations: `ZERO`).  `start` = 1 when `n2` holds the squared norms of
+    on the common path; so does a zero quaternion with `zero` (True: `ZERO`, the message of
+    conversions to rotations; or the message to raise).  `start` = 1 when `n2` holds the squared norms of
     the vector parts only (the whole quaternion is rescaled all the same).
     """
     if fits(n2):
@@ -228,7 +228,7 @@ def guard(q, n2, start=0, zero=False):
     e = rescale(q, outside(n2))
     sum_squares(q, n2, start)
     if zero and not (n2 if start == 0 else np.max(np.abs(q), axis=0)).all():
-        raise ValueError(ZERO)
+        raise ValueError(zero if type(zero) is str else ZERO)
     return e
 
 

@@ -199,18 +199,8 @@ def rotation_block(method, G, u, O):
     work = _blocks.scratch()
     if method == "slerp":
         _interp_kernels.frame_core(G[:8], G[8], u, O)
-    elif method == "linear":
-        Gv = G.reshape((2, 4) + s)
-        W = work.rows(2, s, O.dtype)
-        np.subtract(1, u, out=W[0])
-        np.copyto(W[1], u)
-        np.multiply(Gv, W[:, None], out=Gv)
-        np.add(Gv[0], Gv[1], out=O)
-        n = work.rows(1, s, O.dtype)[0]
-        np.copyto(Gv[0], O)
-        _interp_kernels.sqsum(Gv[0], n)
-        np.sqrt(n, out=n)
-        np.divide(O, n, out=O)
+    elif method == "linear":   # NLERP of the segment's unit keys (unflipped: as given), whose blends
+        _interp_kernels._nlerp_block(G[:4], G[4:8], u, O, shortest=False, in_range=True)   # are near 1
     elif method == "squad":
         P = work.rows(4, s, O.dtype)
         S = work.rows(4, s, O.dtype)
@@ -228,7 +218,7 @@ def rotation_deriv(method, G, u):
     """(q, dq/du) of the rotation from gathered float64 rows `G` and parameters `u` (m, 1)."""
     if method == "linear":
         k0, k1 = G[:4], G[4:]
-        return (1 - u) * k0 + u * k1, k1 - k0
+        return _interp_kernels._blend(k0, k1, 1 - u, u, _ops.STACKS, np.empty((8,) + k0.shape[1:]), None), k1 - k0
     if method == "slerp":
         return _interp_curves.frame_deriv(G[:8], G[8], u)
     if method == "squad":
