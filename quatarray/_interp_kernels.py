@@ -798,13 +798,9 @@ def _nlerp_block(A, B, h, O, shortest, in_range=False):
     np.subtract(1, h, out=w0, casting="unsafe")
     np.copyto(w1, h, casting="unsafe")
     if shortest:
-        np.multiply(A, B, out=T[:4])
-        np.add(T[0], T[1], out=n)
-        n += T[2]
-        n += T[3]
+        n = _scale._summed(np.multiply(A, B, out=T[:4]), n)   # A·B, in component order
         n += 0.0                          # -0.0 -> +0.0: a zero dot product keeps q1
-        np.copysign(1, n, out=n)
-        w1 *= n
+        w1 = _signed(w1, n, _ops.const(1.0, O.dtype), _ops.ARRAYS, n)   # q1 counted as -q1 where A·B < 0
     N = _blend(A, B, w0, w1, _ops.STACKS, T, T[:4])
     normalize_block(N, O, _ZERO_BLEND, in_range)   # the package's one q / |q|, safe at any magnitude
 
