@@ -470,7 +470,7 @@ def sqnorm(q):
     >>> sqnorm(np.array([1., 2, 2, 4]))
     np.float64(25.0)
     """
-    return np.einsum("...i,...i->...", q, q)
+    return _summed_last(np.multiply(q, q))
 
 
 def _k_norm(q, o):
@@ -508,8 +508,14 @@ def dot(p, q):
     >>> dot(np.array([1., 2, 3, 4]), np.array([[1., 0, 0, 0], [0, 0, 0, 1]]))
     array([1., 4.])
     """
-    dtype = result_dtype(p, q)
-    return np.einsum("...i,...i->...", p, q, dtype=dtype)
+    return _summed_last(np.multiply(p, q, dtype=result_dtype(p, q)))
+
+
+def _summed_last(terms):
+    """The sums of `terms` (..., 4) over the last axis in component order, `_scale.squares`'
+    (einsum's order follows the memory layout: a Fortran-ordered batch got other bits)."""
+    out = _scale._summed(np.moveaxis(terms, -1, 0), np.empty(terms.shape[:-1], terms.dtype))
+    return out[()] if out.ndim == 0 else out
 
 
 _ZERO_NORMALIZE = "expected non-zero quaternions to normalize, got a zero quaternion"

@@ -737,3 +737,21 @@ def test_one_quaternion_normalize_equals_the_batch_path(rng, dtype):
     for bad, match in (([0, 0, 0, 0], "non-zero"), ([np.nan, 1, 0, 0], "finite"), ([0, np.inf, 0, 0], "finite")):
         with pytest.raises(ValueError, match=match):
             K.normalize(np.array(bad, dtype))
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64], ids=["f32", "f64"])
+def test_dot_and_sqnorm_sum_in_component_order_whatever_the_layout(rng, dtype):
+    """dot and sqnorm add the four products in component order (`_scale.squares`' order):
+    the same bits for a Fortran-ordered or strided batch, a broadcast operand and one pair."""
+    p, q = (rng.standard_normal((3000, 4)) * 10.0 ** rng.uniform(-3, 3, (3000, 1))).astype(dtype), \
+        rng.standard_normal((3000, 4)).astype(dtype)
+    terms = p * q
+    want = ((terms[:, 0] + terms[:, 1]) + terms[:, 2]) + terms[:, 3]
+    assert want.dtype == dtype
+    np.testing.assert_array_equal(K.dot(p, q), want)
+    np.testing.assert_array_equal(K.dot(np.asfortranarray(p), q), want)
+    np.testing.assert_array_equal(K.dot(np.repeat(p, 2, axis=0)[::2], q), want)
+    np.testing.assert_array_equal(K.dot(p, q[7]), K.dot(p, np.broadcast_to(q[7], p.shape).copy()))
+    assert K.dot(p[5], q[5]) == want[5]
+    sq = p * p
+    np.testing.assert_array_equal(K.sqnorm(np.asfortranarray(p)), ((sq[:, 0] + sq[:, 1]) + sq[:, 2]) + sq[:, 3])
