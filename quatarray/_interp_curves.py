@@ -199,10 +199,9 @@ def slerp_deriv(A, dA, B, dB, h, dh):
 
 
 def frame_deriv(F, phi, u):
-    """(q, dq/du) along a great-circle frame F = [k; p] (8, *s): q = cos(2uφ) k + sin(2uφ) p."""
-    ang = 2 * phi * u
-    c = np.cos(ang)
-    s = np.sin(ang)
+    """(q, dq/du) along a great-circle frame F = [k; p] (8, *s): q = cos(2uφ) k + sin(2uφ) p,
+    cos and sin `_kernels.cos_sin`'s (`_interp_kernels.frame_core`'s)."""
+    c, s = _kernels.cos_sin(2 * phi * u)
     k, p = F[:4], F[4:]
     q = c * k + s * p
     dq = (2 * phi) * (c * p - s * k)
