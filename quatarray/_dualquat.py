@@ -11,6 +11,7 @@ interpolation) is ``a (a* b)^s``, where the power follows the screw of
 
 import numpy as np
 
+from . import _convert
 from . import _kernels
 _TINY_ANGLE = {np.dtype(np.float64): 1e-12, np.dtype(np.float32): 1e-6}
 
@@ -79,8 +80,8 @@ def screw(dq):
     """
     r, t = as_rotation_translation(dq)
     vec = r[..., 1:]
-    s = np.linalg.norm(vec, axis=-1)
-    angle = 2 * np.arctan2(s, r[..., 0])
+    s = np.sqrt(_kernels.sqnorm(np.concatenate([np.zeros_like(r[..., :1]), vec], axis=-1)))   # |v|
+    angle = _convert.magnitude(r)   # 2 atan(|v| / |w|): the package's rotation angle
     tiny = s < _TINY_ANGLE[np.dtype(dq.dtype)]
     tn = np.linalg.norm(t, axis=-1)
     axis_rot = vec / np.where(tiny, 1, s)[..., None]
@@ -88,7 +89,7 @@ def screw(dq):
     axis = np.where(tiny[..., None], axis_tr, axis_rot)
     disp = np.sum(t * axis, axis=-1)
     t_perp = t - disp[..., None] * axis
-    cot = np.cos(angle / 2) / np.where(tiny, 1, np.sin(angle / 2))
+    cot = r[..., 0] / np.where(tiny, 1, s)   # cot(θ/2) = w / |v|
     point = 0.5 * (t_perp + cot[..., None] * np.cross(axis, t_perp))
     point = np.where(tiny[..., None], 0, point)
     angle = np.where(tiny, 0, angle)
@@ -100,9 +101,8 @@ def power(dq, s):
     dq = np.where(dq[..., :1] < 0, -dq, dq)
     angle, axis, disp, point = screw(dq)
     s = np.asarray(s, dq.dtype)
-    half = 0.5 * s * angle
-    vec = np.sin(half)[..., None] * axis
-    real = np.concatenate([np.broadcast_to(np.cos(half)[..., None], vec.shape[:-1] + (1,)), vec], axis=-1)
+    r = dq[..., :4]   # the rotation's power: `_convert.rotation_power`, Rotation's ** (about the
+    real = _convert.rotation_power(r, s if s.ndim else float(s))   # screw axis; the identity for none)
     trans = (s * disp)[..., None] * axis + point - _kernels.rotate(real, np.broadcast_to(point, real.shape[:-1] + (3,)))
     return from_rotation_translation(real, trans)
 
