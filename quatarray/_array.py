@@ -614,7 +614,7 @@ class QuatArray(np.ndarray):
                 if ufunc in _PLAIN_UNARY:
                     return _finish_plain(_checked(_UNARY[ufunc], q, name), out)
                 res = _checked(_UNARY[ufunc], q, name)
-                return _finish(_finite_result(res, (name, q)), out)
+                return _finish(res if ufunc in _GUARDED else _finite_result(res, (name, q)), out)
         elif method in ("reduce", "accumulate") and ufunc in (np.multiply, np.add):
             return _reduce(ufunc, method, *inputs, out=out, **kwargs)
         raise TypeError(
@@ -749,6 +749,12 @@ def _finite_result(res, *named):
 
 def _binary(ufunc, a, b, out=None):
     qa, qb = isinstance(a, QuatArray), isinstance(b, QuatArray)
+    if ufunc is np.multiply and qa and qb and out is None and a.shape == b.shape:
+        # the product of two arrays of one shape (no batches to check): the steps below, at once
+        res, ok = _kernels.multiply(_raw(a), _raw(b), check=True)
+        if not ok:
+            _finite_operands(ufunc, _raw(a), _raw(b))
+        return res.view(QuatArray)
     name = ufunc.__name__
     A = _raw(a) if qa else _keepdims(_real(a, "left operand of " + name), _raw(b))
     B = _raw(b) if qb else _keepdims(_real(b, "right operand of " + name), A)
@@ -831,6 +837,11 @@ _UNARY = {
     np.isfinite: lambda q: np.isfinite(q).all(axis=-1),
 }
 """Unary ufuncs with a quaternion meaning (all others raise `TypeError`)."""
+
+_GUARDED = {np.exp, np.log, np.sqrt}
+"""The unary ufuncs whose kernels (or `_UNARY`'s entries) refuse nan and inf in the argument
+themselves, so that a result that is not finite (an overflow, ln 0) came from finite input,
+which `_finite_result` would look at in vain."""
 
 _PLAIN_UNARY = {np.absolute, np.isnan, np.isfinite}
 """The unary ufuncs whose results are per quaternion, not quaternions (`absolute`

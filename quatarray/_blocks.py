@@ -478,6 +478,19 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
     if batch is None:
         batch = outs[0].shape[:-1]
     batch = tuple(batch)
+    if not read_only and not views and len(outs) == 1 and len(batch) == 1 and 1 < batch[0] <= _FEW_ROWS // 4:
+        # a few elements in one flat batch of the inputs' own shape: fresh components-first
+        # copies at once (the one-block path below makes the same copies through more checks,
+        # which cost as much as the kernel's first ufunc calls here)
+        iv = _few_copies(ins, batch, dtype)
+        if iv is not None:
+            work = scratch()
+            top = work.top
+            try:
+                r = kernel(*iv, outs[0].T, **params)
+            finally:
+                work.top = top
+            return r is True or r is np.True_
     if (read_only and not views and len(batch) == 1 and 0 < batch[0] <= BLOCK
             and all(a.shape[:-1] == batch and (dtype is None or a.dtype == dtype) for a in ins)):
         # a flat batch of one block read in place: the kernel on the components-first views,
@@ -541,6 +554,18 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         return kernel(*iv, *ov, **params)
 
     return any(r is True or r is np.True_ for r in run(block, split(batch, size), n))
+
+
+def _few_copies(ins, batch, dtype):
+    """`blockwise`'s components-first copies of inputs of the batch's own shape (up to four
+    components each), as its one-block path makes them; None for any other input."""
+    iv = []
+    for a in ins:
+        shape = a.shape
+        if shape[:-1] != batch or shape[-1] > 4:
+            return None
+        iv.append(a.T.copy() if dtype is None or a.dtype == dtype else a.T.astype(dtype, order="C"))
+    return iv
 
 
 def _pair_of_one(kernel, ins, outs, dtype, views, params):

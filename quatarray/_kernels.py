@@ -952,7 +952,12 @@ def _k_power(q, t, o):
             # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
             # (Of the rows as rescaled, if they were: each row's choice is its own.)
             far = np.abs(ln) > 0.5
-            mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
+            if far.size <= _blocks.FEW:   # a few: every row's power, kept where far (cheaper than
+                # gathering and scattering them; each row's power has the same bits either way)
+                half_t = np.multiply(t, _ops.const(0.5, t.dtype), out=np.empty_like(n2))   # t / 2 in every row
+                np.copyto(mag, np.power(n2, half_t, out=half_t), where=far)
+            else:
+                mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
         if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
             mag *= np.exp2(t * e)
         if zero is not None and zero.any():
@@ -968,8 +973,7 @@ def _k_power(q, t, o):
     _, f, ang = _power_formula(t, ln, theta, _ops.ARRAYS, magnitude, ratio, mag, ang, c, sn, o[0])
     if zero is not None and zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         ang[zero] = 0.0
-    for k in (1, 2, 3):
-        np.multiply(q[k], ang, out=o[k])
+    np.multiply(q[1:], ang, out=o[1:])
     if not all_finite(ang):   # sin(tθ)/|v| · |q|^t overflowed: v's share first (|v_k| <= |v|),
         big = ~np.isfinite(ang)   # and a component lost to 0 × inf stays ±0, not NaN
         for k in (1, 2, 3):
@@ -1081,7 +1085,7 @@ def power(q, t):
             return _ops.to_array(one, q.shape, kind.dtype)
     t = np.asarray(t)
     dtype = result_dtype(q)
-    batch = np.broadcast_shapes(q.shape[:-1], t.shape)
+    batch = q.shape[:-1] if not t.ndim else np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         _blocks.blockwise(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
