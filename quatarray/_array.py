@@ -599,6 +599,10 @@ class QuatArray(np.ndarray):
 
     # --- NumPy protocols -----------------------------------------------------
     def __array_ufunc__(self, ufunc, method, *inputs, out=None, **kwargs):
+        if out is None and not kwargs and method == "__call__" and len(inputs) == 1:
+            named = _GUARDED.get(ufunc)
+            if named is not None:   # np.exp(q), np.log(q), np.sqrt(q): the steps below, at once
+                return _checked(_UNARY[ufunc], _raw(self), named).view(QuatArray)
         if out is not None:
             out = out[0] if isinstance(out, tuple) and len(out) == 1 else out
             if isinstance(out, tuple):
@@ -838,10 +842,11 @@ _UNARY = {
 }
 """Unary ufuncs with a quaternion meaning (all others raise `TypeError`)."""
 
-_GUARDED = {np.exp, np.log, np.sqrt}
+_GUARDED = {ufunc: f"the argument of {ufunc.__name__}" for ufunc in (np.exp, np.log, np.sqrt)}
 """The unary ufuncs whose kernels (or `_UNARY`'s entries) refuse nan and inf in the argument
 themselves, so that a result that is not finite (an overflow, ln 0) came from finite input,
-which `_finite_result` would look at in vain."""
+which `_finite_result` would look at in vain; each with the name its errors give the
+argument."""
 
 _PLAIN_UNARY = {np.absolute, np.isnan, np.isfinite}
 """The unary ufuncs whose results are per quaternion, not quaternions (`absolute`

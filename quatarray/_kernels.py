@@ -668,7 +668,7 @@ def _k_exp(q, o):
                 return s
 
             _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
-                         _ops.ARRAYS, c, s, (u, v), o)
+                         _ops.ARRAYS, _ops.STACKS, c, s, (u, v), o)
             if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
                 sb = kept[0]
                 half = np.exp(q[0][big] * 0.5)
@@ -680,18 +680,19 @@ def _k_exp(q, o):
                     o[k][big] = np.where(qk == 0, qk, qk * half * half)
 
 
-def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, c, s, rows, o):
+def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, stack, c, s, rows, o):
     """The exponential's formula, written once: ``o = e^w (cos|v|, sin|v| v/|v|)`` from the
     vector part `v` (three rows or floats), |v| in `vn` (overwritten), its positive `floor`,
     e^w in `ew`, in `op`'s arithmetic (`_ops`), with ``cos_sin(vn, c, s, rows)`` (`cos_sin`
     or its float form) and ``scale(s)`` multiplying sin|v| / |v| by e^w (the block kernel
-    also keeps, and undoes a rescale of, some rows there).  Returns `o` (four rows, or
+    also keeps, and undoes a rescale of, some rows there); the vector part in `stack`'s
+    arithmetic (`_ops.STACKS` on a block's rows: one call).  Returns `o` (four rows, or
     the four floats)."""
     vn = op.max(vn, floor, vn)   # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
     c, s = cos_sin(vn, c, s, rows)
     s = op.div(s, vn, s)
     s = scale(s)
-    return [op.mul(c, ew, o[0]), *[op.mul(v[k], s, o[k + 1]) for k in range(3)]]
+    return [op.mul(c, ew, o[0]), *stack.scale(v, s, o[1:])]
 
 
 def _exp_floats_of(kind):
@@ -710,8 +711,8 @@ def _exp_floats_of(kind):
         ew = np.exp(w)   # NumPy's exp: the array loop's bits
         if python:
             ew = float(ew)
-        return _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op, None, None, None,
-                            _ops.NONE)
+        return _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op, _ops.FLOAT_STACKS,
+                            None, None, None, _ops.NONE)
     return exp_floats
 
 
@@ -947,17 +948,17 @@ def _k_power(q, t, o):
         zero = real & (q[0] == 0)
 
     def magnitude(mag):
-        if not _scale.inside(ln, 0.5):
-            # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
-            # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
-            # (Of the rows as rescaled, if they were: each row's choice is its own.)
-            far = np.abs(ln) > 0.5
-            if far.size <= _blocks.FEW:   # a few: every row's power, kept where far (cheaper than
-                # gathering and scattering them; each row's power has the same bits either way)
+        # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
+        # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
+        # (Of the rows as rescaled, if they were: each row's choice is its own.)
+        if ln.size <= _blocks.FEW:   # a few: the mask at once (a range test first costs as much),
+            far = np.abs(ln) > 0.5   # and every row's power, kept where far (cheaper than gathering
+            if True in far.ravel().tolist():   # and scattering them; the same bits either way)
                 half_t = np.multiply(t, _ops.const(0.5, t.dtype), out=np.empty_like(n2))   # t / 2 in every row
                 np.copyto(mag, np.power(n2, half_t, out=half_t), where=far)
-            else:
-                mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
+        elif not _scale.inside(ln, 0.5):
+            far = np.abs(ln) > 0.5
+            mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
         if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
             mag *= np.exp2(t * e)
         if zero is not None and zero.any():
