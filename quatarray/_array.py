@@ -22,6 +22,8 @@ every operation with a quaternion meaning; indexing, layout functions,
 comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 """
 
+import math
+
 import numpy as np
 
 from . import _blocks
@@ -759,6 +761,18 @@ def _binary(ufunc, a, b, out=None):
         if not ok:
             _finite_operands(ufunc, _raw(a), _raw(b))
         return res.view(QuatArray)
+    if ufunc is np.power and qa and out is None and (type(b) is float or type(b) is int and -_INT_EXP < b < _INT_EXP):
+        # q ** t for a Python number t (no batches to check): the steps below, at once; the kernel
+        # refuses nan and inf in q, so only a t that is not finite could make the result so
+        A = _raw(a)
+        try:
+            res = _kernels.power(A, b)
+        except ValueError:
+            _finite_operands(ufunc, A, b)
+            raise
+        if not math.isfinite(b):
+            _finite_operands(ufunc, A, b)
+        return res.view(QuatArray)
     name = ufunc.__name__
     A = _raw(a) if qa else _keepdims(_real(a, "left operand of " + name), _raw(b))
     B = _raw(b) if qb else _keepdims(_real(b, "right operand of " + name), A)
@@ -782,6 +796,11 @@ def _binary(ufunc, a, b, out=None):
     if not ok:
         _finite_operands(ufunc, A, B)
     return _finish(res, out)
+
+
+_INT_EXP = 2 ** 53
+"""Python integer exponents of `_binary`'s ``q ** t`` path for numbers: those that are floats
+exactly (larger ones take the general path, as before)."""
 
 
 def _finite_operands(ufunc, A, B):

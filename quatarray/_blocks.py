@@ -557,14 +557,23 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
 
 
 def _few_copies(ins, batch, dtype):
-    """`blockwise`'s components-first copies of inputs of the batch's own shape (up to four
-    components each), as its one-block path makes them; None for any other input."""
+    """`blockwise`'s components-first copies of inputs of the batch's own shape, or of one
+    element broadcast to it (up to four components each), as its one-block path makes them;
+    None for any other input."""
     iv = []
     for a in ins:
         shape = a.shape
-        if shape[:-1] != batch or shape[-1] > 4:
+        k = shape[-1]
+        if k > 4:
             return None
-        iv.append(a.T.copy() if dtype is None or a.dtype == dtype else a.T.astype(dtype, order="C"))
+        if shape[:-1] == batch:
+            iv.append(a.T.copy() if dtype is None or a.dtype == dtype else a.T.astype(dtype, order="C"))
+        elif a.size == k:   # (k,) or (1, k): every column of the copy that element
+            buf = np.empty((k, *batch), dtype or a.dtype)
+            np.copyto(buf, a.reshape(k, 1), casting="unsafe")
+            iv.append(buf)
+        else:
+            return None
     return iv
 
 
