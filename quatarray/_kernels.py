@@ -770,19 +770,28 @@ def _log_parts(q):
     whose scale is a limit (`_small_vectors`); the seventh |q|² (of q as rescaled)."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
     w = q[0]
-    one, half = _ops.const(1.0, q.dtype), _ops.const(0.5, q.dtype)
+    one, half = _LOG_CONSTS[q.dtype]
     _scale.sum_squares(q, vv, 1)
     _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
     e = v0 = None
-    if not _scale.fits(n2):               # extreme magnitudes: the vectors kept, whose axes
+    listed = _scale.fits_listed(n2)       # (a few |q|² that fit: as Python floats, for the tests below)
+    if listed is False:                   # extreme magnitudes: the vectors kept, whose axes
         v0 = q[1:].copy()                 # a rescale may lose (`_small_vectors`)
         e = _scale.guard(q, n2)
     if e is not None:                     # q was rescaled: |v|² again
         _scale.sum_squares(q, vv, 1)
         _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
-    _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, _ln_ratio_rows, d, u, ln)
-    # one reduction instead of a mask and a test when no vector is zero or below the range
-    few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
+    if type(listed) is list and e is None:   # a few, as they are: |q|² = 1 and the smallest |v|²
+        unit = 1.0 in listed                  # from lists (|q|² - 1 = 0 exactly where |q|² = 1)
+        ratio = _ln_ratio_unit if unit else _ln_ratio_plain
+        # one reduction instead of a mask and a test when no vector is zero or below the range
+        few = min(vv.ravel().tolist()) < _scale.LOW[vv.dtype]
+    else:
+        ratio = _ln_ratio_rows
+        few = None
+    _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, ratio, d, u, ln)
+    if few is None:   # one reduction instead of a mask and a test when no vector is zero or below the range
+        few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
     vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
     _angle_formula(vn, w, _ops.ARRAYS, arctan2, theta, scale)
     lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
@@ -808,13 +817,29 @@ def _ln_formula(w, vv, n2, op, one, half, ratio, d, u, ln):
     return op.mul(ln, half, ln)
 
 
-def _ln_ratio_rows(ln, d, um1, n2):
-    unit = _scale.any_zero(um1)           # one reduction instead of a mask when none
+def _ln_ratio_rows(ln, d, um1, n2, unit=None):
+    """`_ln_formula`'s ratio on rows; `unit`: whether some |q|² is 1 (None: not known yet)."""
+    if unit is None:
+        unit = _scale.any_zero(um1)       # one reduction instead of a mask when none
     np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
     ln *= um1
     if unit:
         np.copyto(ln, d, where=n2 == 1)
     return ln
+
+
+def _ln_ratio_unit(ln, d, um1, n2):
+    """`_ln_ratio_rows` where some |q|² is known to be 1."""
+    return _ln_ratio_rows(ln, d, um1, n2, True)
+
+
+def _ln_ratio_plain(ln, d, um1, n2):
+    """`_ln_ratio_rows` where no |q|² is known to be 1."""
+    return _ln_ratio_rows(ln, d, um1, n2, False)
+
+
+_LOG_CONSTS = {dtype: (_ops.const(1.0, dtype), _ops.const(0.5, dtype)) for dtype in _COMPLEX}
+"""1 and 1/2 of `_log_parts`' dtypes, as `_ops.const` makes them."""
 
 
 def _sqnorms_formula(op, stack, w, x, y, z):

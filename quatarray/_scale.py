@@ -25,7 +25,7 @@ import numpy as np
 
 from . import _blocks, _ops
 
-__all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "sum_squares", "rescale", "guard", "guarded_sqnorm",
+__all__ = ["NONFINITE", "ZERO", "LOW", "HIGH", "fits", "fits_listed", "sum_squares", "rescale", "guard", "guarded_sqnorm",
            "outside", "unscale", "true_norm", "BIG_VECTOR", "inside", "at_most", "largest", "smallest", "any_zero",
            "shrink_vectors", "small_norms"]
 
@@ -70,6 +70,26 @@ def fits(n2):
     lo, hi = _RANGE[n2.dtype]
     least, most = _bounds(n2, _FEW)
     return lo <= least and most <= hi
+
+
+def fits_listed(n2):
+    """`fits` of a block's squared norms, given as the list of them (Python floats) where they
+    are a few (up to `_FEW`, where `fits` lists them anyway) and fit, for callers' further
+    tests on them; otherwise True or False.
+
+    >>> import numpy as np
+    >>> from quatarray._scale import fits_listed
+    >>> fits_listed(np.array([1.0, 4.0])), fits_listed(np.array([1.0, np.nan]))
+    ([1.0, 4.0], False)
+    """
+    if n2.size > _FEW or not n2.size:
+        return fits(n2)
+    lo, hi = _RANGE[n2.dtype]
+    x = n2.ravel().tolist()
+    total = sum(x)
+    if total == total and lo <= min(x) and max(x) <= hi:   # (a NaN sum: NaN, or +inf and -inf)
+        return x
+    return False
 
 
 def at_most(a, bound):
