@@ -686,13 +686,13 @@ def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, stack, c, s, rows, o):
     e^w in `ew`, in `op`'s arithmetic (`_ops`), with ``cos_sin(vn, c, s, rows)`` (`cos_sin`
     or its float form) and ``scale(s)`` multiplying sin|v| / |v| by e^w (the block kernel
     also keeps, and undoes a rescale of, some rows there); the vector part in `stack`'s
-    arithmetic (`_ops.STACKS` on a block's rows: one call).  Returns `o` (four rows, or
-    the four floats)."""
+    arithmetic (`_ops.STACKS` on a block's rows: one call).  Returns the real part and the
+    vector part (a row and three rows of `o`, or a float and a list of three)."""
     vn = op.max(vn, floor, vn)   # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
     c, s = cos_sin(vn, c, s, rows)
     s = op.div(s, vn, s)
     s = scale(s)
-    return [op.mul(c, ew, o[0]), *stack.scale(v, s, o[1:])]
+    return op.mul(c, ew, o[0]), stack.scale(v, s, o[1:])
 
 
 def _exp_floats_of(kind):
@@ -711,8 +711,9 @@ def _exp_floats_of(kind):
         ew = np.exp(w)   # NumPy's exp: the array loop's bits
         if python:
             ew = float(ew)
-        return _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op, _ops.FLOAT_STACKS,
-                            None, None, None, _ops.NONE)
+        w, vec = _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op,
+                              _ops.FLOAT_STACKS, None, None, None, _ops.NONE)
+        return [w, *vec]
     return exp_floats
 
 

@@ -100,6 +100,10 @@ def at_most(a, bound):
     >>> at_most(np.array([1.0, 2.0]), 2.0), at_most(np.array([1.0, np.nan]), 2.0)
     (True, False)
     """
+    if 0 < a.size <= _FEW_ONE:   # `largest`, written out (its calls cost as much as the test)
+        x = a.ravel().tolist()
+        total = sum(x)
+        return total == total and max(x) <= bound
     return largest(a) <= bound
 
 
@@ -112,12 +116,20 @@ def largest(a):
     >>> largest(np.array([1.0, 3.0, 2.0]))
     3.0
     """
+    if 0 < a.size <= _FEW_ONE:   # `_extreme`, written out (its calls cost as much as the test)
+        x = a.ravel().tolist()
+        total = sum(x)
+        return max(x) if total == total else math.nan
     return _extreme(a, 1, np.maximum)
 
 
 def smallest(a):
     """The smallest element of `a` as a Python float (NaN where `a` holds a NaN, inf when
     empty), as `largest`: ``smallest(np.array([1.0, 3.0]))`` is 1.0."""
+    if 0 < a.size <= _FEW_ONE:
+        x = a.ravel().tolist()
+        total = sum(x)
+        return min(x) if total == total else math.nan
     return _extreme(a, 0, np.minimum)
 
 
@@ -174,9 +186,9 @@ def sum_squares(q, out, start=0, rows=None):
 def _summed(sq, out):
     """Small blocks: all squares `sq` made in one call (calls cost more than passes), summed
     into `out` in `squares`' order, so the bits are the same."""
-    np.add(sq[0], sq[1], out=out)
-    for c in sq[2:]:
-        out += c
+    np.add(sq[0], sq[1], out)
+    for k in range(2, len(sq)):   # (indexing: a fifth of iterating over the rows' views)
+        np.add(out, sq[k], out)
     return out
 
 
