@@ -98,6 +98,7 @@ VIEWS_MAX = 512
 SMALL_ROWS = 32 * 1024
 
 _FEW_ROWS = SMALL_ROWS // 8   # elements of a component-major copy that are always fresh rows
+_FEW_QUATS = _FEW_ROWS // 4    # elements of a batch whose copies of up to four components are
 
 #: Bytes of scratch a thread keeps between calls: 24 rows of a float64 block
 #: (6 MiB; two threads keep 12 MiB, 0.4 of a 10⁶-quaternion float64 output).
@@ -478,11 +479,15 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
     if batch is None:
         batch = outs[0].shape[:-1]
     batch = tuple(batch)
-    if not read_only and not views and len(outs) == 1 and len(batch) == 1 and 1 < batch[0] <= _FEW_ROWS // 4:
+    if not read_only and not views and len(outs) == 1 and len(batch) == 1 and 1 < batch[0] <= _FEW_QUATS:
         # a few elements in one flat batch of the inputs' own shape: fresh components-first
         # copies at once (the one-block path below makes the same copies through more checks,
         # which cost as much as the kernel's first ufunc calls here)
-        iv = _few_copies(ins, batch, dtype)
+        a = ins[0]
+        if len(ins) == 1 and a.shape[:-1] == batch and a.shape[-1] <= 4 and (dtype is None or a.dtype == dtype):
+            iv = [a.T.copy()]   # (one input, as `_few_copies` copies it)
+        else:
+            iv = _few_copies(ins, batch, dtype)
         if iv is not None:
             work = scratch()
             top = work.top

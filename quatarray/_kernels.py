@@ -278,6 +278,16 @@ def _out(out, shape, dtype, name="out"):
     return out
 
 
+_blockwise_quiet = np.errstate(divide="ignore", invalid="ignore", over="ignore")(_blocks.blockwise)
+"""`_blocks.blockwise` under ``np.errstate(divide="ignore", invalid="ignore", over="ignore")``
+(kernels that repair what those give), set as a decorator: per call a third less than the
+``with`` statement, which makes an errstate object each time."""
+
+_blockwise_over = np.errstate(over="ignore")(_blocks.blockwise)
+"""`_blocks.blockwise` under ``np.errstate(over="ignore")`` (kernels that rescale squares that
+overflow), as `_blockwise_quiet`."""
+
+
 def multiply(p, q, out=None, check=False):
     """Hamilton product ``p q`` of quaternion arrays, broadcasting batch shapes.
 
@@ -452,8 +462,7 @@ def norm(q):
         return np.array(n if q.ndim == 1 else [n])
     dtype = result_dtype(q)
     out = np.empty(q.shape[:-1] + (1,), dtype)
-    with np.errstate(over="ignore"):   # squares that overflow are rescaled
-        _blocks.blockwise(_k_norm, [q], [out], dtype=dtype)
+    _blockwise_over(_k_norm, [q], [out], dtype=dtype)   # (squares that overflow are rescaled)
     return out[..., 0]
 
 
@@ -647,37 +656,42 @@ def inverse(q):
 
 
 def _k_exp(q, o):
-    with _blocks.scratch().frame() as work:
-        vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
-        np.exp(q[0], out=ew)   # outside the errstate below: e**w that overflows warns (alone)
-        # one errstate for the rest (squares that overflow are rescaled; where e**w overflowed,
-        # inf · 0 and inf - inf are repaired below), not one per step: each costs a few ufunc calls
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
-            over = ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
-            if over:
-                big = ew == np.inf
-            kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
+    vn, ew, c, s, u, v = _blocks.scratch().rows(6, q.shape[1:], q.dtype)   # (given back by blockwise)
+    np.exp(q[0], out=ew)   # outside the errstate below: e**w that overflows warns (alone)
+    _k_exp_quiet(q, o, vn, ew, c, s, u, v)
 
-            def scale(s):
-                if over:
-                    kept.append(s[big])
-                s *= ew
-                if e is not None:
-                    np.ldexp(s, e, out=s)
-                return s
 
-            _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
-                         _ops.ARRAYS, _ops.STACKS, c, s, (u, v), o)
-            if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
-                sb = kept[0]
-                half = np.exp(q[0][big] * 0.5)
-                if e is not None:
-                    sb = np.ldexp(sb, e[big])
-                o[0][big] = c[big] * half * half
-                for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
-                    qk = q[k][big] * sb
-                    o[k][big] = np.where(qk == 0, qk, qk * half * half)
+# one errstate for the rest (squares that overflow are rescaled; where e**w overflowed,
+# inf · 0 and inf - inf are repaired below), not one per step: each costs a few ufunc calls;
+# set as a decorator, a third cheaper than a ``with`` statement
+@np.errstate(over="ignore", invalid="ignore", divide="ignore")
+def _k_exp_quiet(q, o, vn, ew, c, s, u, v):
+    """`_k_exp` after e**w (in `ew`), on its rows."""
+    e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
+    over = ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
+    if over:
+        big = ew == np.inf
+    kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
+
+    def scale(s):
+        if over:
+            kept.append(s[big])
+        s *= ew
+        if e is not None:
+            np.ldexp(s, e, out=s)
+        return s
+
+    _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
+                 _ops.ARRAYS, _ops.STACKS, c, s, (u, v), o)
+    if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
+        sb = kept[0]
+        half = np.exp(q[0][big] * 0.5)
+        if e is not None:
+            sb = np.ldexp(sb, e[big])
+        o[0][big] = c[big] * half * half
+        for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
+            qk = q[k][big] * sb
+            o[k][big] = np.where(qk == 0, qk, qk * half * half)
 
 
 def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, stack, c, s, rows, o):
@@ -959,8 +973,7 @@ def log(q):
             return _ops.to_array([parts[0], *_log_vector(one[1:], parts[3], _ops.FLOAT_STACKS, None)], q.shape,
                                  kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
+    _blockwise_quiet(_k_log, [q], [res], dtype=res.dtype)
     return res
 
 
@@ -1114,8 +1127,7 @@ def power(q, t):
     dtype = result_dtype(q)
     batch = q.shape[:-1] if not t.ndim else np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        _blocks.blockwise(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
+    _blockwise_quiet(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
     return res
 
 
