@@ -363,7 +363,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 0]).exp()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(_kernels.exp(finite(_raw(self), "the quaternions")))
+        return self._wrap(_checked(_kernels.exp, _raw(self), "the quaternions", check=True))
 
     def log(self):
         """Principal logarithm (ln|q|, θ v/|v|) with θ in [0, π]; also ``np.log(q)``.
@@ -848,7 +848,7 @@ _BINARY = {np.multiply, np.divide, np.add, np.subtract, np.power, np.float_power
 
 
 _UNARY = {
-    np.exp: lambda q: _kernels.exp(finite(q, "the argument of exp")),   # exp(-inf) is finite
+    np.exp: lambda q: _kernels.exp(q, check=True),   # (exp(-inf) is finite: the kernel looks for it)
     np.log: _kernels.log,
     np.sqrt: lambda q: _kernels.power(q, 0.5),
     np.conjugate: _kernels.conjugate,

@@ -655,20 +655,33 @@ def inverse(q):
     return res
 
 
-def _k_exp(q, o):
+def _k_exp(q, o, check=False):
     vn, ew, c, s, u, v = _blocks.scratch().rows(6, q.shape[1:], q.dtype)   # (given back by blockwise)
+    tame = None   # whether every w is finite and e**w cannot overflow (None: not looked at)
+    if check:     # (before e**w, which could warn of an overflow elsewhere in the block)
+        tame = _scale.inside(q[0], _EXP_MAX_OF[q.dtype], -_FLOAT_MAX[q.dtype])   # False for nan
+        if not tame:
+            _refuse_nonfinite(q)
     np.exp(q[0], out=ew)   # outside the errstate below: e**w that overflows warns (alone)
-    _k_exp_quiet(q, o, vn, ew, c, s, u, v)
+    _k_exp_quiet(q, o, vn, ew, c, s, u, v, check, tame)
+
+
+def _refuse_nonfinite(q):
+    """`_scale.NONFINITE`'s `ValueError` where `q` holds nan or inf (the exact test)."""
+    if not np.isfinite(q).all():
+        raise ValueError(_scale.NONFINITE)
 
 
 # one errstate for the rest (squares that overflow are rescaled; where e**w overflowed,
 # inf · 0 and inf - inf are repaired below), not one per step: each costs a few ufunc calls;
 # set as a decorator, a third cheaper than a ``with`` statement
 @np.errstate(over="ignore", invalid="ignore", divide="ignore")
-def _k_exp_quiet(q, o, vn, ew, c, s, u, v):
+def _k_exp_quiet(q, o, vn, ew, c, s, u, v, check, tame):
     """`_k_exp` after e**w (in `ew`), on its rows."""
     e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
-    over = ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
+    if check and e is not None:       # |v|² beyond the range, or nan (a rescale keeps nan and inf)
+        _refuse_nonfinite(q)
+    over = not tame and ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
     if over:
         big = ew == np.inf
     kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
@@ -720,8 +733,8 @@ def _exp_floats_of(kind):
         vv = squares([x, y, z], op, None, None)   # `sum_squares`' order
         if not vv <= high:
             return None
-        if not w < top:   # e**w near or past the float maximum (its warning: the block kernel's)
-            return None
+        if not -math.inf < w < top:   # e**w near or past the float maximum (its warning: the block
+            return None                # kernel's), or w = -inf (which the block kernel may refuse)
         ew = np.exp(w)   # NumPy's exp: the array loop's bits
         if python:
             ew = float(ew)
@@ -734,6 +747,11 @@ def _exp_floats_of(kind):
 _EXP_MAX = {_ops.F64: 709.0, _ops.F32: 88.0}
 """Arguments below which e**x and the products with it stay finite, by `_ops.Kind`."""
 
+_EXP_MAX_OF = {kind.dtype: top for kind, top in _EXP_MAX.items()}
+"""`_EXP_MAX` by dtype."""
+
+_FLOAT_MAX = {d: float(np.finfo(d).max) for d in _COMPLEX}
+
 _EXP_FLOATS = _ops.by_kind(_exp_floats_of)
 """`_k_exp` on the four floats of one quaternion, by `_ops.Kind`, or None where the block
 kernel has more to do (|v|² beyond `_scale.HIGH`, e^w near overflow, non-finite input)."""
@@ -745,8 +763,12 @@ def _cos_sin_floats(angle, c, s, rows):
     return cos_sin(angle)
 
 
-def exp(q):
+def exp(q, check=False):
     """Quaternion exponential e^w (cos|v|, sin|v| v/|v|).
+
+    With `check`, nan and inf in `q` raise `ValueError` (`_scale.NONFINITE`, before any
+    warning of the computation), found by a range test of w the kernel makes anyway and
+    its test of |v|² (without, they give nan, inf or 0).
 
     >>> import numpy as np
     >>> from quatarray._kernels import exp
@@ -762,7 +784,7 @@ def exp(q):
         if one is not None:
             return _ops.to_array(one, q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
-    _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)   # (the kernel sets its own errstate)
+    _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype, check=check)   # (the kernel sets its own errstate)
     return res
 
 
