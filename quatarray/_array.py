@@ -755,13 +755,13 @@ def _finite_result(res, *named):
 
 def _binary(ufunc, a, b, out=None):
     qa, qb = isinstance(a, QuatArray), isinstance(b, QuatArray)
-    if ufunc is np.multiply and qa and qb and out is None and a.shape == b.shape:
+    if ufunc is _MULTIPLY and qa and qb and out is None and a.shape == b.shape:
         # the product of two arrays of one shape (no batches to check): the steps below, at once
         res, ok = _kernels.multiply(_raw(a), _raw(b), check=True)
         if not ok:
             _finite_operands(ufunc, _raw(a), _raw(b))
         return res.view(QuatArray)
-    if ufunc is np.power and qa and out is None and (type(b) is float or type(b) is int and -_INT_EXP < b < _INT_EXP):
+    if ufunc is _POWER and qa and out is None and (type(b) is float or type(b) is int and -_INT_EXP < b < _INT_EXP):
         # q ** t for a Python number t (no batches to check): the steps below, at once; the kernel
         # refuses nan and inf in q, so only a t that is not finite could make the result so
         A = _raw(a)
@@ -797,6 +797,8 @@ def _binary(ufunc, a, b, out=None):
         _finite_operands(ufunc, A, B)
     return _finish(res, out)
 
+
+_MULTIPLY, _POWER = np.multiply, np.power   # (`_binary`'s first tests: a name, not an attribute too)
 
 _INT_EXP = 2 ** 53
 """Python integer exponents of `_binary`'s ``q ** t`` path for numbers: those that are floats
