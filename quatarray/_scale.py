@@ -68,6 +68,10 @@ def fits(n2):
     [True, False, False, False]
     """
     lo, hi = _RANGE[n2.dtype]
+    if 0 < n2.size <= _FEW:   # `_bounds`, written out (its calls cost as much as the test)
+        x = n2.ravel().tolist()
+        total = sum(x)
+        return total == total and lo <= min(x) and max(x) <= hi   # (a NaN sum: NaN, or +inf and -inf)
     least, most = _bounds(n2, _FEW)
     return lo <= least and most <= hi
 
@@ -301,8 +305,9 @@ def _bounds(a, few=_FEW):
     if a.size <= few:
         if not a.size:
             return math.inf, -math.inf
-        x = _listed(a)
-        return (math.nan, math.nan) if x is None else (min(x), max(x))
+        x = a.ravel().tolist()   # (`_listed`, written out)
+        total = sum(x)
+        return (min(x), max(x)) if total == total else (math.nan, math.nan)
     return float(np.minimum.reduce(a, axis=None)), float(np.maximum.reduce(a, axis=None))
 
 
