@@ -37,7 +37,12 @@ __all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCT
 
 def _raw(x):
     """Plain ndarray view of a QuatArray (no copy)."""
+    if type(x) is QuatArray:   # ndarray's own method: `QuatArray.view`'s checks would cost as much again
+        return _view(x, np.ndarray)
     return x.view(np.ndarray)
+
+
+_view = np.ndarray.view
 
 
 def _plain(x):
