@@ -278,14 +278,19 @@ def _out(out, shape, dtype, name="out"):
     return out
 
 
-_blockwise_quiet = np.errstate(divide="ignore", invalid="ignore", over="ignore")(_blocks.blockwise)
-"""`_blocks.blockwise` under ``np.errstate(divide="ignore", invalid="ignore", over="ignore")``
-(kernels that repair what those give), set as a decorator: per call a third less than the
-``with`` statement, which makes an errstate object each time."""
+@np.errstate(divide="ignore", invalid="ignore", over="ignore")
+def _blockwise_quiet(kernel, *args, **kwargs):
+    """`_blocks.blockwise` under ``np.errstate(divide="ignore", invalid="ignore", over="ignore")``
+    (kernels that repair what those give), set as a decorator: per call a third less than the
+    ``with`` statement, which makes an errstate object each time."""
+    return _blocks.blockwise(kernel, *args, **kwargs)
 
-_blockwise_over = np.errstate(over="ignore")(_blocks.blockwise)
-"""`_blocks.blockwise` under ``np.errstate(over="ignore")`` (kernels that rescale squares that
-overflow), as `_blockwise_quiet`."""
+
+@np.errstate(over="ignore")
+def _blockwise_over(kernel, *args, **kwargs):
+    """`_blocks.blockwise` under ``np.errstate(over="ignore")`` (kernels that rescale squares
+    that overflow), as `_blockwise_quiet`."""
+    return _blocks.blockwise(kernel, *args, **kwargs)
 
 
 def multiply(p, q, out=None, check=False):
