@@ -522,8 +522,7 @@ def normalize(q, out=None):
             _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
         return res
     target = np.empty(q.shape, res.dtype)
-    with np.errstate(over="ignore"):
-        _blocks.blockwise(normalize_block, [q], [target], dtype=res.dtype)
+    _blockwise_over(normalize_block, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
 
@@ -655,8 +654,7 @@ def inverse(q):
         comps, kind, n2 = one
         return _ops.to_array(_inverse_floats.kinds[kind](*comps, n2), q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(over="ignore"):   # squares that overflow are rescaled
-        _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
+    _blockwise_over(_k_inverse, [q], [res], dtype=res.dtype)   # (squares that overflow are rescaled)
     return res
 
 
@@ -1204,8 +1202,8 @@ def rotate(q, v, inverse=False, unit=False, add=None):
         return res if add is None else np.add(res, add, out=res)
     # `add` rides along as a second output the kernel only reads: its blocks are the result's
     outs = [res] if add is None else [res, add]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        _blocks.blockwise(rotate_block, [q, v], outs, batch, dtype=dtype, wsign=wsign, unit=unit)
+    # (zero quaternions give nan)
+    _blockwise_quiet(rotate_block, [q, v], outs, batch, dtype=dtype, wsign=wsign, unit=unit)
     return res
 
 
