@@ -1003,7 +1003,17 @@ def log(q):
 
 
 def _k_power(q, t, o):
-    t = t[0]
+    _power_block(q, t[0], o)
+
+
+def _k_power_scalar(q, o, t):
+    """`_k_power` with one exponent `t` for every row, a 0-d array of the block's dtype (each
+    operation with t gives the bits it gives with a row of copies of t)."""
+    _power_block(q, t, o)
+
+
+def _power_block(q, t, o):
+    """`_k_power` on the rows `q` into `o`, with the exponents `t` (a row, or a 0-d array)."""
     ln, theta, vn, scale, e, lim, n2 = _log_parts(q)
     mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
     real = zero = None   # (masks only for a block with real quaternions or vectors below the range)
@@ -1152,7 +1162,10 @@ def power(q, t):
     dtype = result_dtype(q)
     batch = q.shape[:-1] if not t.ndim else np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
-    _blockwise_quiet(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
+    if t.ndim:
+        _blockwise_quiet(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
+    else:   # one exponent: not copied into every block
+        _blockwise_quiet(_k_power_scalar, [q], [res], batch, dtype=dtype, t=np.array(t, dtype))
     return res
 
 
