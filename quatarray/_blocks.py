@@ -497,7 +497,8 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
                 work.top = top
             return r is True or r is np.True_
     if (read_only and not views and len(batch) == 1 and 0 < batch[0] <= BLOCK
-            and all(a.shape[:-1] == batch and (dtype is None or a.dtype == dtype) for a in ins)):
+            and (ins[0].shape[:-1] == batch and (dtype is None or ins[0].dtype == dtype) if len(ins) == 1
+                 else all(a.shape[:-1] == batch and (dtype is None or a.dtype == dtype) for a in ins))):
         # a flat batch of one block read in place: the kernel on the components-first views,
         # at once (the general path below would come to the same call through more checks)
         work = scratch()

@@ -447,7 +447,8 @@ def sqnorm(q):
 
 def _k_norm(q, o):
     n = _scale.sum_squares(q, o[0])
-    e = _scale.guard(q, n)
+    # (read only: a block to rescale is rescaled as a copy)
+    e = None if _scale.fits(n) else _scale.guard(q.copy(), n)
     np.sqrt(n, out=n)
     _scale.unscale(n, e)
 
@@ -467,7 +468,7 @@ def norm(q):
         return np.array(n if q.ndim == 1 else [n])
     dtype = result_dtype(q)
     out = np.empty(q.shape[:-1] + (1,), dtype)
-    _blockwise_over(_k_norm, [q], [out], dtype=dtype)   # (squares that overflow are rescaled)
+    _blockwise_over(_k_norm, [q], [out], dtype=dtype, read_only=True)   # (squares that overflow are rescaled)
     return out[..., 0]
 
 
