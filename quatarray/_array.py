@@ -22,6 +22,8 @@ every operation with a quaternion meaning; indexing, layout functions,
 comparisons and ``np.isnan`` / ``np.isfinite`` accept it.
 """
 
+import math
+
 import numpy as np
 
 from . import _blocks
@@ -35,7 +37,12 @@ __all__ = ["QuatArray", "BATCH_FUNCTIONS", "COMPARISON_FUNCTIONS", "LAYOUT_FUNCT
 
 def _raw(x):
     """Plain ndarray view of a QuatArray (no copy)."""
+    if type(x) is QuatArray:   # ndarray's own method: `QuatArray.view`'s checks would cost as much again
+        return _view(x, np.ndarray)
     return x.view(np.ndarray)
+
+
+_view = np.ndarray.view
 
 
 def _plain(x):
@@ -361,7 +368,7 @@ class QuatArray(np.ndarray):
         >>> QuatArray([0, 0, 0, 0]).exp()
         QuatArray([1., 0., 0., 0.])
         """
-        return self._wrap(_kernels.exp(finite(_raw(self), "the quaternions")))
+        return self._wrap(_checked(_kernels.exp, _raw(self), "the quaternions", check=True))
 
     def log(self):
         """Principal logarithm (ln|q|, θ v/|v|) with θ in [0, π]; also ``np.log(q)``.
@@ -599,6 +606,10 @@ class QuatArray(np.ndarray):
 
     # --- NumPy protocols -----------------------------------------------------
     def __array_ufunc__(self, ufunc, method, *inputs, out=None, **kwargs):
+        if out is None and not kwargs and method == "__call__" and len(inputs) == 1:
+            named = _GUARDED.get(ufunc)
+            if named is not None:   # np.exp(q), np.log(q), np.sqrt(q): the steps below, at once
+                return _checked(_UNARY[ufunc], _raw(self), named).view(QuatArray)
         if out is not None:
             out = out[0] if isinstance(out, tuple) and len(out) == 1 else out
             if isinstance(out, tuple):
@@ -614,7 +625,7 @@ class QuatArray(np.ndarray):
                 if ufunc in _PLAIN_UNARY:
                     return _finish_plain(_checked(_UNARY[ufunc], q, name), out)
                 res = _checked(_UNARY[ufunc], q, name)
-                return _finish(_finite_result(res, (name, q)), out)
+                return _finish(res if ufunc in _GUARDED else _finite_result(res, (name, q)), out)
         elif method in ("reduce", "accumulate") and ufunc in (np.multiply, np.add):
             return _reduce(ufunc, method, *inputs, out=out, **kwargs)
         raise TypeError(
@@ -749,6 +760,24 @@ def _finite_result(res, *named):
 
 def _binary(ufunc, a, b, out=None):
     qa, qb = isinstance(a, QuatArray), isinstance(b, QuatArray)
+    if ufunc is _MULTIPLY and qa and qb and out is None and a.shape == b.shape:
+        # the product of two arrays of one shape (no batches to check): the steps below, at once
+        res, ok = _kernels.multiply(_raw(a), _raw(b), check=True)
+        if not ok:
+            _finite_operands(ufunc, _raw(a), _raw(b))
+        return res.view(QuatArray)
+    if ufunc is _POWER and qa and out is None and (type(b) is float or type(b) is int and -_INT_EXP < b < _INT_EXP):
+        # q ** t for a Python number t (no batches to check): the steps below, at once; the kernel
+        # refuses nan and inf in q, so only a t that is not finite could make the result so
+        A = _raw(a)
+        try:
+            res = _kernels.power(A, b)
+        except ValueError:
+            _finite_operands(ufunc, A, b)
+            raise
+        if not math.isfinite(b):
+            _finite_operands(ufunc, A, b)
+        return res.view(QuatArray)
     name = ufunc.__name__
     A = _raw(a) if qa else _keepdims(_real(a, "left operand of " + name), _raw(b))
     B = _raw(b) if qb else _keepdims(_real(b, "right operand of " + name), A)
@@ -772,6 +801,13 @@ def _binary(ufunc, a, b, out=None):
     if not ok:
         _finite_operands(ufunc, A, B)
     return _finish(res, out)
+
+
+_MULTIPLY, _POWER = np.multiply, np.power   # (`_binary`'s first tests: a name, not an attribute too)
+
+_INT_EXP = 2 ** 53
+"""Python integer exponents of `_binary`'s ``q ** t`` path for numbers: those that are floats
+exactly (larger ones take the general path, as before)."""
 
 
 def _finite_operands(ufunc, A, B):
@@ -819,7 +855,7 @@ _BINARY = {np.multiply, np.divide, np.add, np.subtract, np.power, np.float_power
 
 
 _UNARY = {
-    np.exp: lambda q: _kernels.exp(finite(q, "the argument of exp")),   # exp(-inf) is finite
+    np.exp: lambda q: _kernels.exp(q, check=True),   # (exp(-inf) is finite: the kernel looks for it)
     np.log: _kernels.log,
     np.sqrt: lambda q: _kernels.power(q, 0.5),
     np.conjugate: _kernels.conjugate,
@@ -831,6 +867,12 @@ _UNARY = {
     np.isfinite: lambda q: np.isfinite(q).all(axis=-1),
 }
 """Unary ufuncs with a quaternion meaning (all others raise `TypeError`)."""
+
+_GUARDED = {ufunc: f"the argument of {ufunc.__name__}" for ufunc in (np.exp, np.log, np.sqrt)}
+"""The unary ufuncs whose kernels (or `_UNARY`'s entries) refuse nan and inf in the argument
+themselves, so that a result that is not finite (an overflow, ln 0) came from finite input,
+which `_finite_result` would look at in vain; each with the name its errors give the
+argument."""
 
 _PLAIN_UNARY = {np.absolute, np.isnan, np.isfinite}
 """The unary ufuncs whose results are per quaternion, not quaternions (`absolute`

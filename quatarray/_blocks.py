@@ -98,6 +98,7 @@ VIEWS_MAX = 512
 SMALL_ROWS = 32 * 1024
 
 _FEW_ROWS = SMALL_ROWS // 8   # elements of a component-major copy that are always fresh rows
+_FEW_QUATS = _FEW_ROWS // 4    # elements of a batch whose copies of up to four components are
 
 #: Bytes of scratch a thread keeps between calls: 24 rows of a float64 block
 #: (6 MiB; two threads keep 12 MiB, 0.4 of a 10⁶-quaternion float64 output).
@@ -478,8 +479,26 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
     if batch is None:
         batch = outs[0].shape[:-1]
     batch = tuple(batch)
+    if not read_only and not views and len(outs) == 1 and len(batch) == 1 and 1 < batch[0] <= _FEW_QUATS:
+        # a few elements in one flat batch of the inputs' own shape: fresh components-first
+        # copies at once (the one-block path below makes the same copies through more checks,
+        # which cost as much as the kernel's first ufunc calls here)
+        a = ins[0]
+        if len(ins) == 1 and a.shape[:-1] == batch and a.shape[-1] <= 4 and (dtype is None or a.dtype == dtype):
+            iv = [a.T.copy()]   # (one input, as `_few_copies` copies it)
+        else:
+            iv = _few_copies(ins, batch, dtype)
+        if iv is not None:
+            work = scratch()
+            top = work.top
+            try:
+                r = kernel(*iv, outs[0].T, **params)
+            finally:
+                work.top = top
+            return r is True or r is np.True_
     if (read_only and not views and len(batch) == 1 and 0 < batch[0] <= BLOCK
-            and all(a.shape[:-1] == batch and (dtype is None or a.dtype == dtype) for a in ins)):
+            and (ins[0].shape[:-1] == batch and (dtype is None or ins[0].dtype == dtype) if len(ins) == 1
+                 else all(a.shape[:-1] == batch and (dtype is None or a.dtype == dtype) for a in ins))):
         # a flat batch of one block read in place: the kernel on the components-first views,
         # at once (the general path below would come to the same call through more checks)
         work = scratch()
@@ -541,6 +560,27 @@ def blockwise(kernel, ins, outs, batch=None, dtype=None, views=(), read_only=Fal
         return kernel(*iv, *ov, **params)
 
     return any(r is True or r is np.True_ for r in run(block, split(batch, size), n))
+
+
+def _few_copies(ins, batch, dtype):
+    """`blockwise`'s components-first copies of inputs of the batch's own shape, or of one
+    element broadcast to it (up to four components each), as its one-block path makes them;
+    None for any other input."""
+    iv = []
+    for a in ins:
+        shape = a.shape
+        k = shape[-1]
+        if k > 4:
+            return None
+        if shape[:-1] == batch:
+            iv.append(a.T.copy() if dtype is None or a.dtype == dtype else a.T.astype(dtype, order="C"))
+        elif a.size == k:   # (k,) or (1, k): every column of the copy that element
+            buf = np.empty((k, *batch), dtype or a.dtype)
+            np.copyto(buf, a.reshape(k, 1), casting="unsafe")
+            iv.append(buf)
+        else:
+            return None
+    return iv
 
 
 def _pair_of_one(kernel, ins, outs, dtype, views, params):

@@ -321,6 +321,21 @@ def _out(out, shape, dtype, name="out"):
     return out
 
 
+@np.errstate(divide="ignore", invalid="ignore", over="ignore")
+def _blockwise_quiet(kernel, *args, **kwargs):
+    """`_blocks.blockwise` under ``np.errstate(divide="ignore", invalid="ignore", over="ignore")``
+    (kernels that repair what those give), set as a decorator: per call a third less than the
+    ``with`` statement, which makes an errstate object each time."""
+    return _blocks.blockwise(kernel, *args, **kwargs)
+
+
+@np.errstate(over="ignore")
+def _blockwise_over(kernel, *args, **kwargs):
+    """`_blocks.blockwise` under ``np.errstate(over="ignore")`` (kernels that rescale squares
+    that overflow), as `_blockwise_quiet`."""
+    return _blocks.blockwise(kernel, *args, **kwargs)
+
+
 def multiply(p, q, out=None, check=False):
     """Hamilton product ``p q`` of quaternion arrays, broadcasting batch shapes.
 
@@ -475,7 +490,8 @@ def sqnorm(q):
 
 def _k_norm(q, o):
     n = _scale.sum_squares(q, o[0])
-    e = _scale.guard(q, n)
+    # (read only: a block to rescale is rescaled as a copy)
+    e = None if _scale.fits(n) else _scale.guard(q.copy(), n)
     np.sqrt(n, out=n)
     _scale.unscale(n, e)
 
@@ -495,8 +511,7 @@ def norm(q):
         return np.array(n if q.ndim == 1 else [n])
     dtype = result_dtype(q)
     out = np.empty(q.shape[:-1] + (1,), dtype)
-    with np.errstate(over="ignore"):   # squares that overflow are rescaled
-        _blocks.blockwise(_k_norm, [q], [out], dtype=dtype)
+    _blockwise_over(_k_norm, [q], [out], dtype=dtype, read_only=True)   # (squares that overflow are rescaled)
     return out[..., 0]
 
 
@@ -560,8 +575,7 @@ def normalize(q, out=None):
             _normalize_flat(q.reshape(-1, 4), res.reshape(-1, 4))
         return res
     target = np.empty(q.shape, res.dtype)
-    with np.errstate(over="ignore"):
-        _blocks.blockwise(normalize_block, [q], [target], dtype=res.dtype)
+    _blockwise_over(normalize_block, [q], [target], dtype=res.dtype)
     res[...] = target
     return res
 
@@ -691,57 +705,75 @@ def inverse(q):
         comps, kind, n2 = one
         return _ops.to_array(_inverse_floats.kinds[kind](*comps, n2), q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(over="ignore"):   # squares that overflow are rescaled
-        _blocks.blockwise(_k_inverse, [q], [res], dtype=res.dtype)
+    _blockwise_over(_k_inverse, [q], [res], dtype=res.dtype)   # (squares that overflow are rescaled)
     return res
 
 
-def _k_exp(q, o):
-    with _blocks.scratch().frame() as work:
-        vn, ew, c, s, u, v = work.rows(6, q.shape[1:], q.dtype)
-        np.exp(q[0], out=ew)   # outside the errstate below: e**w that overflows warns (alone)
-        # one errstate for the rest (squares that overflow are rescaled; where e**w overflowed,
-        # inf · 0 and inf - inf are repaired below), not one per step: each costs a few ufunc calls
-        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-            e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
-            over = ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
-            if over:
-                big = ew == np.inf
-            kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
-
-            def scale(s):
-                if over:
-                    kept.append(s[big])
-                s *= ew
-                if e is not None:
-                    np.ldexp(s, e, out=s)
-                return s
-
-            _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
-                         _ops.ARRAYS, c, s, (u, v), o)
-            if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
-                sb = kept[0]
-                half = np.exp(q[0][big] * 0.5)
-                if e is not None:
-                    sb = np.ldexp(sb, e[big])
-                o[0][big] = c[big] * half * half
-                for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
-                    qk = q[k][big] * sb
-                    o[k][big] = np.where(qk == 0, qk, qk * half * half)
+def _k_exp(q, o, check=False):
+    vn, ew, c, s, u, v = _blocks.scratch().rows(6, q.shape[1:], q.dtype)   # (given back by blockwise)
+    tame = None   # whether every w is finite and e**w cannot overflow (None: not looked at)
+    if check:     # (before e**w, which could warn of an overflow elsewhere in the block)
+        tame = _scale.inside(q[0], _EXP_MAX_OF[q.dtype], -_FLOAT_MAX[q.dtype])   # False for nan
+        if not tame:
+            _refuse_nonfinite(q)
+    np.exp(q[0], out=ew)   # outside the errstate below: e**w that overflows warns (alone)
+    _k_exp_quiet(q, o, vn, ew, c, s, u, v, check, tame)
 
 
-def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, c, s, rows, o):
+def _refuse_nonfinite(q):
+    """`_scale.NONFINITE`'s `ValueError` where `q` holds nan or inf (the exact test)."""
+    if not np.isfinite(q).all():
+        raise ValueError(_scale.NONFINITE)
+
+
+# one errstate for the rest (squares that overflow are rescaled; where e**w overflowed,
+# inf · 0 and inf - inf are repaired below), not one per step: each costs a few ufunc calls;
+# set as a decorator, a third cheaper than a ``with`` statement
+@np.errstate(over="ignore", invalid="ignore", divide="ignore")
+def _k_exp_quiet(q, o, vn, ew, c, s, u, v, check, tame):
+    """`_k_exp` after e**w (in `ew`), on its rows."""
+    e = _scale.true_norm(q[1:], vn)   # |v|; q[1:] scaled by 2**-e where |v|² overflows
+    if check and e is not None:       # |v|² beyond the range, or nan (a rescale keeps nan and inf)
+        _refuse_nonfinite(q)
+    over = not tame and ew.size and _scale.largest(ew) == np.inf   # e**w overflowed somewhere
+    if over:
+        big = ew == np.inf
+    kept = []   # sin|v| / |v| where e**w overflowed, before e**w multiplies it
+
+    def scale(s):
+        if over:
+            kept.append(s[big])
+        s *= ew
+        if e is not None:
+            np.ldexp(s, e, out=s)
+        return s
+
+    _exp_formula(q[1:], vn, _ops.row(ANGLE_FLOOR[vn.dtype], vn.dtype, vn.shape), ew, cos_sin, scale,
+                 _ops.ARRAYS, _ops.STACKS, c, s, (u, v), o)
+    if over:   # each component there as (x e^(w/2)) e^(w/2): finite where it is (e^710 sin(π))
+        sb = kept[0]
+        half = np.exp(q[0][big] * 0.5)
+        if e is not None:
+            sb = np.ldexp(sb, e[big])
+        o[0][big] = c[big] * half * half
+        for k in (1, 2, 3):   # (zero components stay ±0, not 0 · inf)
+            qk = q[k][big] * sb
+            o[k][big] = np.where(qk == 0, qk, qk * half * half)
+
+
+def _exp_formula(v, vn, floor, ew, cos_sin, scale, op, stack, c, s, rows, o):
     """The exponential's formula, written once: ``o = e^w (cos|v|, sin|v| v/|v|)`` from the
     vector part `v` (three rows or floats), |v| in `vn` (overwritten), its positive `floor`,
     e^w in `ew`, in `op`'s arithmetic (`_ops`), with ``cos_sin(vn, c, s, rows)`` (`cos_sin`
     or its float form) and ``scale(s)`` multiplying sin|v| / |v| by e^w (the block kernel
-    also keeps, and undoes a rescale of, some rows there).  Returns `o` (four rows, or
-    the four floats)."""
+    also keeps, and undoes a rescale of, some rows there); the vector part in `stack`'s
+    arithmetic (`_ops.STACKS` on a block's rows: one call).  Returns the real part and the
+    vector part (a row and three rows of `o`, or a float and a list of three)."""
     vn = op.max(vn, floor, vn)   # cos|v| and sin|v| / |v| (limit 1 at |v| = 0)
     c, s = cos_sin(vn, c, s, rows)
     s = op.div(s, vn, s)
     s = scale(s)
-    return [op.mul(c, ew, o[0]), *[op.mul(v[k], s, o[k + 1]) for k in range(3)]]
+    return op.mul(c, ew, o[0]), stack.scale(v, s, o[1:])
 
 
 def _exp_floats_of(kind):
@@ -755,18 +787,24 @@ def _exp_floats_of(kind):
         vv = squares([x, y, z], op, None, None)   # `sum_squares`' order
         if not vv <= high:
             return None
-        if not w < top:   # e**w near or past the float maximum (its warning: the block kernel's)
-            return None
+        if not -math.inf < w < top:   # e**w near or past the float maximum (its warning: the block
+            return None                # kernel's), or w = -inf (which the block kernel may refuse)
         ew = np.exp(w)   # NumPy's exp: the array loop's bits
         if python:
             ew = float(ew)
-        return _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op, None, None, None,
-                            _ops.NONE)
+        w, vec = _exp_formula([x, y, z], sqrt(vv), floor, ew, _cos_sin_floats, lambda s: s * ew, op,
+                              _ops.FLOAT_STACKS, None, None, None, _ops.NONE)
+        return [w, *vec]
     return exp_floats
 
 
 _EXP_MAX = {_ops.F64: 709.0, _ops.F32: 88.0}
 """Arguments below which e**x and the products with it stay finite, by `_ops.Kind`."""
+
+_EXP_MAX_OF = {kind.dtype: top for kind, top in _EXP_MAX.items()}
+"""`_EXP_MAX` by dtype."""
+
+_FLOAT_MAX = {d: float(np.finfo(d).max) for d in _COMPLEX}
 
 _EXP_FLOATS = _ops.by_kind(_exp_floats_of)
 """`_k_exp` on the four floats of one quaternion, by `_ops.Kind`, or None where the block
@@ -779,8 +817,12 @@ def _cos_sin_floats(angle, c, s, rows):
     return cos_sin(angle)
 
 
-def exp(q):
+def exp(q, check=False):
     """Quaternion exponential e^w (cos|v|, sin|v| v/|v|).
+
+    With `check`, nan and inf in `q` raise `ValueError` (`_scale.NONFINITE`, before any
+    warning of the computation), found by a range test of w the kernel makes anyway and
+    its test of |v|² (without, they give nan, inf or 0).
 
     >>> import numpy as np
     >>> from quatarray._kernels import exp
@@ -796,7 +838,7 @@ def exp(q):
         if one is not None:
             return _ops.to_array(one, q.shape, kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
-    _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype)   # (the kernel sets its own errstate)
+    _blocks.blockwise(_k_exp, [q], [res], dtype=res.dtype, check=check)   # (the kernel sets its own errstate)
     return res
 
 
@@ -819,19 +861,28 @@ def _log_parts(q):
     whose scale is a limit (`_small_vectors`); the seventh |q|² (of q as rescaled)."""
     n2, vv, d, u, ln, theta, scale = _blocks.scratch().rows(7, q.shape[1:], q.dtype)
     w = q[0]
-    one, half = _ops.const(1.0, q.dtype), _ops.const(0.5, q.dtype)
+    one, half = _LOG_CONSTS[q.dtype]
     _scale.sum_squares(q, vv, 1)
     _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
     e = v0 = None
-    if not _scale.fits(n2):               # extreme magnitudes: the vectors kept, whose axes
+    listed = _scale.fits_listed(n2)       # (a few |q|² that fit: as Python floats, for the tests below)
+    if listed is False:                   # extreme magnitudes: the vectors kept, whose axes
         v0 = q[1:].copy()                 # a rescale may lose (`_small_vectors`)
         e = _scale.guard(q, n2)
     if e is not None:                     # q was rescaled: |v|² again
         _scale.sum_squares(q, vv, 1)
         _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
-    _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, _ln_ratio_rows, d, u, ln)
-    # one reduction instead of a mask and a test when no vector is zero or below the range
-    few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
+    if type(listed) is list and e is None:   # a few, as they are: |q|² = 1 and the smallest |v|²
+        unit = 1.0 in listed                  # from lists (|q|² - 1 = 0 exactly where |q|² = 1)
+        ratio = _ln_ratio_unit if unit else _ln_ratio_plain
+        # one reduction instead of a mask and a test when no vector is zero or below the range
+        few = min(vv.ravel().tolist()) < _scale.LOW[vv.dtype]
+    else:
+        ratio = _ln_ratio_rows
+        few = None
+    _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, ratio, d, u, ln)
+    if few is None:   # one reduction instead of a mask and a test when no vector is zero or below the range
+        few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
     vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
     _angle_formula(vn, w, _ops.ARRAYS, arctan2, theta, scale)
     lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None
@@ -857,13 +908,29 @@ def _ln_formula(w, vv, n2, op, one, half, ratio, d, u, ln):
     return op.mul(ln, half, ln)
 
 
-def _ln_ratio_rows(ln, d, um1, n2):
-    unit = _scale.any_zero(um1)           # one reduction instead of a mask when none
+def _ln_ratio_rows(ln, d, um1, n2, unit=None):
+    """`_ln_formula`'s ratio on rows; `unit`: whether some |q|² is 1 (None: not known yet)."""
+    if unit is None:
+        unit = _scale.any_zero(um1)       # one reduction instead of a mask when none
     np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
     ln *= um1
     if unit:
         np.copyto(ln, d, where=n2 == 1)
     return ln
+
+
+def _ln_ratio_unit(ln, d, um1, n2):
+    """`_ln_ratio_rows` where some |q|² is known to be 1."""
+    return _ln_ratio_rows(ln, d, um1, n2, True)
+
+
+def _ln_ratio_plain(ln, d, um1, n2):
+    """`_ln_ratio_rows` where no |q|² is known to be 1."""
+    return _ln_ratio_rows(ln, d, um1, n2, False)
+
+
+_LOG_CONSTS = {dtype: (_ops.const(1.0, dtype), _ops.const(0.5, dtype)) for dtype in _COMPLEX}
+"""1 and 1/2 of `_log_parts`' dtypes, as `_ops.const` makes them."""
 
 
 def _sqnorms_formula(op, stack, w, x, y, z):
@@ -982,13 +1049,22 @@ def log(q):
             return _ops.to_array([parts[0], *_log_vector(one[1:], parts[3], _ops.FLOAT_STACKS, None)], q.shape,
                                  kind.dtype)
     res = np.empty(q.shape, result_dtype(q))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        _blocks.blockwise(_k_log, [q], [res], dtype=res.dtype)
+    _blockwise_quiet(_k_log, [q], [res], dtype=res.dtype)
     return res
 
 
 def _k_power(q, t, o):
-    t = t[0]
+    _power_block(q, t[0], o)
+
+
+def _k_power_scalar(q, o, t):
+    """`_k_power` with one exponent `t` for every row, a 0-d array of the block's dtype (each
+    operation with t gives the bits it gives with a row of copies of t)."""
+    _power_block(q, t, o)
+
+
+def _power_block(q, t, o):
+    """`_k_power` on the rows `q` into `o`, with the exponents `t` (a row, or a 0-d array)."""
     ln, theta, vn, scale, e, lim, n2 = _log_parts(q)
     mag, ang, c, sn = _blocks.scratch().rows(4, q.shape[1:], q.dtype)
     real = zero = None   # (masks only for a block with real quaternions or vectors below the range)
@@ -997,10 +1073,15 @@ def _k_power(q, t, o):
         zero = real & (q[0] == 0)
 
     def magnitude(mag):
-        if not _scale.inside(ln, 0.5):
-            # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
-            # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
-            # (Of the rows as rescaled, if they were: each row's choice is its own.)
+        # |q| beyond [e**-0.5, e**0.5]: exp(t ln|q|) carries ln's rounding times |t ln|q|| (140
+        # ulp for 2**1023); (|q|²)^(t/2) only that of |q|², times |t| / 2 (pow rounds correctly).
+        # (Of the rows as rescaled, if they were: each row's choice is its own.)
+        if ln.size <= _blocks.FEW:   # a few: the mask at once (a range test first costs as much),
+            far = np.abs(ln) > 0.5   # and every row's power, kept where far (cheaper than gathering
+            if True in far.ravel().tolist():   # and scattering them; the same bits either way)
+                half_t = np.multiply(t, _ops.const(0.5, t.dtype), out=np.empty_like(n2))   # t / 2 in every row
+                np.copyto(mag, np.power(n2, half_t, out=half_t), where=far)
+        elif not _scale.inside(ln, 0.5):
             far = np.abs(ln) > 0.5
             mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
         if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
@@ -1018,8 +1099,7 @@ def _k_power(q, t, o):
     _, f, ang = _power_formula(t, ln, theta, _ops.ARRAYS, magnitude, ratio, mag, ang, c, sn, o[0])
     if zero is not None and zero.any():  # inf * 0 for 0 ** t, t < 0: the vector part stays 0
         ang[zero] = 0.0
-    for k in (1, 2, 3):
-        np.multiply(q[k], ang, out=o[k])
+    np.multiply(q[1:], ang, out=o[1:])
     if not all_finite(ang):   # sin(tθ)/|v| · |q|^t overflowed: v's share first (|v_k| <= |v|),
         big = ~np.isfinite(ang)   # and a component lost to 0 × inf stays ±0, not NaN
         for k in (1, 2, 3):
@@ -1131,10 +1211,12 @@ def power(q, t):
             return _ops.to_array(one, q.shape, kind.dtype)
     t = np.asarray(t)
     dtype = result_dtype(q)
-    batch = np.broadcast_shapes(q.shape[:-1], t.shape)
+    batch = q.shape[:-1] if not t.ndim else np.broadcast_shapes(q.shape[:-1], t.shape)
     res = np.empty(batch + (4,), dtype)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        _blocks.blockwise(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
+    if t.ndim:
+        _blockwise_quiet(_k_power, [q, t[..., None]], [res], batch, dtype=dtype)
+    else:   # one exponent: not copied into every block
+        _blockwise_quiet(_k_power_scalar, [q], [res], batch, dtype=dtype, t=np.array(t, dtype))
     return res
 
 
@@ -1184,8 +1266,8 @@ def rotate(q, v, inverse=False, unit=False, add=None):
         return res if add is None else np.add(res, add, out=res)
     # `add` rides along as a second output the kernel only reads: its blocks are the result's
     outs = [res] if add is None else [res, add]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # zero quaternions give nan
-        _blocks.blockwise(rotate_block, [q, v], outs, batch, dtype=dtype, wsign=wsign, unit=unit)
+    # (zero quaternions give nan)
+    _blockwise_quiet(rotate_block, [q, v], outs, batch, dtype=dtype, wsign=wsign, unit=unit)
     return res
 
 

@@ -648,7 +648,8 @@ def test_batches_at_the_engines_size_thresholds(dtype, n):
     program; `_blocks.FEW`:
     rotations and products on stacked rows; `_blocks.SMALL_ROWS`: fresh scratch rows or the
     kept buffer, at 1024 float64 / 2048 float32 rows of four; squares of 4096 elements
-    stacked), the first, middle and last rows of the
+    stacked; `_blocks.FEW` again: the power's moduli far from 1 from every row's power or
+    from the far rows gathered), the first, middle and last rows of the
     batch, alone and as a batch of one, give the batch's bits."""
     kinds = [KINDS[k % len(KINDS)] for k in range(n)]
     q = _rows(n, kinds, dtype, False)
@@ -660,7 +661,9 @@ def test_batches_at_the_engines_size_thresholds(dtype, n):
     check([("product", lambda q, p, v: Q(q) * Q(p)), ("rotate", lambda q, p, v: Q(p).rotate(v)),
            ("norm", lambda q, p, v: Q(p).norm()), ("normalized", lambda q, p, v: Q(p).normalized()),
            ("log", lambda q, p, v: Q(p).log()), ("as_rotvec", lambda q, p, v: Q(p).as_rotvec()),
-           ("as_matrix", lambda q, p, v: Q(p).as_matrix())], (q, p, v), n // 2)
+           ("as_matrix", lambda q, p, v: Q(p).as_matrix()), ("exp", lambda q, p, v: np.exp(Q(q * 3))),
+           ("power", lambda q, p, v: Q(p) ** 0.3), ("power of units", lambda q, p, v: Q(q) ** -1.7),
+           ("sqrt", lambda q, p, v: np.sqrt(Q(p)))], (q, p, v), n // 2)
     axes = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
     R = Rotation
     ops = [("as_matrix", lambda r: r.as_matrix()), ("as_rotvec", lambda r: r.as_rotvec()),
