@@ -912,11 +912,16 @@ def _ln_ratio_rows(ln, d, um1, n2, unit=None):
     """`_ln_formula`'s ratio on rows; `unit`: whether some |q|² is 1 (None: not known yet)."""
     if unit is None:
         unit = _scale.any_zero(um1)       # one reduction instead of a mask when none
-    np.divide(d, um1, out=um1)            # nan or inf where |q|² = 1: fixed below
-    ln *= um1
+    ln = _kahan_ratio(ln, d, um1, _ops.ARRAYS)   # nan or inf where |q|² = 1: fixed below
     if unit:
         np.copyto(ln, d, where=n2 == 1)
     return ln
+
+
+def _kahan_ratio(ln, d, um1, op):
+    """``log(u) · d / (u - 1)`` from ln = log(u), written once (`_ln_formula`'s ratio where
+    |q|² ≠ 1), into the rows `ln` and `um1`."""
+    return op.mul(ln, op.div(d, um1, um1), ln)
 
 
 def _ln_ratio_unit(ln, d, um1, n2):
@@ -943,7 +948,7 @@ def _sqnorms_formula(op, stack, w, x, y, z):
 # the same operations in the same order); ln|q| in two forms, by the test |q|² = 1 of the rows'
 _sqnorms_floats = _ops.compiled(_sqnorms_formula, 4)
 _ln_floats = _ops.compiled(lambda op, stack, w, vv, n2: [_ln_formula(
-    w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: op.mul(ln, op.div(d, um1, None), None), None, None, None)], 3)
+    w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: _kahan_ratio(ln, d, um1, op), None, None, None)], 3)
 _ln_unit_floats = _ops.compiled(lambda op, stack, w, vv, n2: [_ln_formula(
     w, vv, n2, op, 1.0, 0.5, lambda ln, d, um1, n2: d, None, None, None)], 3)
 
@@ -1079,11 +1084,11 @@ def _power_block(q, t, o):
         if ln.size <= _blocks.FEW:   # a few: the mask at once (a range test first costs as much),
             far = np.abs(ln) > 0.5   # and every row's power, kept where far (cheaper than gathering
             if True in far.ravel().tolist():   # and scattering them; the same bits either way)
-                half_t = np.multiply(t, _ops.const(0.5, t.dtype), out=np.empty_like(n2))   # t / 2 in every row
-                np.copyto(mag, np.power(n2, half_t, out=half_t), where=far)
+                half = _ops.const(0.5, t.dtype)   # (t / 2 in every row)
+                np.copyto(mag, _far_modulus(n2, t, half, _ops.ARRAYS, np.empty_like(n2)), where=far)
         elif not _scale.inside(ln, 0.5):
             far = np.abs(ln) > 0.5
-            mag[far] = np.power(n2[far], np.broadcast_to(t, far.shape)[far] * 0.5)
+            mag[far] = _far_modulus(n2[far], np.broadcast_to(t, far.shape)[far], 0.5, _ops.ARRAYS, None)
         if e is not None:   # |q|^t = |q 2**-e|^t 2**(t e): exact powers of two where t e is an integer
             mag *= np.exp2(t * e)
         if zero is not None and zero.any():
@@ -1128,12 +1133,18 @@ def _power_formula(t, ln, theta, op, magnitude, ratio, mag, ang, c, sn, o0):
     return w, f, op.mul(f, mag, c)   # (c is free: the real part is written)
 
 
+def _far_modulus(n2, t, half, op, out):
+    """|q|^t as ``(|q|²)^(t/2)``, for |q| far from 1 (`_power_formula`'s `magnitude`), written
+    once, in `op`'s arithmetic (`half`: 0.5 as its operand), into the row `out`."""
+    return op.power(n2, op.mul(t, half, out), out)
+
+
 def _power_floats_formula(far):
     """`_power_formula` on one quaternion's floats ``(t, ln|q|, θ, |v|, |q|²)``, compiled
     (`_ops.compiled`) for a modulus near 1 (exp(t ln|q|)) or `far` from it ((|q|²)^(t/2))."""
     def formula(op, stack, t, ln, theta, vn, n2):
         def magnitude(mag):
-            return op.power(n2, op.mul(t, 0.5, None), None) if far else mag
+            return _far_modulus(n2, t, 0.5, op, None) if far else mag
         return _power_formula(t, ln, theta, op, magnitude, lambda sn, f: op.div(sn, vn, None),
                               None, None, None, None, None)
     return _ops.compiled(formula, 5)
