@@ -769,37 +769,32 @@ def _tangent_rows(q, t, exact):
     return t
 
 
-def _half_turn_floats(q):
-    """`_half_turn`'s `_squares` on the floats of one float64 or float32 quaternion, and its
-    range tests: (w, x, y, z, w², |v|², kind), kind its `_ops.Kind`, or None where the block
-    kernel would rescale or find a row `exact` (its own path), or, in float32, where
-    |v|² / w² overflows (float32 scalars would warn; the kernel's rows take inf there).
-    The callers' compiled formulas go on with `_tan_half`."""
-    if q.size == 4 and q.dtype is _F64 and q.ndim <= 2:   # (`_ops.floats64`'s test written out: a
-        c = q.tolist() if q.ndim == 1 else q.tolist()[0]   # tenth of a single call)
-        kind, squares, low, high, ratio = _HALF_TURN64
-    else:
-        c, kind = _ops.floats32(q)
-        if c is None:
-            return None
-        squares, low, high, ratio = _HALF_TURN[kind]
-    w, x, y, z = c
-    w2, v2 = squares(w, x, y, z)
-    if not (low <= w2 and low <= v2 and w2 + v2 <= high):
-        return None
-    if ratio and not float(v2) < float(w2) * ratio:
-        return None
-    return w, x, y, z, w2, v2, kind
+def _one_rotation(q):
+    """The four floats of one float64 or float32 rotation `q` ((4,) or (1, 4)) and their
+    `_ops.Kind` (`_ops.floats64`'s test written out: a tenth of its call), or (None, None)."""
+    if q.size == 4 and q.dtype is _F64 and q.ndim <= 2:
+        return (q.tolist() if q.ndim == 1 else q.tolist()[0]), _ops.F64
+    return _ops.floats32(q)
 
 
-_squares_floats = _ops.compiled(lambda op, stack, *q: list(_squares(list(q), op, stack, None, None)), 4)
-"""`_squares` on one quaternion's floats (`_ops.compiled`)."""
+def _half_turn_floats(consumer, nargs):
+    """``consumer(op, stack, w, x, y, z, w², |v|², *extra)`` (`nargs` extra arguments) after
+    `_half_turn`'s `_squares` and its range tests, on one rotation's floats, compiled, by
+    `_ops.Kind`: each function returns None where the block kernel would rescale or find a
+    row `exact` (its own path), or, in float32, where |v|² / w² overflows (float32 scalars
+    would warn; the kernel's rows take inf there).  One call: the tests are `op.guard`s."""
+    def make(kind):
+        low, high = _scale.BOUNDS[kind]
 
-_HALF_TURN = {kind: (_squares_floats.kinds[kind], *_scale.BOUNDS[kind], ratio)
-              for kind, ratio in ((_ops.F64, None), (_ops.F32, 2.0 ** 127))}
-"""`_half_turn_floats`' squares, bounds of |q|² and bound of |v|² / w² (float32: below its
-maximum, with room for the quotient's rounding), by `_ops.Kind`."""
-_HALF_TURN64 = (_ops.F64, *_HALF_TURN[_ops.F64])
+        def formula(op, stack, w, x, y, z, *extra):
+            w2, v2 = _squares([w, x, y, z], op, stack, None, None)
+            op.guard("{2} <= {0} and {2} <= {1} and {0} + {1} <= {3}", w2, v2, low, high)
+            if kind is _ops.F32:   # (Python floats: float32 scalars would warn of the product's overflow)
+                op.guard("float({1}) < float({0}) * {2}", w2, v2, 2.0 ** 127)
+            return consumer(op, stack, w, x, y, z, w2, v2, *extra)
+        return _ops.compiled(formula, 4 + nargs).kinds[kind]
+    return _ops.by_kind(make)
+
 
 _F64, _F32 = np.dtype(np.float64), np.dtype(np.float32)
 
@@ -871,15 +866,15 @@ def as_rotvec(q, degrees=False, unit=False):
     """
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
-    one = _half_turn_floats(q)
-    if one is not None:   # one float64 or float32 rotation: the same formula on its floats
-        w, x, y, z, w2, v2, kind = one   # (unpacked: a fifth of splatting with the factor)
-        f64 = kind is _ops.F64   # (a test of the kind: cheaper than its table's lookups)
-        v = (_rotvec_floats if f64 else _rotvec_floats.float32)(w, x, y, z, w2, v2, _ROTVEC_FACTOR[bool(degrees)])
+    c, kind = _one_rotation(q)
+    if c is not None:
+        w, x, y, z = c   # (unpacked: a fifth of splatting with the factor)
+        v = _ROTVEC_FLOATS[kind](w, x, y, z, _ROTVEC_FACTOR[True] if degrees else _ROTVEC_FACTOR[False])
+    if c is not None and v is not None:   # one float64 or float32 rotation: the same formula on its floats
         if q.ndim == 1:
             return np.array(v)
         # q is (1, 4): `_ops.to_array`'s batch of one, without its call
-        out = np.empty((1, 3)) if f64 else np.empty((1, 3), _F32)
+        out = np.empty((1, 3)) if kind is _ops.F64 else np.empty((1, 3), _F32)
         out[0, 0], out[0, 1], out[0, 2] = v
         return out
     out = np.empty(q.shape[:-1] + (3,), q.dtype)
@@ -891,11 +886,11 @@ def as_rotvec(q, degrees=False, unit=False):
 _ROTVEC_FACTOR = {False: 2.0, True: 2.0 * (180.0 / np.pi)}
 """Rotation vector over half-angle times unit axis, radians and degrees."""
 
-_rotvec_floats = _ops.compiled(
+_ROTVEC_FLOATS = _half_turn_floats(
     lambda op, stack, w, x, y, z, w2, v2, factor: _rotvec(w, [x, y, z], _tan_half(w2, v2, op, None),
-                                                           op.sqrt(v2, None), factor, op, stack, None, _ops.NONE), 7)
-"""`_tan_half` and `_rotvec` on one rotation's floats ``(w, x, y, z, w², |v|², factor)``
-(`_half_turn_floats`; `_ops.compiled`)."""
+                                                           op.sqrt(v2, None), factor, op, stack, None, _ops.NONE), 1)
+"""`_half_turn_floats` of `_tan_half` and `_rotvec` on one rotation's floats ``(w, x, y, z,
+factor)``, by `_ops.Kind`."""
 
 
 # --- powers of rotations ------------------------------------------------------------------
@@ -917,11 +912,11 @@ def _powered(w, tan_half, nv, vec, n, op, stack, o, rows):
     return [c, *stack.scale(vec, s, o[1:4])]
 
 
-_powered_floats = _ops.compiled(
+_POWERED_FLOATS = _half_turn_floats(
     lambda op, stack, w, x, y, z, w2, v2, n: _powered(w, _tan_half(w2, v2, op, None), op.sqrt(v2, None), [x, y, z],
-                                                      n, op, stack, _ops.NONE, _ops.NONE), 7)
-"""`_tan_half` and `_powered` on one rotation's floats ``(w, x, y, z, w², |v|², n)``
-(`_half_turn_floats`; `_ops.compiled`)."""
+                                                      n, op, stack, _ops.NONE, _ops.NONE), 1)
+"""`_half_turn_floats` of `_tan_half` and `_powered` on one rotation's floats ``(w, x, y, z,
+n)``, by `_ops.Kind`."""
 
 
 def _k_power(q, o, n, unit=False):
@@ -982,9 +977,10 @@ def rotation_power(q, n, unit=False):
         n = float(n)
         if abs(n) > top:
             raise ValueError(f"expected an exponent n of magnitude at most {top:.3g}, got {n}")
-        one = _half_turn_floats(q)
-        if one is not None:   # one float64 or float32 rotation: the same formula on its floats
-            return _ops.to_array(_powered_floats.kinds[one[6]](*one[:6], n), q.shape, one[6].dtype)
+        c, kind = _one_rotation(q)
+        quat = None if c is None else _POWERED_FLOATS[kind](*c, n)
+        if quat is not None:   # one float64 or float32 rotation: the same formula on its floats
+            return _ops.to_array(quat, q.shape, kind.dtype)
         out = np.empty(q.shape, q.dtype)
         _blockwise_unit(_k_power, _rows(q, 4), _rows(out, 4), unit, n=np.array(n, q.dtype))
         return out
@@ -1154,8 +1150,9 @@ def _angle(tan_half, op, stack, o):
     return op.add(half, half, o)
 
 
-_angle_floats = _ops.compiled(lambda op, stack, w2, v2: _angle(_tan_half(w2, v2, op, None), op, stack, None), 2)
-"""`_tan_half` and `_angle` on one rotation's w², |v|² (`_half_turn_floats`; `_ops.compiled`)."""
+_ANGLE_FLOATS = _half_turn_floats(
+    lambda op, stack, w, x, y, z, w2, v2: _angle(_tan_half(w2, v2, op, None), op, stack, None), 0)
+"""`_half_turn_floats` of `_tan_half` and `_angle` on one rotation's floats, by `_ops.Kind`."""
 
 
 def magnitude(q, unit=False):
@@ -1185,15 +1182,14 @@ def magnitude(q, unit=False):
         out = np.empty(len(q), q.dtype)                                 # kernel at once on views
         _k_magnitude(q.T, (out,), unit=True)
         return out
-    one = _half_turn_floats(q)
-    if one is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
-        f64 = one[6] is _ops.F64   # (a test of the kind: cheaper than its table's lookups)
-        angle = (_angle_floats if f64 else _angle_floats.float32)(one[4], one[5])
+    c, kind = _one_rotation(q)
+    angle = None if c is None else _ANGLE_FLOATS[kind](*c)
+    if angle is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
         if q.ndim == 1:
             return np.array(angle)   # np.array, not np.full (5x its cost) nor a reshape (2x)
-        out = np.empty(1) if f64 else np.empty(1, _F32)   # q is (1, 4): an element assigned costs
-        out[0] = angle                                     # half of np.array([angle])
-        return out
+        out = np.empty(1) if kind is _ops.F64 else np.empty(1, _F32)   # q is (1, 4): an element
+        out[0] = angle                                                 # assigned costs half of
+        return out                                                     # np.array([angle])
     if q.ndim == 2:   # (N, 4): its rows as they are, the output (N,) written as (N, 1)
         out = np.empty(len(q), q.dtype)
         _blockwise_unit(_k_magnitude, q, out[:, None], unit)

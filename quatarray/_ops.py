@@ -242,6 +242,9 @@ def compiled(formula, nargs, calls=None):
 
     `calls`: further operations the formula calls as ``op.name(*args, out)``, as
     ``{name: (number of args, function on Python floats, function on float32 scalars)}``.
+    ``op.guard(test, *args)`` (compiled formulas only) makes the function return None
+    unless the Python expression `test` holds, its ``{0}, {1}, ...`` the values `args`: a
+    float path's range test between two steps of its formula, without a second call.
 
     >>> from quatarray._ops import FLOATS, FLOAT_STACKS, compiled
     >>> def f(op, stack, a, b):
@@ -273,10 +276,14 @@ def compiled(formula, nargs, calls=None):
     def raise_(*args):
         raise TypeError("a compiled formula may not branch on values (where)")
 
+    def guard(test, *args):   # the function returns None unless `test` holds
+        lines.append(f"    if not ({test.format(*map(term, args))}):\n        return None")
+
     calls = calls or {}
     templates = {**_TEMPLATES, **{name: f"_call_{name}(" + ", ".join(f"{{{i}}}" for i in range(n)) + ")"
                                   for name, (n, *_) in calls.items()}}
-    trace = SimpleNamespace(**{name: emit(name, t) for name, t in templates.items()}, copy=lambda a, out: a, where=raise_)
+    trace = SimpleNamespace(**{name: emit(name, t) for name, t in templates.items()}, copy=lambda a, out: a, where=raise_,
+                            guard=guard)
     elementwise = {name: (lambda f: lambda a, b, out: [f(x, y, None) for x, y in _pairs(a, b)])(getattr(trace, name))
                    for name in ("add", "sub", "mul", "div")}
     stack = SimpleNamespace(**elementwise, scale=elementwise["mul"], shifts=FLOAT_ROWS.shifts,

@@ -31,11 +31,26 @@ def test_compiled_formula_gives_the_floats_bits():
 def test_compiled_rotvec_is_the_formula_on_floats():
     rng = np.random.default_rng(6)
     for q in rng.standard_normal((500, 4)):
-        w, x, y, z, w2, v2, _ = _convert._half_turn_floats(q / np.linalg.norm(q))
-        assert [w2, v2] == list(_convert._squares([w, x, y, z], _ops.FLOATS, _ops.FLOAT_STACKS, None, None))
+        w, x, y, z = (q / np.linalg.norm(q)).tolist()
+        w2, v2 = _convert._squares([w, x, y, z], _ops.FLOATS, _ops.FLOAT_STACKS, None, None)
         t = _convert._tan_half(w2, v2, _ops.FLOATS, None)
         want = _convert._rotvec(w, [x, y, z], t, math.sqrt(v2), 2.0, _ops.FLOATS, _ops.FLOAT_STACKS, None, _ops.NONE)
-        assert _convert._rotvec_floats(w, x, y, z, w2, v2, 2.0) == want
+        assert _convert._ROTVEC_FLOATS[_ops.F64](w, x, y, z, 2.0) == want
+
+
+def test_compiled_guard_returns_none_where_its_test_fails():
+    """`op.guard` in a compiled formula: None where the test fails, before the steps after it
+    (no division by zero), the formula's value elsewhere."""
+    def f(op, stack, a, b):
+        s = op.mul(a, a, None)
+        op.guard("{0} > {1}", s, 1e-300)
+        return op.div(b, s, None)
+    g = _ops.compiled(f, 2)
+    assert g(0.0, 1.0) is None and g(1e-200, 1.0) is None
+    assert g(3.0, 2.0) == 2.0 / 9.0
+    assert g.float32(np.float32(3.0), np.float32(2.0)) == np.float32(2.0) / np.float32(9.0)
+    with pytest.raises(TypeError, match="may not branch"):
+        _ops.compiled(lambda op, stack, a: op.where(True, a, a), 1)
 
 
 def test_compiled_rows_of_three_are_float_rows():
