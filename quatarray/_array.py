@@ -779,6 +779,9 @@ def _binary(ufunc, a, b, out=None):
             _finite_operands(ufunc, A, b)
         return res.view(QuatArray)
     name = ufunc.__name__
+    if not (qa or qb):   # a QuatArray `out` only: no quaternion among the operands
+        raise TypeError(f"expected a QuatArray operand of {name} writing into a QuatArray out, got "
+                        f"{type(a).__name__} and {type(b).__name__} (use out.ndarray for componentwise maths)")
     A = _raw(a) if qa else _keepdims(_real(a, "left operand of " + name), _raw(b))
     B = _raw(b) if qb else _keepdims(_real(b, "right operand of " + name), A)
     _check_batches(ufunc, A, qa, B, qb)

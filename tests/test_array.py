@@ -308,6 +308,16 @@ def test_binary_ufuncs_with_out(rng, ufunc):
     assert_array_equal(out, want)
 
 
+@pytest.mark.parametrize("ufunc", [np.multiply, np.add, np.power])
+def test_binary_ufunc_of_plain_operands_into_a_quatarray_out_raises(rng, ufunc):
+    """Only the out is a QuatArray: no quaternion operand, a TypeError naming both operands
+    (it was an AttributeError), and the out is left as it was."""
+    out = QuatArray(np.ones((3, 4)))
+    with pytest.raises(TypeError, match=f"expected a QuatArray operand of {ufunc.__name__}.*ndarray and float"):
+        ufunc(np.arange(12.0).reshape(3, 4), 2.0, out=out)
+    assert_array_equal(out.ndarray, np.ones((3, 4)))
+
+
 @pytest.mark.parametrize("ufunc", [np.sin, np.maximum, np.matmul, np.floor, np.arctan2, np.greater])
 def test_other_ufuncs_raise(rng, ufunc):
     q = qa(rng, (3,))
