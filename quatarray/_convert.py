@@ -1139,9 +1139,13 @@ def from_rotvec(rotvec, degrees=False):
 
 
 def _k_magnitude(q, o, unit=False):
+    """θ of the rows `q` into ``o[0]``, or (`o` None: a few rows, whose rows `_half_turn`'s
+    ufuncs allocated) into tan(θ/2)'s own row, returned."""
     t, exact = _half_turn(q, unit)
     tan_half = _tangent_rows(q, t, exact)[0] if exact else t[0]
-    _angle(tan_half, _ops.ARRAYS, None, o[0])
+    if o is None:   # (a row of the thread's scratch, were FEW ever below VIEWS_MAX: a new one)
+        o = (tan_half if tan_half.base is None else np.empty_like(tan_half),)
+    return _angle(tan_half, _ops.ARRAYS, None, o[0])
 
 
 def _angle(tan_half, op, stack, o):
@@ -1178,10 +1182,8 @@ def magnitude(q, unit=False):
     """
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
-    elif q.size > 4 and q.ndim == 2 and len(q) <= _blocks.VIEWS_MAX:   # a Rotation's few: the
-        out = np.empty(len(q), q.dtype)                                 # kernel at once on views
-        _k_magnitude(q.T, (out,), unit=True)
-        return out
+    elif q.size > 4 and q.ndim == 2 and len(q) <= _blocks.VIEWS_MAX:   # a Rotation's few: the kernel
+        return _k_magnitude(q.T, None, unit=True)   # at once on views, into its own fresh row
     c, kind = _one_rotation(q)
     angle = None if c is None else _ANGLE_FLOATS[kind](*c)
     if angle is not None:   # one float64 or float32 rotation: `_k_magnitude` on its floats
