@@ -1307,8 +1307,8 @@ def _rotate_floats_of(kind):
         n2 = squares(c, op, None, None)
         if not (0.25 <= n2 <= 4.0 and -big <= ux <= big and -big <= uy <= big and -big <= uz <= big):
             return None
-        w, x, y, z = c
-        return rotated(w * -1.0 if inverse else w, x, y, z, ux, uy, uz, 2.0 / n2)
+        w, s = _rotation_terms(c[0], n2, inverse, op, None)
+        return rotated(w, c[1], c[2], c[3], ux, uy, uz, s)
     return rotate_floats
 
 
@@ -1401,9 +1401,15 @@ def _rotate_setup(q, u, wsign, unit=False, checked=False, work=None):
                                 else _blocks.scratch().rows(1, q.shape[1:], q.dtype)[0], rows=work)
     else:
         n2 = _scale.guarded_sqnorm(q)
-    w = q[0]
-    if wsign < 0:
-        np.multiply(w, -1.0, out=w)
+    w, s = _rotation_terms(q[0], n2, wsign < 0, _ops.ARRAYS, q[0])
     # vectors near the float maximum are scaled down by a power of two, and the result back up
     e = None if checked else _scale.shrink_vectors(u, n2)
-    return w, np.divide(2.0, n2, out=n2), e
+    return w, s, e
+
+
+def _rotation_terms(w, n2, inverse, op, w_out):
+    """(w, or -w for the inverse rotation, and ``s = 2 / |q|²``), `_rotated`'s terms besides
+    the vectors, written once, in `op`'s arithmetic (into `w_out` and n2's row)."""
+    if inverse:
+        w = op.mul(w, -1.0, w_out)
+    return w, op.div(2.0, n2, n2)
