@@ -68,7 +68,7 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     [0.707106781187, 0.707106781187]
     """
     if type(angle) is float:   # one rotation's float64 angle: the same formula
-        return _cos_sin_of_tangent_floats(_trig.tan_float(angle * 0.5))
+        return _cos_sin_of_float(angle)
     if type(angle) is np.float32:   # one rotation's float32 angle: NumPy's, as on rows below
         return np.cos(angle), np.sin(angle)
     angle = np.asarray(angle)
@@ -80,11 +80,12 @@ def cos_sin(angle, c=None, s=None, rows=None, bounds=None):
     return _cos_sin_tan(angle, _ops.ARRAYS, _trig.tan, c, s, rows, bounds and (bounds[0] * 0.5, bounds[1] * 0.5))
 
 
-def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None):
+def _cos_sin_tan(angle, op, tan, c, s, rows, bounds=None, consts=None):
     """`cos_sin`'s float64 formula on rows (`_ops.ARRAYS`) with the tangent `tan` (`bounds`: of
-    angle / 2, for `tan`); on a float, `cos_sin` takes `_cos_sin_of_tangent_floats`."""
+    angle / 2, for `tan`; `consts`: 0.5, 1 and 2 as operands, else `op`'s); on a float,
+    `cos_sin` takes it compiled (`_cos_sin_of_float`)."""
     u, v = rows[:2]
-    half, one, two = _COS_SIN[op is _ops.FLOATS]
+    half, one, two = consts or _COS_SIN[op is _ops.FLOATS]
     s = op.mul(angle, half, s)
     t = tan(s, out=s, rows=(c, u, v), bounds=bounds)
     return _cos_sin_of_tangent(t, op, half, one, two, c, u, v)
@@ -106,9 +107,12 @@ def _cos_sin_of_tangent(t, op, half, one, two, c, u, v):
 
 _COS_SIN = _ops.operands(0.5, 1.0, 2.0)
 
-_cos_sin_of_tangent_floats = _ops.compiled(
-    lambda op, stack, t: _cos_sin_of_tangent(t, op, 0.5, 1.0, 2.0, None, None, None), 1)
-"""`_cos_sin_of_tangent` on one float64 tangent (`_ops.compiled`: the same operations)."""
+_cos_sin_of_float = _ops.compiled(
+    lambda op, stack, a: list(_cos_sin_tan(a, op, lambda x, out=None, rows=None, bounds=None: op.tan(x, None),
+                                           None, None, _ops.NONE, consts=(0.5, 1.0, 2.0))), 1,
+    calls={"tan": (1, _trig.tan_float, np.tan)})
+"""`_cos_sin_tan` on one float64 angle, `_trig.tan_float` its tangent (`_ops.compiled`: the
+same operations; its float32 form is not used, `cos_sin` takes NumPy's cos and sin there)."""
 
 
 def half_angle(angle, scale):
