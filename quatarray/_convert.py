@@ -867,10 +867,11 @@ def as_rotvec(q, degrees=False, unit=False):
     if not unit:   # (unit: Rotation's own storage, a float array of quaternions)
         q = quat_array(q, "quat")
     c, kind = _one_rotation(q)
+    v = None
     if c is not None:
         w, x, y, z = c   # (unpacked: a fifth of splatting with the factor)
         v = _ROTVEC_FLOATS[kind](w, x, y, z, _ROTVEC_FACTOR[True] if degrees else _ROTVEC_FACTOR[False])
-    if c is not None and v is not None:   # one float64 or float32 rotation: the same formula on its floats
+    if v is not None:   # one float64 or float32 rotation: the same formula on its floats
         if q.ndim == 1:
             return np.array(v)
         # q is (1, 4): `_ops.to_array`'s batch of one, without its call

@@ -91,12 +91,9 @@ def vdot(p, q, axis=-1):
 
 
 def sqsum(T, out):
-    """out = T[0]² + ... + T[3]² for a (4, ...) array (T is overwritten)."""
-    np.multiply(T, T, out=T)
-    np.add(T[0], T[1], out=out)
-    out += T[2]
-    out += T[3]
-    return out
+    """out = T[0]² + ... + T[3]² for a (4, ...) array (T is overwritten), in `_scale.squares`'
+    order."""
+    return _scale._summed(np.multiply(T, T, out=T), out)
 
 
 # --------------------------------------------------------------------------
@@ -226,7 +223,7 @@ def _tangent_blend(tau, r2, rho, op, one, w0, t2, a2):
 
 
 # (0-d arrays: a Python scalar operand costs a conversion per ufunc call)
-_ONE64, _TWO64 = _ops.const(1.0, np.float64), _ops.const(2.0, np.float64)
+_ONE64 = _ops.const(1.0, np.float64)
 _TANGENT_ROWS = (lambda x, out: np.arctan(x, out=out), tan,
                  lambda tau, h: np.multiply(tau, h, out=tau, casting="unsafe"))
 
@@ -585,8 +582,8 @@ def frame_core(F, phi, u, O):
 
     `F` is used as scratch (overwritten).  u broadcastable to s.
     cos and sin are `_kernels.cos_sin`'s (in float64 from tau = tan(u phi), its
-    `_cos_sin_of_tangent`); u = 0 gives exactly k.  Returns the rows (cos 2u phi, sin 2u phi), the thread's scratch
-    (`_track.rigid_block`'s translations use them).
+    `_cos_sin_of_tangent`); u = 0 gives exactly k.  Returns the rows (cos 2u phi,
+    sin 2u phi), the thread's scratch (`_track.rigid_block`'s translations use them).
     """
     s = O.shape[1:]
     c, sn, r0, r1 = _rows(4, s, O.dtype)

@@ -876,17 +876,14 @@ def _log_parts(q):
     if e is not None:                     # q was rescaled: |v|² again
         _scale.sum_squares(q, vv, 1)
         _sqnorm_formula(w, vv, _ops.ARRAYS, n2)
-    if type(listed) is list and e is None:   # a few, as they are: |q|² = 1 and the smallest |v|²
-        unit = 1.0 in listed                  # from lists (|q|² - 1 = 0 exactly where |q|² = 1)
-        ratio = _ln_ratio_unit if unit else _ln_ratio_plain
-        # one reduction instead of a mask and a test when no vector is zero or below the range
-        few = min(vv.ravel().tolist()) < _scale.LOW[vv.dtype]
-    else:
-        ratio = _ln_ratio_rows
-        few = None
+    if type(listed) is list and e is None:   # a few, as they are: whether some |q|² = 1, from the
+        ratio = _ln_ratio_unit if 1.0 in listed else _ln_ratio_plain   # list (|q|² - 1 = 0 exactly there),
+        least = min(vv.ravel().tolist())   # and the smallest |v|² (no NaN: the |q|² fit; 0.4 µs less than
+    else:                                  # `_scale.smallest`'s call and NaN test at N = 20)
+        ratio, least = _ln_ratio_rows, None
     _ln_formula(w, vv, n2, _ops.ARRAYS, one, half, ratio, d, u, ln)
-    if few is None:   # one reduction instead of a mask and a test when no vector is zero or below the range
-        few = _scale.smallest(vv) < _scale.LOW[vv.dtype]
+    # one reduction instead of a mask and a test when no vector is zero or below the range
+    few = (_scale.smallest(vv) if least is None else least) < _scale.LOW[vv.dtype]
     vn = _scale.small_norms(q[1:], vv) if few else np.sqrt(vv, out=vv)
     _angle_formula(vn, w, _ops.ARRAYS, arctan2, theta, scale)
     lim = _small_vectors(q, vn, theta, scale, q[1:] if v0 is None else v0) if few else None

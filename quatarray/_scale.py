@@ -120,7 +120,7 @@ def largest(a):
     >>> largest(np.array([1.0, 3.0, 2.0]))
     3.0
     """
-    if 0 < a.size <= _FEW_ONE:   # `_extreme`, written out (its calls cost as much as the test)
+    if 0 < a.size <= _FEW_ONE:   # by Python's max and a sum (for NaN): a call costs as much
         x = a.ravel().tolist()
         total = sum(x)
         return max(x) if total == total else math.nan
@@ -138,14 +138,11 @@ def smallest(a):
 
 
 def _extreme(a, side, ufunc):
-    """`_bounds`' item `side` (0: min, 1: max): by Python's min or max and a sum (for NaN) up
-    to `_FEW_ONE` elements, else the reduction by `ufunc`."""
-    if a.size > _FEW_ONE:
-        return float(ufunc.reduce(a, axis=None))
+    """`_bounds`' item `side` (0: min, 1: max) of an empty `a` or of more than `_FEW_ONE`
+    elements (the reduction by `ufunc`; `largest` and `smallest` take fewer by Python)."""
     if not a.size:
         return (math.inf, -math.inf)[side]
-    x = _listed(a)
-    return math.nan if x is None else max(x) if side else min(x)
+    return float(ufunc.reduce(a, axis=None))
 
 
 #: One side of the bounds by Python up to this many elements (both sides pay up to `_FEW`;
@@ -305,18 +302,10 @@ def _bounds(a, few=_FEW):
     if a.size <= few:
         if not a.size:
             return math.inf, -math.inf
-        x = a.ravel().tolist()   # (`_listed`, written out)
+        x = a.ravel().tolist()
         total = sum(x)
         return (min(x), max(x)) if total == total else (math.nan, math.nan)
     return float(np.minimum.reduce(a, axis=None)), float(np.maximum.reduce(a, axis=None))
-
-
-def _listed(a):
-    """The elements of a small non-empty `a` as a list of Python floats, or None where one is
-    NaN (their sum is NaN; so it is where +inf and -inf meet: NaN bounds, the safe answer)."""
-    x = a.ravel().tolist()
-    total = sum(x)
-    return None if total != total else x
 
 
 def inside(v, bound, low=None):
