@@ -13,6 +13,7 @@ import numpy as np
 
 from . import _convert
 from . import _kernels
+from . import _scale
 _TINY_ANGLE = {np.dtype(np.float64): 1e-12, np.dtype(np.float32): 1e-6}
 
 
@@ -80,7 +81,7 @@ def screw(dq):
     """
     r, t = as_rotation_translation(dq)
     vec = r[..., 1:]
-    s = np.sqrt(_kernels.sqnorm(np.concatenate([np.zeros_like(r[..., :1]), vec], axis=-1)))   # |v|
+    s = np.sqrt(_scale.sum_squares(np.moveaxis(vec, -1, 0), np.empty(vec.shape[:-1], vec.dtype)))   # |v|
     angle = _convert.magnitude(r)   # 2 atan(|v| / |w|): the package's rotation angle
     tiny = s < _TINY_ANGLE[np.dtype(dq.dtype)]
     tn = np.linalg.norm(t, axis=-1)
@@ -102,7 +103,7 @@ def power(dq, s):
     angle, axis, disp, point = screw(dq)
     s = np.asarray(s, dq.dtype)
     r = dq[..., :4]   # the rotation's power: `_convert.rotation_power`, Rotation's ** (about the
-    real = _convert.rotation_power(r, s if s.ndim else float(s))   # screw axis; the identity for none)
+    real = _convert.rotation_power(r, s)   # screw axis; the identity for none)
     trans = (s * disp)[..., None] * axis + point - _kernels.rotate(real, np.broadcast_to(point, real.shape[:-1] + (3,)))
     return from_rotation_translation(real, trans)
 
