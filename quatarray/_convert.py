@@ -811,14 +811,24 @@ def _rotvec(w, vec, tan_half, nv, factor, op, stack, o, rows):
     return stack.scale(vec, scale, o)
 
 
-def _k_as_rotvec(q, o, factor, unit=False):
+def _signed_tangents(q, unit):
+    """`_half_turn` and `_tangent_rows` of the rows `q` for the formulas that sign the half
+    angle as w (`_rotvec`, `_powered`): (w, t) with ``t = [tan(θ/2), |v|]``.  Where a row is
+    `exact`, w is ±1 by the canonical sign (w = 0: from x, y, z) and |v| is floored at the
+    smallest subnormal (|v| = 0: 0 / tiny, the formulas' limits, the zero vector and the
+    identity)."""
     t, exact = _half_turn(q, unit)
     _tangent_rows(q, t, exact)
-    w, nv = q[0], t[1]
-    if exact:   # w = 0: the canonical sign from x, y, z; |v| = 0: 0 / tiny, the zero vector
+    w = q[0]
+    if exact:
         w = np.where(_flip_mask(*q), q.dtype.type(-1), q.dtype.type(1))
-        np.maximum(nv, _DENORM_MIN[q.dtype], out=nv)
-    _rotvec(w, q[1:4], t[0], nv, _ops.const(factor, q.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
+        np.maximum(t[1], _DENORM_MIN[q.dtype], out=t[1])
+    return w, t
+
+
+def _k_as_rotvec(q, o, factor, unit=False):
+    w, t = _signed_tangents(q, unit)
+    _rotvec(w, q[1:4], t[0], t[1], _ops.const(factor, q.dtype), _ops.ARRAYS, _ops.STACKS, o, t)
 
 
 _DENORM_MIN = {d: np.finfo(d).smallest_subnormal for d in _TINY}
@@ -921,13 +931,8 @@ n)``, by `_ops.Kind`."""
 
 
 def _k_power(q, o, n, unit=False):
-    t, exact = _half_turn(q, unit)
-    _tangent_rows(q, t, exact)
-    w, nv = q[0], t[1]
-    if exact:   # w = 0: the canonical sign from x, y, z; |v| = 0: sin(0) / tiny, the identity
-        w = np.where(_flip_mask(*q), q.dtype.type(-1), q.dtype.type(1))
-        np.maximum(nv, _DENORM_MIN[q.dtype], out=nv)
-    _powered(w, t[0], nv, q[1:4], n, _ops.ARRAYS, _ops.STACKS, o, t)
+    w, t = _signed_tangents(q, unit)
+    _powered(w, t[0], t[1], q[1:4], n, _ops.ARRAYS, _ops.STACKS, o, t)
 
 
 def _k_power_each(q, n, o, unit=False):
