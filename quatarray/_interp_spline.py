@@ -81,11 +81,19 @@ def rotvec_dot_to_rate(rotvecs):
     return np.eye(3, dtype=rotvecs.dtype) - k1 * sk + k2 * (sk @ sk)
 
 
-def acceleration_term(rotvecs, rotvecs_dot):
-    """The part of the angular acceleration quadratic in ``dr/dt``; shape (..., 3)."""
+def acceleration_coefficients(rotvecs):
+    """The coefficients of `acceleration_term` that depend on the rotation vectors alone:
+    three arrays of shape ``rotvecs.shape[:-1]`` (the spline's iterations change only
+    ``dr/dt``, so they compute these once)."""
     n = np.linalg.norm(rotvecs, axis=-1)
     k1, k2 = _jacobian.derivative(n)
-    k3 = _jacobian.one_minus_sinc(n, 2)
+    return k1, k2, _jacobian.one_minus_sinc(n, 2)
+
+
+def acceleration_term(rotvecs, rotvecs_dot, k=None):
+    """The part of the angular acceleration quadratic in ``dr/dt``; shape (..., 3).
+    `k`: ``acceleration_coefficients(rotvecs)``, if already computed."""
+    k1, k2, k3 = acceleration_coefficients(rotvecs) if k is None else k
     dp = np.sum(rotvecs * rotvecs_dot, axis=-1)
     cp = _cross(rotvecs, rotvecs_dot)
     ccp = _cross(rotvecs, cp)
@@ -93,11 +101,9 @@ def acceleration_term(rotvecs, rotvecs_dot):
     return (dp * k1)[..., None] * cp + (dp * k2)[..., None] * ccp + k3[..., None] * dccp
 
 
-def acceleration_jacobian(rotvecs, rotvecs_dot):
+def acceleration_jacobian(rotvecs, rotvecs_dot, k=None):
     """The derivative of `acceleration_term` in ``dr/dt`` (a quadratic form): (..., 3, 3)."""
-    n = np.linalg.norm(rotvecs, axis=-1)
-    k1, k2 = (k[..., None, None] for k in _jacobian.derivative(n))
-    k3 = _jacobian.one_minus_sinc(n, 2)[..., None, None]
+    k1, k2, k3 = (c[..., None, None] for c in (acceleration_coefficients(rotvecs) if k is None else k))
     dp = np.sum(rotvecs * rotvecs_dot, axis=-1)[..., None, None]
     cp = _cross(rotvecs, rotvecs_dot)
     ccp = _cross(rotvecs, cp)
@@ -319,22 +325,28 @@ def _solve_rates(dt, rates, rotvecs):
     b0[0] -= 2 * wh[0] * _mv(a_inv[0], first)
     b0[-1] -= 2 * wk[-1] * _mv(a[-1], rates[-1])
     tol = TOL[np.dtype(dtype)]
+    k = acceleration_coefficients(rotvecs[:-1])   # the quadratic term's, of the segment after each key
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):   # a diverging iteration: Newton's below
-        newton = _fixed_point(block_tridiagonal_factor(lower, diag, upper), a, wh, dtb, rotvecs, b0, rates, tol)
+        newton = _fixed_point(block_tridiagonal_factor(lower, diag, upper), a, wh, dtb, rotvecs, k, b0, rates, tol)
         if newton.all() and newton.size:   # every track (one alone has no track axis to index)
-            rates[:-1] = _newton(lower, upper, b0, a, wh, dtb, rotvecs, rates[:-1], tol)
+            rates[:-1] = _newton(lower, upper, b0, a, wh, dtb, rotvecs, k, rates[:-1], tol)
         elif newton.any():
             rates[:-1, newton] = _newton(lower[:, newton], upper[:, newton], b0[:, newton], a[:, newton], wh, dtb,
-                                         rotvecs[:, newton], rates[:-1, newton], tol)
+                                         rotvecs[:, newton], _columns(k, newton), rates[:-1, newton], tol)
     rotvecs_dot = _mv(a, rates)
     rates = np.concatenate([first[None], rates[:-1]])
     return rates.reshape(given), rotvecs_dot.reshape(given)
 
 
+def _columns(arrays, keep):
+    """The tracks `keep` (a mask over the track axis, axis 1) of each of `arrays`."""
+    return tuple(m[:, keep] for m in arrays)
+
+
 def _tracks(levels, keep):
     """The `block_tridiagonal_factor` `levels` of the tracks `keep` (a mask over the track
     axis, axis 1; the last level's dense inverses hold the tracks on axis 0)."""
-    return [tuple(m[:, keep] for m in level) for level in levels[:-1]] + [levels[-1][keep]]
+    return [_columns(level, keep) for level in levels[:-1]] + [levels[-1][keep]]
 
 
 def _put_tracks(levels, keep, new):
@@ -345,7 +357,7 @@ def _put_tracks(levels, keep, new):
     levels[-1][keep] = new[-1]
 
 
-def _fixed_point(levels, a, wh, dtb, rotvecs, b0, rates, tol):
+def _fixed_point(levels, a, wh, dtb, rotvecs, k, b0, rates, tol):
     """scipy's fixed-point iteration on the quadratic term, on `rates` (n, tracks, 3) or
     one track's (n, 3), in place.
 
@@ -365,7 +377,7 @@ def _fixed_point(levels, a, wh, dtb, rotvecs, b0, rates, tol):
     for it in range(1, MAX_ITER + 1):
         # the quadratic term of the rate after each segment, over its spacing: h Q(ṙ) = Q(h ṙ) / h
         rotvecs_dot = _mv(a[:-1], work[:-1]) * dtb[:-1]
-        rhs = b - wh * (acceleration_term(rotvecs[:-1], rotvecs_dot) / dtb[:-1])
+        rhs = b - wh * (acceleration_term(rotvecs[:-1], rotvecs_dot, k) / dtb[:-1])
         new = block_tridiagonal_apply(levels, rhs)
         delta = np.abs(new - work[:-1])
         work[:-1] = new
@@ -396,6 +408,7 @@ def _fixed_point(levels, a, wh, dtb, rotvecs, b0, rates, tol):
                 break
             keep = ~leave
             track, work, a, rotvecs, b = track[keep], work[:, keep], a[:, keep], rotvecs[:, keep], b[:, keep]
+            k = _columns(k, keep)
             levels, first, size = _tracks(levels, keep), first[keep], size[keep]
         last = size
     return newton
@@ -404,7 +417,7 @@ def _fixed_point(levels, a, wh, dtb, rotvecs, b0, rates, tol):
 NEWTON_ITER = 30
 
 
-def _newton(lower, upper, b0, a, wh, dtb, rotvecs, x, tol):
+def _newton(lower, upper, b0, a, wh, dtb, rotvecs, k, x, tol):
     """Solve ``lower x₋ + 4 x + upper x₊ + wh Q(r, h A x) / h = b0`` (the scaled rate
     equations of `_solve_rates`; x (n, tracks, 3), or one track's (n, 3)) by Newton's method
     from `x`: the quadratic term's derivative is block diagonal, so each step is one
@@ -423,14 +436,15 @@ def _newton(lower, upper, b0, a, wh, dtb, rotvecs, x, tol):
     levels, refresh, last = None, None, np.inf
     for _ in range(NEWTON_ITER):
         d = _mv(av, x) * h
-        f = 4 * x + wh * (acceleration_term(r, d) / h) - b0
+        f = 4 * x + wh * (acceleration_term(r, d, k) / h) - b0
         f[1:] += _mv(lower[1:], x[:-1])
         f[:-1] += _mv(upper[:-1], x[1:])
         if levels is None or refresh.all():
-            jac = eye4 + wh[..., None] * (acceleration_jacobian(r, d) @ av)
+            jac = eye4 + wh[..., None] * (acceleration_jacobian(r, d, k) @ av)
             levels = block_tridiagonal_factor(lower, jac, upper)
         elif refresh.any():
-            jac = eye4 + wh[..., None] * (acceleration_jacobian(r[:, refresh], d[:, refresh]) @ av[:, refresh])
+            jac = eye4 + wh[..., None] * (acceleration_jacobian(r[:, refresh], d[:, refresh], _columns(k, refresh))
+                                          @ av[:, refresh])
             _put_tracks(levels, refresh, block_tridiagonal_factor(lower[:, refresh], jac, upper[:, refresh]))
         step = block_tridiagonal_apply(levels, f)
         x = x - step
@@ -452,6 +466,7 @@ def _newton(lower, upper, b0, a, wh, dtb, rotvecs, x, tol):
             keep = ~done
             track, x, r, av, b0, lower, upper = (track[keep], x[:, keep], r[:, keep], av[:, keep], b0[:, keep],
                                                  lower[:, keep], upper[:, keep])
+            k = _columns(k, keep)
             levels, refresh, last = _tracks(levels, keep), refresh[keep], last[keep]
     raise ValueError("expected keys and times that a C² rotation spline can join: its rate equations "
                      "have no solution that Newton's method finds (large rotations between keys at very "
