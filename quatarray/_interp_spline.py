@@ -151,11 +151,6 @@ def inv3(m):
     return adj / det[..., None, None]
 
 
-def _pad(a):
-    z = np.zeros((1,) + a.shape[1:], a.dtype)
-    return np.concatenate([z, a, z])
-
-
 def block_tridiagonal_factor(lower, diag, upper):
     """Cyclic-reduction factorisation of ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i``.
 
@@ -165,26 +160,46 @@ def block_tridiagonal_factor(lower, diag, upper):
     matrices are reduced once; `block_tridiagonal_apply` then solves for any
     right-hand side with matrix-vector products only (the spline's
     fixed-point iteration changes only the right-hand side).
+
+    A level keeps, batch first, one (3, 9) matrix per row that the apply's sweeps multiply
+    by three consecutive rows ``[y_{i-1}; y_i; y_{i+1}]`` (a window of its vectors):
+    ``G_j = [-alpha_j | I | -beta_j]`` makes even row j's right-hand side of the next level
+    from rows 2j - 1, 2j, 2j + 1 (``alpha_j = lower_{2j} D_{2j-1}^-1``, ``beta_j = upper_{2j}
+    D_{2j+1}^-1``), and ``H_i = [-D^-1 lower | D^-1 | -D^-1 upper]`` (of odd row 2i + 1) its
+    unknown from the even rows' solution beside its right-hand side.  A missing neighbour
+    (before the first row, after the last) has a zero block.
     """
     levels = []
     while len(diag) > DENSE:
         n = len(diag)
-        lower = lower.copy()
-        upper = upper.copy()
-        lower[0] = 0
-        upper[-1] = 0
-        odd_inv = inv3(diag[1::2])
-        m = (n + 1) // 2
-        # padded so that index i of the padded array is odd row i - 1 of the original
-        inv_p = _pad(np.zeros_like(diag))
-        inv_p[2:-1:2] = odd_inv
-        low_p, up_p = _pad(lower), _pad(upper)
-        prev, nxt = slice(0, 2 * m - 1, 2), slice(2, 2 * m + 1, 2)
-        alpha = lower[0::2] @ inv_p[prev]
-        beta = upper[0::2] @ inv_p[nxt]
-        levels.append((lower[1::2], upper[1::2], odd_inv, alpha, beta))
-        diag, lower, upper = (diag[0::2] - alpha @ up_p[prev] - beta @ low_p[nxt],
-                              -(alpha @ low_p[prev]), -(beta @ up_p[nxt]))
+        m, k = (n + 1) // 2, n // 2        # even and odd rows
+        j = min(k, m - 1)                  # odd rows with an even row after them
+        batch = diag.shape[1:-2]
+        neg_inv = inv3(diag[1::2])
+        np.negative(neg_inv, out=neg_inv)
+        # batch first; moveaxis gives the rows-first views the products write into
+        G = np.zeros(batch + (m, 3, 9), diag.dtype)
+        H = np.zeros(batch + (k, 3, 9), diag.dtype)
+        g, h = np.moveaxis(G, -3, 0), np.moveaxis(H, -3, 0)
+        g[..., 3:6] = np.eye(3, dtype=diag.dtype)
+        np.negative(neg_inv, out=h[..., 3:6])
+        # -(a b) = a (-b) exactly: the blocks land negated, in place
+        alpha, beta = g[1:, ..., 0:3], g[:k, ..., 6:9]     # -alpha_j (j >= 1), -beta_j (j < k)
+        np.matmul(lower[2::2], neg_inv[:m - 1], out=alpha)
+        np.matmul(upper[0:2 * k:2], neg_inv, out=beta)
+        np.matmul(neg_inv, lower[1::2], out=h[..., 0:3])
+        np.matmul(neg_inv[:j], upper[1:2 * j:2], out=h[:j, ..., 6:9])
+        # the even rows' system: diag - alpha upper_{2j-1} - beta lower_{2j+1}, lower
+        # -alpha lower_{2j-1}, upper -beta upper_{2j+1} (the ignored ends left 0)
+        odd_low, odd_up = lower[1:2 * m - 1:2], upper[1:2 * m - 1:2]
+        new_diag = diag[0::2].copy()
+        new_diag[1:] += alpha @ odd_up
+        new_diag[:k] += beta @ lower[1::2]
+        new_lower, new_upper = np.zeros_like(new_diag), np.zeros_like(new_diag)
+        np.matmul(alpha, odd_low, out=new_lower[1:])
+        np.matmul(beta[:m - 1], upper[1:2 * m - 2:2], out=new_upper[:m - 1])
+        levels.append((G, H))
+        diag, lower, upper = new_diag, new_lower, new_upper
     levels.append(_dense_inverse(lower, diag, upper))
     return levels
 
@@ -212,30 +227,42 @@ def _dense_inverse(lower, diag, upper):
         return np.full_like(dense, np.nan)
 
 
-def block_tridiagonal_apply(levels, rhs, level=0):
+def _windows(rows, first, count):
+    """The (*batch, count, 9) view of rows ``first + 2c - 1, first + 2c, first + 2c + 1``
+    (c < count) of `rows`, a contiguous (*batch, n + 2, 3) array padded with a zero row at each
+    end (index ``1 + r`` holds row r): three rows are nine consecutive numbers, so each window
+    is one, without a copy."""
+    step = rows.itemsize
+    return np.ndarray(rows.shape[:-2] + (count, 9), rows.dtype, rows, 3 * step * first,
+                      rows.strides[:-2] + (6 * step, step))
+
+
+def block_tridiagonal_apply(levels, rhs):
     """Solution (n, *batch, 3) for ``rhs`` (n, *batch, 3) of a `block_tridiagonal_factor`."""
+    n = len(rhs)
+    rows = np.zeros(rhs.shape[1:-1] + (n + 2, 3), rhs.dtype)   # batch first, zero-padded
+    rows[..., 1:-1, :] = np.moveaxis(rhs, 0, -2)
+    return np.moveaxis(_apply(levels, rows), -2, 0)
+
+
+def _apply(levels, rows, level=0):
+    """`block_tridiagonal_apply` on its padded batch-first `rows` from `level` on (the
+    rows are overwritten); returns the solution (*batch, n, 3), a view of `rows`."""
+    n = rows.shape[-2] - 2
     if level == len(levels) - 1:
         inv = levels[level]
-        n = len(rhs)
-        x = inv @ np.moveaxis(rhs, 0, -2).reshape(inv.shape[:-1] + (1,))
-        return np.moveaxis(x.reshape(inv.shape[:-2] + (n, 3)), -2, 0)
-    low_odd, up_odd, odd_inv, alpha, beta = levels[level]
-    n = len(rhs)
+        x = _mv(inv, rows[..., 1:-1, :].reshape(inv.shape[:-1]))
+        return x.reshape(rows.shape[:-2] + (n, 3))
+    G, H = levels[level]
     m, k = (n + 1) // 2, n // 2        # even and odd rows
-    odd = rhs[1::2]
-    # even row j couples to odd rows j - 1 (none for j = 0: alpha[0] = 0) and j (none past
-    # the last: beta[k:] = 0); the missing neighbours are left out rather than padded with 0
-    new_rhs = rhs[0::2].copy()
-    new_rhs[1:] -= _mv(alpha[1:], odd[:m - 1])
-    new_rhs[:k] -= _mv(beta[:k], odd)
-    even = block_tridiagonal_apply(levels, new_rhs, level + 1)
-    x = np.empty_like(rhs)
-    x[0::2] = even
-    t = odd - _mv(low_odd, even[:k])
-    j = min(k, m - 1)                  # odd rows with an even row after them
-    t[:j] -= _mv(up_odd[:j], even[1:j + 1])
-    x[1::2] = _mv(odd_inv, t)
-    return x
+    # forward: the even rows' right-hand sides, into the next level's padded rows
+    even = np.zeros(rows.shape[:-2] + (m + 2, 3), rows.dtype)
+    np.einsum("...ij,...j->...i", G, _windows(rows, 0, m), out=even[..., 1:-1, :])
+    rows[..., 1:-1:2, :] = _apply(levels, even, level + 1)
+    # backward: each odd row from its right-hand side between the even rows' solution
+    rows[..., 2:-1:2, :] = _mv(H, _windows(rows, 1, k))
+    return rows[..., 1:-1, :]
+
 
 
 def block_tridiagonal_solve(lower, diag, upper, rhs):
@@ -345,15 +372,15 @@ def _columns(arrays, keep):
 
 def _tracks(levels, keep):
     """The `block_tridiagonal_factor` `levels` of the tracks `keep` (a mask over the track
-    axis, axis 1; the last level's dense inverses hold the tracks on axis 0)."""
-    return [_columns(level, keep) for level in levels[:-1]] + [levels[-1][keep]]
+    axis; every level holds the tracks on axis 0)."""
+    return [tuple(m[keep] for m in level) for level in levels[:-1]] + [levels[-1][keep]]
 
 
 def _put_tracks(levels, keep, new):
     """Write the factorisation `new` of the tracks `keep` into `levels`, in place."""
     for level, level_new in zip(levels[:-1], new[:-1]):
         for m, m_new in zip(level, level_new):
-            m[:, keep] = m_new
+            m[keep] = m_new
     levels[-1][keep] = new[-1]
 
 
