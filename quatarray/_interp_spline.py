@@ -170,34 +170,37 @@ def block_tridiagonal_factor(lower, diag, upper):
     (before the first row, after the last) has a zero block.
     """
     levels = []
+    dtype, batch = diag.dtype, diag.shape[1:-2]
+    rows_first = (len(batch),) + tuple(range(len(batch))) + (-2, -1)   # of a batch-first (..., rows, 3, 9)
+    middle = np.zeros((3, 9), dtype)
+    middle[:, 3:6] = np.eye(3, dtype=dtype)   # G's I, and the missing neighbours' zero blocks
     while len(diag) > DENSE:
         n = len(diag)
         m, k = (n + 1) // 2, n // 2        # even and odd rows
         j = min(k, m - 1)                  # odd rows with an even row after them
-        batch = diag.shape[1:-2]
         neg_inv = inv3(diag[1::2])
         np.negative(neg_inv, out=neg_inv)
-        # batch first; moveaxis gives the rows-first views the products write into
-        G = np.zeros(batch + (m, 3, 9), diag.dtype)
-        H = np.zeros(batch + (k, 3, 9), diag.dtype)
-        g, h = np.moveaxis(G, -3, 0), np.moveaxis(H, -3, 0)
-        g[..., 3:6] = np.eye(3, dtype=diag.dtype)
-        np.negative(neg_inv, out=h[..., 3:6])
+        G = np.empty(batch + (m, 3, 9), dtype)
+        np.copyto(G, middle)
+        H = np.empty(batch + (k, 3, 9), dtype)
+        g, h = G.transpose(rows_first), H.transpose(rows_first)
         # -(a b) = a (-b) exactly: the blocks land negated, in place
         alpha, beta = g[1:, ..., 0:3], g[:k, ..., 6:9]     # -alpha_j (j >= 1), -beta_j (j < k)
         np.matmul(lower[2::2], neg_inv[:m - 1], out=alpha)
         np.matmul(upper[0:2 * k:2], neg_inv, out=beta)
         np.matmul(neg_inv, lower[1::2], out=h[..., 0:3])
+        np.negative(neg_inv, out=h[..., 3:6])
         np.matmul(neg_inv[:j], upper[1:2 * j:2], out=h[:j, ..., 6:9])
+        h[j:, ..., 6:9] = 0
         # the even rows' system: diag - alpha upper_{2j-1} - beta lower_{2j+1}, lower
         # -alpha lower_{2j-1}, upper -beta upper_{2j+1} (the ignored ends left 0)
-        odd_low, odd_up = lower[1:2 * m - 1:2], upper[1:2 * m - 1:2]
         new_diag = diag[0::2].copy()
-        new_diag[1:] += alpha @ odd_up
+        new_diag[1:] += alpha @ upper[1:2 * m - 1:2]
         new_diag[:k] += beta @ lower[1::2]
-        new_lower, new_upper = np.zeros_like(new_diag), np.zeros_like(new_diag)
-        np.matmul(alpha, odd_low, out=new_lower[1:])
-        np.matmul(beta[:m - 1], upper[1:2 * m - 2:2], out=new_upper[:m - 1])
+        new_lower, new_upper = np.empty_like(new_diag), np.empty_like(new_diag)
+        new_lower[0] = new_upper[-1] = 0
+        np.matmul(alpha, lower[1:2 * m - 1:2], out=new_lower[1:])
+        np.matmul(beta[:m - 1], upper[1:2 * m - 2:2], out=new_upper[:-1])
         levels.append((G, H))
         diag, lower, upper = new_diag, new_lower, new_upper
     levels.append(_dense_inverse(lower, diag, upper))
