@@ -250,7 +250,8 @@ def block_tridiagonal_apply(levels, rhs):
 
 def _apply(levels, rows, level=0):
     """`block_tridiagonal_apply` on its padded batch-first `rows` from `level` on (the
-    rows are overwritten); returns the solution (*batch, n, 3), a view of `rows`."""
+    rows are overwritten); returns the solution (*batch, n, 3).  Each product sums one
+    window's nine terms, so a track's bits do not depend on the batch around it."""
     n = rows.shape[-2] - 2
     if level == len(levels) - 1:
         inv = levels[level]
@@ -265,7 +266,6 @@ def _apply(levels, rows, level=0):
     # backward: each odd row from its right-hand side between the even rows' solution
     rows[..., 2:-1:2, :] = _mv(H, _windows(rows, 1, k))
     return rows[..., 1:-1, :]
-
 
 
 def block_tridiagonal_solve(lower, diag, upper, rhs):
