@@ -759,13 +759,11 @@ def from_davenport(axes, order, angles, degrees=False):
     if a.ndim == 0:
         a = a.reshape(1)
     scale = np.pi / 720.0 if degrees else 0.25
-    if ax.ndim > 2 and ax.size == ax.shape[-2] * ax.shape[-1]:   # a set per rotation, but one set:
-        try:                                                     # the shared path, broadcast
-            batch = np.broadcast_shapes(ax.shape[:-2], a.shape[:-1])   # (the same bits, at half the cost)
-            return from_davenport(ax.reshape(ax.shape[-2:]), order, np.broadcast_to(a, batch + a.shape[-1:]),
-                                  degrees)
-        except ValueError:
-            pass   # invalid axes or angles: the per-rotation path's checks and messages
+    if ax.ndim > 2:   # a set per rotation, but maybe one set: the shared path (at half the cost)
+        one = _one_set(ax, a.shape[:-1], lambda batch, axes: from_davenport(
+            axes, order, np.broadcast_to(a, batch + a.shape[-1:]), degrees))
+        if one is not None:
+            return one
     if ax.ndim <= 2:   # one set of axes for every rotation
         key = ax.astype(np.float64, copy=False)
         turn_axes = _shared_axes(key.tobytes(), key.shape, a.dtype)
@@ -788,6 +786,19 @@ def from_davenport(axes, order, angles, degrees=False):
     _blockwise(_k_from_davenport_rows, [_flat(a, batch), _flat(rows, batch)], [out.reshape(-1, 4)],
                extrinsic=extrinsic, scale=scale, read_only=True)
     return out
+
+
+def _one_set(ax, batch, shared):
+    """Axes given per rotation (`ax`, (..., k, 3)) that are one set: ``shared(joint batch,
+    the set (k, 3))``, the shared path broadcast (the same bits); None where they are more
+    than one set, or where the shared path refuses the input (invalid axes or angles: the
+    per-rotation path then raises with its own checks and messages)."""
+    if ax.size == ax.shape[-2] * ax.shape[-1]:
+        try:
+            return shared(np.broadcast_shapes(ax.shape[:-2], batch), ax.reshape(ax.shape[-2:]))
+        except ValueError:
+            pass
+    return None
 
 
 def _joint_batch(axes_batch, batch, error):
@@ -898,13 +909,11 @@ def as_davenport(q, axes, order, degrees=False, suppress_warnings=False):
     extrinsic = check_order(order)
     q = quat_array(q, "quat")
     ax = float_array(axes, "axes")
-    if ax.ndim > 2 and ax.size == ax.shape[-2] * ax.shape[-1]:   # a set per rotation, but one set:
-        try:                                                     # the shared path, broadcast
-            batch = np.broadcast_shapes(ax.shape[:-2], q.shape[:-1])   # (the same bits, a twentieth of the cost)
-            return as_davenport(np.broadcast_to(q, batch + (4,)), ax.reshape(ax.shape[-2:]), order, degrees,
-                                suppress_warnings)
-        except ValueError:
-            pass   # invalid axes: the per-rotation path's checks and messages
+    if ax.ndim > 2:   # a set per rotation, but maybe one set: the shared path (a twentieth of the cost)
+        one = _one_set(ax, q.shape[:-1], lambda batch, axes: as_davenport(
+            np.broadcast_to(q, batch + (4,)), axes, order, degrees, suppress_warnings))
+        if one is not None:
+            return one
     if ax.ndim <= 2:   # one set of axes for every rotation
         key = ax.astype(np.float64, copy=False)
         lmat, lamb, flip = _davenport_frame(key.tobytes(), key.shape, extrinsic)
